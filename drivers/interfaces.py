@@ -1,0 +1,132 @@
+"""Instrument interfaces: small Protocols the engine uses; simulated and real backends satisfy them by duck typing.
+
+Every instrument is a context manager (``open`` on enter, ``close`` on exit) and raises only the typed errors
+of ``drivers.errors``. Values are SI: N, m/s², Hz, s, degrees only for knob angles (as the operator turns them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+ChannelKind = Literal["force", "acceleration"]
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One DAQ input: name (``F``, ``A1X`` … ``A4Z``), physical kind, unit, sensor sensitivity and range.
+
+    ``sensitivity_v_per_unit`` is the transducer's (V per N or V per m/s²); ``range_units`` is the largest
+    magnitude the chain can record before clipping, in the physical unit.
+    """
+
+    name: str
+    kind: ChannelKind
+    unit: str
+    sensitivity_v_per_unit: float
+    range_units: float
+
+
+@dataclass(frozen=True)
+class TriggerSpec:
+    """Start a record when the force channel rises through ``level_n``; keep ``pretrigger_samples`` before."""
+
+    level_n: float = 20.0
+    pretrigger_samples: int = 256
+
+
+@dataclass
+class Record:
+    """One acquired impact: the force and all response channels, in physical units, at the actual rate."""
+
+    sample_rate_hz: float
+    force_n: np.ndarray  # (n_samples,)
+    accel_m_per_s2: np.ndarray  # (n_channels, n_samples)
+    channels: tuple[str, ...]
+    trigger_index: int
+    timestamp_s: float
+    clipped: tuple[str, ...] = field(default=())  # channels that reached their range
+
+
+@runtime_checkable
+class Instrument(Protocol):
+    """Lifecycle shared by every instrument."""
+
+    name: str
+
+    def open(self) -> None: ...
+    def close(self) -> None: ...
+    def __enter__(self) -> Instrument: ...
+    def __exit__(self, *exc: object) -> None: ...
+
+
+@runtime_checkable
+class Daq(Instrument, Protocol):
+    """Acquisition: a force channel and accelerometer channels, triggered on the force."""
+
+    @property
+    def channels(self) -> tuple[Channel, ...]: ...
+
+    def configure(self, sample_rate_hz: float, n_samples: int) -> float:
+        """Set the rate and record length; return the rate as actually set (a DAQ may coerce it)."""
+        ...
+
+    def arm(self, trigger: TriggerSpec) -> None:
+        """Wait for the next force-trigger; the record is fetched with ``acquire``."""
+        ...
+
+    def acquire(self, timeout_s: float) -> Record:
+        """Block until the armed record is complete; ``DeviceTimeout`` if no trigger within ``timeout_s``."""
+        ...
+
+
+@runtime_checkable
+class Hammer(Instrument, Protocol):
+    """Deliver one blow (manual hammers ask the operator; the DAQ's trigger catches it)."""
+
+    def strike(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class LoadReading:
+    force_n: float
+    stable: bool
+
+
+@runtime_checkable
+class LoadCell(Instrument, Protocol):
+    def read(self) -> LoadReading: ...
+    def tare(self) -> None: ...
+
+
+@runtime_checkable
+class LoadActuator(Instrument, Protocol):
+    """Turns all star knobs together; ``knob_angle_deg`` is the total turned since the preload."""
+
+    @property
+    def knob_angle_deg(self) -> float: ...
+
+    def turn_knobs(self, angle_deg: float) -> None: ...
+
+
+@runtime_checkable
+class Operator(Protocol):
+    """A person at the rig or a script: confirms instructions, chooses among options, is told things."""
+
+    def prompt(self, message: str, choices: tuple[str, ...] = ("ok",)) -> str: ...
+    def notify(self, message: str) -> None: ...
+
+
+@dataclass
+class Rig:
+    """The instruments of one test stand, as the engine receives them from a backend factory."""
+
+    daq: Daq
+    hammer: Hammer
+    load_cell: LoadCell
+    actuator: LoadActuator
+    operator: Operator
+    backend: str = "sim"
+    description: dict[str, str] = field(default_factory=dict)

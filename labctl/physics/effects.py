@@ -1,0 +1,157 @@
+"""Physical effects the measured roller stiffness shows and Tripp lacks (DESIGN.md §3), as model terms.
+
+Each effect transforms the stiffness of a baseline contact model for one contact case; its parameters are
+physical, in SI, with bounds. The simulator hides them in its world and the discrepancy workflow fits them:
+both use these classes, so each formula lives here once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+
+from labctl.physics.catalogue import Roller
+from labctl.physics.contact import FloatArray
+from labctl.physics.materials import Material, effective_modulus, hardness_pa
+from labctl.physics.rig import apparent_roller_stiffness
+
+REFERENCE_RA_M = 0.2e-6
+
+
+@dataclass(frozen=True)
+class ContactCase:
+    """One rolling element between one pair of rails: its geometry, materials and the rails' roughness."""
+
+    roller: Roller
+    rail: Material
+    rail_ra_m: float
+
+    @property
+    def combined_ra_m(self) -> float:
+        """Composite roughness of the two surfaces in contact."""
+        return float(np.hypot(self.roller.roughness_ra_m, self.rail_ra_m))
+
+    @property
+    def effective_modulus_pa(self) -> float:
+        return effective_modulus(self.roller.material, self.rail)
+
+    def peak_pressure_pa(self, load_n: FloatArray) -> FloatArray:
+        """Hertz line-contact peak pressure p_max = sqrt(P·E*/(π·R))."""
+        p = load_n / self.roller.contact_length_m
+        return np.sqrt(p * self.effective_modulus_pa / (np.pi * self.roller.radius_m))
+
+
+@runtime_checkable
+class Effect(Protocol):
+    """A model term: maps the stiffness without the effect to the stiffness with it."""
+
+    name: ClassVar[str]
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]]
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray: ...
+
+    def parameters(self) -> dict[str, float]: ...
+
+
+class _Params:
+    def parameters(self) -> dict[str, float]:
+        return {k: float(getattr(self, k)) for k in self.BOUNDS}  # type: ignore[attr-defined]
+
+
+@dataclass(frozen=True)
+class SurfaceRoughness(_Params):
+    """Asperity compliance in series with each of the two contacts.
+
+    An exponential asperity-height tail makes the asperity layer's stiffness proportional to load,
+    k_asp = F/σ_s, with σ_s = asperity_scale·Ra (composite roller/rail Ra): strongest at low load, grows
+    with roughness, independent of diameter.
+    """
+
+    asperity_scale: float = 1.3
+    name: ClassVar[str] = "surface_roughness"
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"asperity_scale": (0.0, 20.0)}
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
+        return 1.0 / (1.0 / stiffness_n_per_m + 2.0 * self.asperity_scale * case.combined_ra_m / load_n)
+
+
+@dataclass(frozen=True)
+class EndEffects(_Params):
+    """The rail material beyond each roller end carries load too: an extra effective length at each end.
+
+    k = k_line·(1 + 2·edge_length/L_we): stiffness per length falls with roller length.
+    """
+
+    edge_length_m: float = 0.1e-3
+    name: ClassVar[str] = "end_effects"
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"edge_length_m": (0.0, 2e-3)}
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
+        return stiffness_n_per_m * (1.0 + 2.0 * self.edge_length_m / case.roller.contact_length_m)
+
+
+@dataclass(frozen=True)
+class MaterialHardness(_Params):
+    """Plastic conformity: once p_max exceeds a fraction of the softer body's hardness, its asperities yield
+    and conform to the rail's roughness, adding contact area and stiffness.
+
+    k = k_in·(1 + gain·(Ra/0.2 µm)·max(0, p_max/(threshold·H) - 1)): rises with load, larger for softer
+    rollers and rougher rails.
+    """
+
+    gain: float = 0.15
+    threshold: float = 0.3
+    name: ClassVar[str] = "material_hardness"
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 2.0), "threshold": (0.05, 1.0)}
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
+        softer = min(case.roller.material.hardness_hrc, case.rail.hardness_hrc)
+        yield_pa = self.threshold * hardness_pa(softer)
+        excess = np.maximum(0.0, case.peak_pressure_pa(load_n) / yield_pa - 1.0)
+        return stiffness_n_per_m * (1.0 + self.gain * case.combined_ra_m / REFERENCE_RA_M * excess)
+
+
+@dataclass(frozen=True)
+class Misalignment(_Params):
+    """A roller tilted by a small angle against the rail touches along only part of its length at first.
+
+    With a linear gap γ·x and stiffness per length k' = k/L_we, the contact length grows as
+    L_c = sqrt(2F/(k'γ)) until it reaches L_we: k = k_full·min(1, L_c/L_we). Strongly length dependent.
+    """
+
+    tilt_rad: float = 2e-4
+    name: ClassVar[str] = "misalignment"
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"tilt_rad": (0.0, 5e-3)}
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
+        if self.tilt_rad <= 0:
+            return stiffness_n_per_m
+        length = case.roller.contact_length_m
+        per_length = stiffness_n_per_m / length
+        contact_length = np.sqrt(2.0 * load_n / (per_length * self.tilt_rad))
+        return stiffness_n_per_m * np.minimum(1.0, contact_length / length)
+
+
+@dataclass(frozen=True)
+class SetupCompliance(_Params):
+    """The rig's true K_setup differs from the nominal value the processing assumes (e.g. stress stiffening).
+
+    The reported roller stiffness is then 1/(1/k + 3/(factor·K) - 3/K) (Eq. 4): the error grows with k.
+    """
+
+    stiffness_factor: float = 1.25
+    nominal_setup_n_per_m: float = 1.45e9
+    name: ClassVar[str] = "setup_compliance"
+    BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"stiffness_factor": (0.3, 5.0)}
+
+    def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
+        return apparent_roller_stiffness(
+            stiffness_n_per_m, self.stiffness_factor * self.nominal_setup_n_per_m, self.nominal_setup_n_per_m
+        )
+
+
+EFFECTS: dict[str, type] = {
+    cls.name: cls for cls in (SurfaceRoughness, EndEffects, MaterialHardness, Misalignment, SetupCompliance)
+}

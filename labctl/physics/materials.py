@@ -1,0 +1,82 @@
+"""Elastic materials and the effective contact modulus (DESIGN.md §3)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+from labctl.data import data_path, positive, read_toml, require
+from labctl.errors import InputError
+
+GPA = 1e9
+
+
+@dataclass(frozen=True)
+class Material:
+    """An isotropic elastic material: E in Pa, Poisson's ratio, hardness in HRC."""
+
+    name: str
+    youngs_modulus_pa: float
+    poisson_ratio: float
+    hardness_hrc: float = 60.0
+
+    def __post_init__(self) -> None:
+        if not self.youngs_modulus_pa > 0:
+            raise InputError(f"material {self.name}: Young's modulus {self.youngs_modulus_pa!r} Pa must be > 0")
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise InputError(f"material {self.name}: Poisson ratio {self.poisson_ratio!r} must lie in (-1, 0.5)")
+
+    @property
+    def plane_strain_compliance(self) -> float:
+        """(1 - ν²)/E in 1/Pa: this body's share of 1/E*."""
+        return (1.0 - self.poisson_ratio**2) / self.youngs_modulus_pa
+
+
+def effective_modulus(a: Material, b: Material) -> float:
+    """E* in Pa with 1/E* = (1-ν₁²)/E₁ + (1-ν₂²)/E₂ (the seed's Eq. 3 prints the sum itself: a slip)."""
+    return 1.0 / (a.plane_strain_compliance + b.plane_strain_compliance)
+
+
+@cache
+def _catalogue(path: str) -> dict[str, Material]:
+    doc = read_toml(path)
+    table = require(doc, "materials", dict, path)
+    out: dict[str, Material] = {}
+    for name, entry in table.items():
+        where = f"{path}: materials.{name}"
+        out[name] = Material(
+            name=name,
+            youngs_modulus_pa=positive(entry, "youngs_modulus_gpa", where) * GPA,
+            poisson_ratio=require(entry, "poisson_ratio", float, where),
+            hardness_hrc=float(entry.get("hardness_hrc", 60.0)),
+        )
+    return out
+
+
+def materials(path: str | Path | None = None) -> dict[str, Material]:
+    """The material catalogue (shipped ``materials.toml`` unless another file is given)."""
+    return dict(_catalogue(str(path or data_path("materials.toml"))))
+
+
+def material(name: str) -> Material:
+    """Look a material up by catalogue name, e.g. ``"1.3505"``."""
+    cat = materials()
+    if name not in cat:
+        raise InputError(f"unknown material {name!r}; known: {', '.join(sorted(cat))}")
+    return cat[name]
+
+
+BEARING_STEEL = "1.3505"
+
+
+# Rockwell C to Vickers (ASTM E140, steels; above HRC 68 extrapolated for hard ceramics).
+_HRC = (20.0, 30.0, 40.0, 50.0, 54.0, 60.0, 65.0, 68.0, 90.0)
+_HV = (238.0, 302.0, 392.0, 513.0, 577.0, 697.0, 832.0, 940.0, 1600.0)
+
+
+def hardness_pa(hardness_hrc: float) -> float:
+    """Indentation hardness in Pa (Vickers HV·9.807 MPa) from a Rockwell C number."""
+    import numpy as np
+
+    return float(np.interp(hardness_hrc, _HRC, _HV)) * 9.80665e6

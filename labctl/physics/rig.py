@@ -1,0 +1,146 @@
+"""Rigid-body dynamics of the two-disc rig: bounce and tilt modes from the roller stiffnesses, and back (Eq. 4).
+
+Each disc moves in vertical translation z and small rotations rx, ry about its centre of mass. Each roller
+is a spring k_i in series with its third of the setup compliance (1/K_setup per roller path = 3/K_setup), so
+for equal rollers the bounce mode reduces to Eq. 4: ω0² = 2·K_total/m, 1/K_total = 1/(3k) + 1/K_setup.
+The lower disc rests on the rubber tube, which gives three slow support modes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.linalg import eigh
+from scipy.optimize import brentq
+
+from labctl.errors import ModelDomainError
+from labctl.physics.rig_config import RigConfig, Sensor
+
+DOF = ("z_upper", "rx_upper", "ry_upper", "z_lower", "rx_lower", "ry_lower")
+
+
+def roller_path_stiffness(roller_stiffness_n_per_m: ArrayLike, setup_stiffness_n_per_m: float) -> np.ndarray:
+    """Each roller in series with its share of the setup compliance: 1/k_path = 1/k + 3/K_setup."""
+    k = np.asarray(roller_stiffness_n_per_m, dtype=float)
+    return 1.0 / (1.0 / k + 3.0 / setup_stiffness_n_per_m)
+
+
+def apparent_roller_stiffness(
+    roller_stiffness_n_per_m: ArrayLike, true_setup_n_per_m: float, assumed_setup_n_per_m: float
+) -> np.ndarray:
+    """The roller stiffness Eq. 4 reports when it assumes one K_setup and the rig really has another."""
+    k = np.asarray(roller_stiffness_n_per_m, dtype=float)
+    return 1.0 / (1.0 / k + 3.0 / true_setup_n_per_m - 3.0 / assumed_setup_n_per_m)
+
+
+@dataclass(frozen=True)
+class RigModes:
+    """Modes of the rig for one set of roller stiffnesses; shapes are mass-normalised over DOF."""
+
+    frequencies_hz: np.ndarray
+    shapes: np.ndarray  # (6 dof, 6 modes)
+    damping_ratios: np.ndarray
+    bounce: int
+    tilt: tuple[int, int]
+    support: tuple[int, int, int]
+    config: RigConfig
+
+    @property
+    def bounce_hz(self) -> float:
+        return float(self.frequencies_hz[self.bounce])
+
+    @property
+    def tilt_hz(self) -> tuple[float, float]:
+        a, b = sorted(float(self.frequencies_hz[i]) for i in self.tilt)
+        return (a, b)
+
+    def displacement_at(self, sensor: Sensor, mode: int) -> np.ndarray:
+        """Mode shape at a sensor in its local axes (X radial, Y tangential, Z vertical)."""
+        return point_displacement(self.shapes[:, mode], sensor.disc, sensor.x_m, sensor.y_m, sensor.z_m,
+                                  sensor.angle_rad)
+
+    def vertical_at(self, disc: str, x_m: float, y_m: float, mode: int) -> float:
+        """Vertical mode-shape value at a point of a disc's face (e.g. the hammer's impact point)."""
+        return float(point_displacement(self.shapes[:, mode], disc, x_m, y_m, 0.0, 0.0)[2])
+
+    def sensor_shapes(self, mode: int) -> dict[str, float]:
+        """Mode shape per channel name (``A1X`` … ``A4Z``)."""
+        out: dict[str, float] = {}
+        for s in self.config.sensors:
+            for ch, v in zip(s.channels, self.displacement_at(s, mode), strict=True):
+                out[ch] = float(v)
+        return out
+
+
+def point_displacement(
+    shape: np.ndarray, disc: str, x_m: float, y_m: float, z_m: float, angle_rad: float
+) -> np.ndarray:
+    """Displacement (radial, tangential, vertical) of a point of a disc for a DOF vector (z, rx, ry)."""
+    off = 0 if disc == "upper" else 3
+    z, rx, ry = shape[off], shape[off + 1], shape[off + 2]
+    ux, uy, uz = ry * z_m, -rx * z_m, z + rx * y_m - ry * x_m
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([c * ux + s * uy, -s * ux + c * uy, uz])
+
+
+def _contact_rows(config: RigConfig) -> np.ndarray:
+    """(3, 6) matrix: relative approach of the two discs at each roller per unit DOF."""
+    xy = config.contact_xy_m
+    rows = np.zeros((len(xy), 6))
+    for i, (x, y) in enumerate(xy):
+        rows[i] = [1.0, y, -x, -1.0, -y, x]
+    return rows
+
+
+def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigModes:
+    """Eigen-analysis for three (possibly unequal) roller stiffnesses; one value means all three equal."""
+    k = np.broadcast_to(np.asarray(roller_stiffness_n_per_m, dtype=float), (3,))
+    if np.any(~np.isfinite(k)) or np.any(k <= 0):
+        raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
+    k_path = roller_path_stiffness(k, config.setup_stiffness_n_per_m)
+    rows = _contact_rows(config)
+    stiff = rows.T @ np.diag(k_path) @ rows
+    ks, rs = config.support_stiffness_n_per_m, config.support_radius_m
+    stiff[3, 3] += ks
+    stiff[4, 4] += 0.5 * ks * rs**2
+    stiff[5, 5] += 0.5 * ks * rs**2
+    up, lo = config.upper, config.lower
+    mass = np.diag([up.mass_kg, up.inertia_kg_m2, up.inertia_kg_m2, lo.mass_kg, lo.inertia_kg_m2, lo.inertia_kg_m2])
+    omega2, shapes = eigh(stiff, mass)
+    freqs = np.sqrt(np.clip(omega2, 0.0, None)) / (2.0 * math.pi)
+    contact_modes = [3, 4, 5]
+    approach = rows @ shapes[:, contact_modes]
+    rms = np.sqrt(np.mean(approach**2, axis=0))
+    bounce_score = np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)
+    bounce = contact_modes[int(np.argmax(bounce_score))]
+    tilt = tuple(m for m in contact_modes if m != bounce)
+    damping = np.array([config.support_damping_ratio] * 3 + [config.modal_damping_ratio] * 3)
+    return RigModes(freqs, shapes, damping, bounce, (tilt[0], tilt[1]), (0, 1, 2), config)
+
+
+def bounce_hz(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> float:
+    """Bounce frequency for the given roller stiffness(es)."""
+    return rig_modes(config, roller_stiffness_n_per_m).bounce_hz
+
+
+def roller_stiffness_from_bounce(config: RigConfig, bounce_frequency_hz: float) -> float:
+    """Inverse of the rig model for three equal rollers: the per-roller k that gives this bounce frequency.
+
+    For a rig without support this is Eq. 4 solved for k; the support tube's small share is included.
+    """
+    f_max = math.sqrt(2.0 * config.setup_stiffness_n_per_m / config.upper.mass_kg) / (2.0 * math.pi)
+    if not (math.isfinite(bounce_frequency_hz) and bounce_frequency_hz > 0):
+        raise ModelDomainError(f"bounce frequency must be a positive number of Hz, got {bounce_frequency_hz!r}")
+    lo_k, hi_k = 1e2, 1e13
+    f_lo, f_hi = bounce_hz(config, lo_k), bounce_hz(config, hi_k)
+    if not f_lo < bounce_frequency_hz < f_hi:
+        raise ModelDomainError(
+            f"bounce frequency {bounce_frequency_hz:.6g} Hz is outside what this rig can show "
+            f"({f_lo:.4g} to {f_hi:.4g} Hz; the setup stiffness alone limits it to ~{f_max:.4g} Hz)"
+        )
+    log_k = brentq(lambda lk: bounce_hz(config, 10.0**lk) - bounce_frequency_hz, math.log10(lo_k),
+                   math.log10(hi_k), xtol=1e-12, rtol=1e-13)
+    return float(10.0**log_k)

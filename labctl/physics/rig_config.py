@@ -1,0 +1,172 @@
+"""The rig description (discs, roller positions, K_setup, support, sensors, loading) read from a TOML file."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl.data import data_path, positive, read_toml, require
+from labctl.errors import InputError
+
+MM = 1e-3
+DEFAULT_RIG = "rigs/paper_rig.toml"
+AXES = ("X", "Y", "Z")
+
+
+@dataclass(frozen=True)
+class Disc:
+    mass_kg: float
+    inertia_kg_m2: float
+    thickness_m: float
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A tri-axial accelerometer; position relative to its disc's centre of mass, axes X radial, Y tangential."""
+
+    name: str
+    disc: str
+    x_m: float
+    y_m: float
+    z_m: float
+    angle_rad: float
+
+    @property
+    def channels(self) -> tuple[str, str, str]:
+        return tuple(f"{self.name}{axis}" for axis in AXES)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class FlexibleMode:
+    """A disc bending mode: frequency, damping, modal mass and relative amplitude per channel and at the hammer."""
+
+    frequency_hz: float
+    damping_ratio: float
+    modal_mass_kg: float
+    hammer: float
+    shape: dict[str, float]
+
+
+@dataclass(frozen=True)
+class Loading:
+    """How star-knob turns become load: rods with spring pairs compressed by the knob's thread."""
+
+    rods: int
+    thread_pitch_m: float
+    spring_rate_n_per_m: float
+    gravity_m_per_s2: float = 9.81
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """Everything the rig dynamics and the simulator need to know about the physical setup."""
+
+    name: str
+    upper: Disc
+    lower: Disc
+    contact_radius_m: float
+    contact_angles_rad: tuple[float, ...]
+    setup_stiffness_n_per_m: float
+    support_stiffness_n_per_m: float
+    support_radius_m: float
+    support_damping_ratio: float
+    modal_damping_ratio: float
+    loading: Loading
+    hammer_xy_m: tuple[float, float]
+    sensors: tuple[Sensor, ...]
+    flexible_modes: tuple[FlexibleMode, ...] = field(default=())
+    source: str = ""
+
+    @property
+    def contact_xy_m(self) -> np.ndarray:
+        """(3, 2) positions of the roller contacts in the disc plane."""
+        ang = np.asarray(self.contact_angles_rad)
+        return self.contact_radius_m * np.column_stack([np.cos(ang), np.sin(ang)])
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return tuple(ch for s in self.sensors for ch in s.channels)
+
+    @property
+    def preload_per_roller_n(self) -> float:
+        """Initial load on each roller: the upper disc and its rails resting on the rollers."""
+        return self.upper.mass_kg * self.loading.gravity_m_per_s2 / len(self.contact_angles_rad)
+
+    def with_setup_stiffness(self, k_setup_n_per_m: float) -> RigConfig:
+        """The same rig with another K_setup (e.g. stress stiffening)."""
+        from dataclasses import replace
+
+        return replace(self, setup_stiffness_n_per_m=k_setup_n_per_m)
+
+
+def _disc(doc: dict[str, Any], key: str, where: str) -> Disc:
+    t = require(doc, key, dict, where)
+    w = f"{where}: {key}"
+    return Disc(positive(t, "mass_kg", w), positive(t, "inertia_kg_m2", w), positive(t, "thickness_mm", w) * MM)
+
+
+def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: str) -> Sensor:
+    name = require(entry, "name", str, where)
+    disc = require(entry, "disc", str, where)
+    if disc not in discs:
+        raise InputError(f"{where}.disc = {disc!r}: expected 'upper' or 'lower'")
+    r = require(entry, "radius_mm", float, where) * MM
+    ang = math.radians(require(entry, "angle_deg", float, where))
+    # upper-disc sensors sit on its top face, lower-disc sensors on its underside
+    z = 0.5 * discs[disc].thickness_m * (1.0 if disc == "upper" else -1.0)
+    return Sensor(name, disc, r * math.cos(ang), r * math.sin(ang), z, ang)
+
+
+def load_rig(path: str | Path | None = None) -> RigConfig:
+    """Read a rig file (the shipped paper rig by default), converting to SI and naming any bad field."""
+    p = str(path or data_path(DEFAULT_RIG))
+    doc = read_toml(p)
+    discs = {"upper": _disc(doc, "upper_disc", p), "lower": _disc(doc, "lower_disc", p)}
+    contacts = require(doc, "contacts", dict, p)
+    angles = require(contacts, "angles_deg", list, f"{p}: contacts")
+    if len(angles) != 3:
+        raise InputError(f"{p}: contacts.angles_deg = {angles!r}: expected three roller positions")
+    support = require(doc, "support", dict, p)
+    loading = require(doc, "loading", dict, p)
+    hammer = require(doc, "hammer", dict, p)
+    h_r = require(hammer, "radius_mm", float, f"{p}: hammer") * MM
+    h_a = math.radians(require(hammer, "angle_deg", float, f"{p}: hammer"))
+    sensors = tuple(
+        _sensor(e, discs, f"{p}: sensors[{i}]") for i, e in enumerate(require(doc, "sensors", list, p))
+    )
+    flex = tuple(
+        FlexibleMode(
+            frequency_hz=positive(e, "frequency_hz", f"{p}: flexible_modes[{i}]"),
+            damping_ratio=positive(e, "damping_ratio", f"{p}: flexible_modes[{i}]"),
+            modal_mass_kg=positive(e, "modal_mass_kg", f"{p}: flexible_modes[{i}]"),
+            hammer=float(e.get("hammer", 1.0)),
+            shape={str(k): float(v) for k, v in e.get("shape", {}).items()},
+        )
+        for i, e in enumerate(doc.get("flexible_modes", []))
+    )
+    return RigConfig(
+        name=str(doc.get("name", Path(p).stem)),
+        upper=discs["upper"],
+        lower=discs["lower"],
+        contact_radius_m=positive(contacts, "radius_mm", f"{p}: contacts") * MM,
+        contact_angles_rad=tuple(math.radians(float(a)) for a in angles),
+        setup_stiffness_n_per_m=positive(contacts, "setup_stiffness_n_per_m", f"{p}: contacts"),
+        support_stiffness_n_per_m=positive(support, "stiffness_n_per_m", f"{p}: support"),
+        support_radius_m=positive(support, "radius_mm", f"{p}: support") * MM,
+        support_damping_ratio=positive(support, "damping_ratio", f"{p}: support"),
+        modal_damping_ratio=positive(require(doc, "damping", dict, p), "modal_damping_ratio", f"{p}: damping"),
+        loading=Loading(
+            rods=require(loading, "rods", int, f"{p}: loading"),
+            thread_pitch_m=positive(loading, "thread_pitch_mm", f"{p}: loading") * MM,
+            spring_rate_n_per_m=positive(loading, "spring_rate_n_per_m", f"{p}: loading"),
+            gravity_m_per_s2=float(loading.get("gravity_m_per_s2", 9.81)),
+        ),
+        hammer_xy_m=(h_r * math.cos(h_a), h_r * math.sin(h_a)),
+        sensors=sensors,
+        flexible_modes=flex,
+        source=p,
+    )
