@@ -40,13 +40,13 @@ def run(args: argparse.Namespace) -> int:
     loads = np.arange(rig.preload_per_roller_n, cap + 1e-9, step)
     rows = []
     for f in loads:
-        k_true = float(world.stiffness_n_per_m(case, f)[0])
+        k_true = float(world.stiffness_n_per_m(case, f))
         modes = rig_modes(rig, k_true)
         k_back = roller_stiffness_from_bounce(rig, modes.bounce_hz)
         rows.append({"load_n": float(f), "bounce_hz": modes.bounce_hz, "tilt_hz": list(modes.tilt_hz),
                      "stiffness_n_per_m": k_back,
-                     "tripp_n_per_m": float(TrippContact(r, steel).stiffness_n_per_m(f)[0]),
-                     "eq5_n_per_m": float(EmpiricalFit(EQ5, r.contact_length_m).stiffness_n_per_m(f)[0])})
+                     "tripp_n_per_m": float(TrippContact(r, steel).stiffness_n_per_m(f)),
+                     "eq5_n_per_m": float(EmpiricalFit(EQ5, r.contact_length_m).stiffness_n_per_m(f))})
 
     def text(res: dict) -> str:
         lines = [f"roller type 1 on {rig.name}; load cap 30 % of C0 = {cap:.0f} N",
