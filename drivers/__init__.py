@@ -14,6 +14,7 @@ from drivers.interfaces import (
     LoadCell,
     LoadReading,
     Operator,
+    OperatorAction,
     Record,
     Rig,
     TriggerSpec,
@@ -21,5 +22,5 @@ from drivers.interfaces import (
 
 __all__ = [
     "Channel", "Daq", "DeviceBusy", "DeviceDisconnected", "DeviceError", "DeviceTimeout", "Hammer",
-    "LoadActuator", "LoadCell", "LoadReading", "Operator", "Record", "Rig", "TriggerSpec",
+    "LoadActuator", "LoadCell", "LoadReading", "Operator", "OperatorAction", "Record", "Rig", "TriggerSpec",
 ]

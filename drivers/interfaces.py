@@ -111,11 +111,21 @@ class LoadActuator(Instrument, Protocol):
     def turn_knobs(self, angle_deg: float) -> None: ...
 
 
+OperatorAction = Literal["mount_specimen", "turn_knobs", "strike", "rotate_rollers", "unload", "confirm"]
+
+
 @runtime_checkable
 class Operator(Protocol):
-    """A person at the rig or a script: confirms instructions, chooses among options, is told things."""
+    """A person at the rig or a script: confirms instructions, chooses among options, is told things.
 
-    def prompt(self, message: str, choices: tuple[str, ...] = ("ok",)) -> str: ...
+    ``action`` tags what the prompt asks for, so a script (or the simulated rig's operator, which rotates the
+    twin's rollers on ``rotate_rollers``) can act on it without parsing the message.
+    """
+
+    def prompt(self, message: str, choices: tuple[str, ...] = ("ok",), action: OperatorAction = "confirm") -> str:
+        """Show ``message``, return the chosen entry of ``choices``."""
+        ...
+
     def notify(self, message: str) -> None: ...
 
 
