@@ -1,0 +1,195 @@
+"""Typed events the engine emits at every stage, and the bus that delivers them.
+
+Subscribers (TUI, CLI progress, logging) receive each event in the engine's thread; one that raises is logged
+and skipped, never stopping the run.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger("labctl.events")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Base of all engine events; ``time_s`` is the engine's monotonic clock since the campaign started."""
+
+    time_s: float
+
+
+@dataclass(frozen=True)
+class Position:
+    """Where in the campaign: specimen series, repetition (run), load step and impact, all 1-based."""
+
+    series: int
+    run: int
+    step: int = 0
+    impact: int = 0
+
+
+@dataclass(frozen=True)
+class CampaignStarted(Event):
+    protocol: str
+    path: str
+    backend: str
+    series_total: int
+    runs_per_series: int
+    steps_estimate: tuple[int, ...]  # per series
+    impacts_per_step: int
+    resumed: bool = False
+
+
+@dataclass(frozen=True)
+class RunStarted(Event):
+    position: Position
+    specimen: str
+
+
+@dataclass(frozen=True)
+class StepStarted(Event):
+    position: Position
+    steps_total: int
+    knob_angle_deg: float
+    expected_load_n: float
+
+
+@dataclass(frozen=True)
+class LoadMeasured(Event):
+    position: Position
+    load_n: float  # per roller
+    stable: bool
+
+
+@dataclass(frozen=True)
+class ImpactAcquired(Event):
+    """An impact passed its checks; the traces are in physical units at ``sample_rate_hz``."""
+
+    position: Position
+    attempt: int
+    accepted: bool
+    reasons: tuple[str, ...]
+    peak_force_n: float
+    pulse_width_s: float
+    sample_rate_hz: float
+    force_n: np.ndarray = field(repr=False)
+    accel_m_per_s2: np.ndarray = field(repr=False)
+    channels: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ImpactRejected(ImpactAcquired):
+    """An impact failed a check (``reasons``); it is kept in the file and the engine hits again."""
+
+
+@dataclass(frozen=True)
+class StepProcessed(Event):
+    position: Position
+    load_n: float
+    bounce_hz: float
+    tilt_hz: tuple[float, float]
+    roller_stiffness_n_per_m: float
+    coherence_at_bounce: float
+    frequencies_hz: np.ndarray = field(repr=False)
+    h1_magnitude: np.ndarray = field(repr=False)  # (n_ch, n_f)
+    coherence: np.ndarray = field(repr=False)
+    channels: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class StepFailed(Event):
+    position: Position
+    reason: str
+
+
+@dataclass(frozen=True)
+class RunProcessed(Event):
+    position: Position
+    specimen: str
+    load_n: tuple[float, ...]
+    stiffness_n_per_m: tuple[float, ...]
+    reference_n_per_m: dict[str, tuple[float, ...]]  # model name → values at the same loads
+
+
+@dataclass(frozen=True)
+class OperatorPrompted(Event):
+    message: str
+    action: str
+    answer: str
+
+
+@dataclass(frozen=True)
+class Paused(Event):
+    position: Position
+
+
+@dataclass(frozen=True)
+class Resumed(Event):
+    position: Position
+
+
+@dataclass(frozen=True)
+class Suspended(Event):
+    """The engine stopped at a safe point because a condition failed (load drift, interlock)."""
+
+    position: Position
+    reason: str
+
+
+@dataclass(frozen=True)
+class Progress(Event):
+    position: Position
+    impacts_done: int
+    impacts_total: int
+    eta_s: float | None
+
+
+@dataclass(frozen=True)
+class CampaignFinished(Event):
+    status: str  # complete | aborted | interrupted | failed
+    path: str
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Notice(Event):
+    level: str  # info | warning | error
+    message: str
+
+
+Subscriber = Callable[[Event], Any]
+
+
+class EventBus:
+    """Synchronous publish/subscribe; a failing subscriber is logged and does not stop delivery or the run."""
+
+    def __init__(self) -> None:
+        self._subs: list[Subscriber] = []
+        self._lock = threading.Lock()
+
+    def subscribe(self, callback: Subscriber) -> Callable[[], None]:
+        """Add a subscriber; returns a function that removes it."""
+        with self._lock:
+            self._subs.append(callback)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if callback in self._subs:
+                    self._subs.remove(callback)
+
+        return unsubscribe
+
+    def publish(self, event: Event) -> None:
+        with self._lock:
+            subs = list(self._subs)
+        for callback in subs:
+            try:
+                callback(event)
+            except Exception:  # a display or logger must never stop acquisition
+                log.exception("event subscriber %r failed on %s", callback, type(event).__name__)
