@@ -1,0 +1,244 @@
+"""The digital twin: one shared state of the simulated rig that every simulated instrument acts on.
+
+Knob angle → spring compression → load per roller (from the preload, never below it) → each seated roller's
+stiffness from the hidden world → rig modes → the response to each blow. Rig time is virtual: nothing sleeps.
+Test hooks (double hit, overload, dead channel, creep, unplugged device) are methods here, not in the
+instrument interfaces. Separate random streams for seating, blows, noise and the load cell keep one stream's
+use (e.g. extra load-cell reads) from changing another's data: everything is reproducible from the seed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from drivers.interfaces import Record, TriggerSpec
+from drivers.sim.model import ModesFunction, ModesLike, RigLike, SeatedRoller, SimSettings, Specimen
+from drivers.sim.response import Blow, digitise, modal_model, response
+
+ROLLERS = 3
+SETTLE_OVERSHOOT = 0.03  # fraction of a load step the load cell overshoots right after a knob turn
+
+
+@dataclass(frozen=True)
+class Strike:
+    """A blow as delivered: when (rig time) and where in the sample grid its force crosses the trigger."""
+
+    blow: Blow
+    time_s: float
+    sample_phase: float
+    overload_channel: str | None = None
+
+
+class RigTwin:
+    """State of the simulated rig: knob angle, seated rollers, rig clock, the blows delivered, test hooks."""
+
+    def __init__(
+        self,
+        rig: RigLike,
+        specimen: Specimen,
+        modes: ModesFunction,
+        *,
+        seed: int | None = None,
+        settings: SimSettings | None = None,
+        clock_start_s: float | None = None,
+    ) -> None:
+        seq = np.random.SeedSequence(seed)
+        self.seed: int = int(seq.entropy)  # type: ignore[arg-type]
+        self._rng_seat, self._rng_blow, self._rng_noise, self._rng_cell = (
+            np.random.default_rng(s) for s in seq.spawn(4)
+        )
+        self.rig, self.specimen, self._modes_fn = rig, specimen, modes
+        self.settings = settings or SimSettings()
+        self.clock_start_s = time.time() if clock_start_s is None else clock_start_s
+        self.time_s = 0.0
+        self.knob_angle_deg = 0.0
+        self.rotations = 0
+        self.strikes: list[Strike] = []
+        self.dead_channels: set[str] = set()
+        self.unplugged: set[str] = set()
+        self.creep_n_per_s = self.settings.load_creep_n_per_s
+        self._creep_n = 0.0
+        self._creep_since_s = 0.0
+        self._reads_since_turn = self.settings.load_cell_settle_reads
+        self._overshoot_n = 0.0
+        self._tare_n = 0.0
+        self._next_double: tuple[float, float] | None = None
+        self._next_overload: str | None = None
+        self._next_peak_n: float | None = None
+        self._modes_cache: tuple[tuple[float, ...], ModesLike] | None = None
+        self.rollers: list[SeatedRoller] = self._seat()
+
+    # --- loading -------------------------------------------------------------------------------------
+    @property
+    def preload_n(self) -> float:
+        return float(self.rig.preload_per_roller_n)
+
+    @property
+    def _newtons_per_degree(self) -> float:
+        """Load per roller added by one degree of knob turn (all rods' spring pairs share the three rollers)."""
+        ld = self.rig.loading
+        return ld.rods * ld.spring_rate_n_per_m * ld.thread_pitch_m / 360.0 / ROLLERS
+
+    def load_per_roller_n(self) -> float:
+        """Load on each roller now: preload + spring force (the nut takes up slack first) + creep since the turn."""
+        spring = max(0.0, self.knob_angle_deg) * self._newtons_per_degree
+        creep = self._creep_n + self.creep_n_per_s * (self.time_s - self._creep_since_s)
+        return max(self.preload_n, self.preload_n + spring + creep)
+
+    def turn_knobs(self, angle_deg: float) -> None:
+        """Turn all knobs together (positive tightens); the load cell then needs a few reads to settle."""
+        if not math.isfinite(angle_deg):
+            raise ValueError(f"knob angle must be a finite number of degrees, got {angle_deg!r}")
+        before = self.load_per_roller_n()
+        self.knob_angle_deg += angle_deg
+        self.time_s += abs(angle_deg) * self.settings.knob_turn_s_per_deg
+        self._creep_n, self._creep_since_s = 0.0, self.time_s
+        self._overshoot_n = SETTLE_OVERSHOOT * ROLLERS * (self.load_per_roller_n() - before)
+        self._reads_since_turn = 0
+
+    def set_load_per_roller(self, load_n: float) -> None:
+        """Put the rig directly at a load per roller (sets the equivalent knob angle, already settled)."""
+        if not (math.isfinite(load_n) and load_n >= self.preload_n):
+            raise ValueError(
+                f"load {load_n!r} N per roller is below the preload {self.preload_n:.1f} N (the upper disc's weight)"
+            )
+        self.knob_angle_deg = (load_n - self.preload_n) / self._newtons_per_degree
+        self._creep_n, self._creep_since_s = 0.0, self.time_s
+        self._overshoot_n = 0.0
+        self._reads_since_turn = self.settings.load_cell_settle_reads
+
+    def read_load_cell(self) -> tuple[float, bool]:
+        """Total force on the three rollers as the load cell shows it (noise, settling, tare), and stability."""
+        s = self.settings
+        self.time_s += s.load_cell_read_s
+        settled = self._reads_since_turn >= s.load_cell_settle_reads
+        transient = 0.0 if settled else self._overshoot_n * 0.5**self._reads_since_turn
+        self._reads_since_turn += 1
+        value = ROLLERS * self.load_per_roller_n() + transient + self._rng_cell.normal(0.0, s.load_cell_noise_n)
+        drifting = abs(ROLLERS * self.creep_n_per_s) > s.stable_rate_n_per_s
+        return float(value - self._tare_n), settled and not drifting
+
+    def tare(self) -> None:
+        """Zero the load cell at the force it carries now."""
+        self._tare_n = 0.0
+        self._tare_n = self.read_load_cell()[0]
+
+    # --- rollers and dynamics ------------------------------------------------------------------------
+    def _seat(self) -> list[SeatedRoller]:
+        return [self.specimen.seat(self._rng_seat) for _ in range(ROLLERS)]
+
+    def rotate_rollers(self) -> None:
+        """The disc was lifted and the rollers turned ~±5°: each roller now touches on a new contact spot."""
+        self.rollers = self._seat()
+        self.rotations += 1
+
+    def roller_stiffness_n_per_m(self) -> list[float]:
+        load = self.load_per_roller_n()
+        return [float(r.stiffness_n_per_m(load)) for r in self.rollers]
+
+    def modes(self) -> ModesLike:
+        ks = tuple(self.roller_stiffness_n_per_m())
+        if self._modes_cache is None or self._modes_cache[0] != ks:
+            self._modes_cache = (ks, self._modes_fn(self.rig, list(ks)))
+        return self._modes_cache[1]
+
+    def truth(self) -> dict[str, Any]:
+        """What the rig really is right now: load, each roller's stiffness, bounce and tilt frequencies."""
+        modes = self.modes()
+        return {
+            "load_n": self.load_per_roller_n(),
+            "roller_stiffness_n_per_m": self.roller_stiffness_n_per_m(),
+            "bounce_hz": float(modes.bounce_hz),
+            "tilt_hz": [float(f) for f in modes.tilt_hz],
+        }
+
+    # --- blows and records ---------------------------------------------------------------------------
+    def strike(self) -> Strike:
+        """Deliver one blow: force and width vary hit to hit, the impact point scatters around the nominal."""
+        s, rng = self.settings, self._rng_blow
+        width = rng.uniform(s.pulse_width_min_s, s.pulse_width_max_s)
+        peak = s.peak_force_n * math.exp(s.peak_force_rel * rng.standard_normal())
+        dx, dy = rng.normal(0.0, s.impact_scatter_m, 2) if s.impact_scatter_m > 0 else (0.0, 0.0)
+        phase = rng.uniform(0.0, 1.0)
+        if self._next_peak_n is not None:
+            peak, self._next_peak_n = self._next_peak_n, None
+        delay, ratio = self._next_double or (0.0, 0.0)
+        x, y = self.rig.hammer_xy_m
+        blow = Blow(peak, width, x + float(dx), y + float(dy), delay, ratio)
+        strike = Strike(blow, self.time_s, phase, self._next_overload)
+        self._next_double = self._next_overload = None
+        self.strikes.append(strike)
+        return strike
+
+    def record(self, strike: Strike, sample_rate_hz: float, n_samples: int, trigger: TriggerSpec) -> Record | None:
+        """The record the DAQ captures of a blow, or None if its force never reaches the trigger level."""
+        s, blow = self.settings, strike.blow
+        if blow.peak_n < trigger.level_n:
+            return None
+        channels = tuple(self.rig.channels)
+        t = np.arange(n_samples) / sample_rate_hz
+        crossing = (trigger.pretrigger_samples - strike.sample_phase) / sample_rate_hz
+        force = blow.force_n(t, blow.onset_s(crossing, trigger.level_n))
+        model = modal_model(self.modes(), self.rig.flexible_modes, channels, blow.x_m, blow.y_m)
+        accel = response(model, force, sample_rate_hz)
+        if strike.overload_channel is not None:
+            gain = self._overload_gain(strike.overload_channel, force, accel, channels)
+            force, accel = force * gain, accel * gain
+        for i, ch in enumerate(channels):
+            if ch in self.dead_channels:
+                accel[i] = 0.0
+        force = force + self._rng_noise.normal(0.0, s.force_noise_n, n_samples)
+        accel = accel + self._rng_noise.normal(0.0, s.accel_noise_m_per_s2, accel.shape)
+        force, f_clip = digitise(force, s.force_range_n, s.adc_bits)
+        accel, a_clip = digitise(accel, s.accel_range_m_per_s2, s.adc_bits)
+        self.time_s = max(self.time_s, strike.time_s) + n_samples / sample_rate_hz
+        clipped = (("F",) if f_clip[0] else ()) + tuple(ch for ch, c in zip(channels, a_clip, strict=True) if c)
+        return Record(sample_rate_hz, force, accel, channels, trigger.pretrigger_samples,
+                      self.clock_start_s + strike.time_s, clipped)
+
+    def _overload_gain(self, channel: str, force: np.ndarray, accel: np.ndarray, channels: tuple[str, ...]) -> float:
+        if channel == "F":
+            return 1.2 * self.settings.force_range_n / float(np.max(np.abs(force)))
+        peak = float(np.max(np.abs(accel[channels.index(channel)])))
+        return 1.2 * self.settings.accel_range_m_per_s2 / peak
+
+    # --- test hooks ----------------------------------------------------------------------------------
+    def next_blow_double(self, delay_s: float = 1.5e-3, ratio: float = 0.4) -> None:
+        """Make the next blow a double hit: a second pulse ``delay_s`` after the first, ``ratio`` as strong."""
+        if not (delay_s > 0 and ratio > 0):
+            raise ValueError(f"double hit needs delay_s > 0 and ratio > 0, got {delay_s!r}, {ratio!r}")
+        self._next_double = (delay_s, ratio)
+
+    def next_blow_overload(self, channel: str = "F") -> None:
+        """Make the next blow hard enough that ``channel`` (``F`` or ``A1X`` … ``A4Z``) exceeds its range."""
+        if channel != "F" and channel not in self.rig.channels:
+            raise ValueError(f"unknown channel {channel!r}; expected F or one of {', '.join(self.rig.channels)}")
+        self._next_overload = channel
+
+    def next_blow_peak(self, peak_n: float) -> None:
+        """Fix the next blow's peak force (e.g. below the trigger level: the DAQ then times out)."""
+        self._next_peak_n = float(peak_n)
+
+    def kill_channel(self, channel: str) -> None:
+        """A broken accelerometer cable: the channel records noise only from now on."""
+        if channel not in self.rig.channels:
+            raise ValueError(f"unknown channel {channel!r}; expected one of {', '.join(self.rig.channels)}")
+        self.dead_channels.add(channel)
+
+    def set_creep(self, n_per_s: float) -> None:
+        """Load drift per roller in N per second of rig time since the last knob turn (negative: relaxation)."""
+        self._creep_n += self.creep_n_per_s * (self.time_s - self._creep_since_s)
+        self._creep_since_s = self.time_s
+        self.creep_n_per_s = float(n_per_s)
+
+    def unplug(self, device: str) -> None:
+        """The named instrument goes away: its next operation raises DeviceDisconnected."""
+        self.unplugged.add(device)
+
+    def replug(self, device: str) -> None:
+        self.unplugged.discard(device)

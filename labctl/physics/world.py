@@ -1,0 +1,246 @@
+"""World scenarios: the physics hidden in the simulated rig's data, read from a TOML file (units at the edge).
+
+A world is a contact law (baseline + effect terms of ``labctl.physics.effects``), the rig's true setup
+stiffness relative to its nominal value, per-seating scatter of effect parameters, and optional overrides of
+the simulated instruments. The simulator evaluates it; the discrepancy workflow must find what it hides.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl.data import data_path, read_toml, require
+from labctl.errors import InputError
+from labctl.physics.catalogue import Roller
+from labctl.physics.effects import EFFECTS, ContactCase, Effect, SetupCompliance
+from labctl.physics.law import BASELINES, ContactLaw
+from labctl.physics.materials import Material
+from labctl.physics.rig_config import RigConfig
+from labctl.physics.tripp import DEFAULT_DEPTH_M
+
+DEFAULT_WORLD = "default"
+WORLDS_DIR = "worlds"
+# edge unit suffix -> (SI suffix, factor to SI)
+UNITS: dict[str, tuple[str, float]] = {
+    "_mm": ("_m", 1e-3), "_um": ("_m", 1e-6), "_mrad": ("_rad", 1e-3), "_ms": ("_s", 1e-3), "_gpa": ("_pa", 1e9),
+}
+SI_SUFFIXES = ("_m", "_rad", "_s", "_pa")
+TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments"}
+
+
+def to_si(key: str, value: float) -> tuple[str, float]:
+    """``("edge_length_mm", 0.1)`` → ``("edge_length_m", 1e-4)``; keys without an edge unit pass unchanged."""
+    for suffix, (si, factor) in UNITS.items():
+        if key.endswith(suffix):
+            return key[: -len(suffix)] + si, value * factor
+    return key, value
+
+
+def _stem(si_name: str) -> str:
+    """Parameter name without its SI unit: the prefix of its ``<stem>_rel`` scatter key."""
+    return next((si_name[: -len(s)] for s in SI_SUFFIXES if si_name.endswith(s)), si_name)
+
+
+@dataclass(frozen=True)
+class Scatter:
+    """Redrawn each time a roller is seated: lognormal σ per effect parameter, and a load-independent σ."""
+
+    stiffness_rel: float = 0.0
+    parameters: tuple[tuple[int, str, float], ...] = ()  # (index of the effect in the law, SI parameter, σ)
+
+
+@dataclass(frozen=True)
+class SeatedRoller:
+    """One roller on its current contact spot: the world's law with this seating's parameters."""
+
+    law: ContactLaw
+    case: ContactCase
+    factor: float = 1.0
+
+    def stiffness_n_per_m(self, load_n: float) -> float:
+        return self.factor * float(self.law.stiffness_n_per_m(self.case, load_n))
+
+
+@dataclass(frozen=True)
+class WorldSpecimen:
+    """The rollers of one contact case in a world; ``seat`` draws a new contact spot."""
+
+    world: World
+    case: ContactCase
+
+    def seat(self, rng: np.random.Generator) -> SeatedRoller:
+        effects = list(self.world.law.effects)
+        for index, param, sigma in self.world.scatter.parameters:
+            effect = effects[index]
+            lo, hi = effect.BOUNDS[param]
+            value = float(np.clip(getattr(effect, param) * math.exp(sigma * rng.standard_normal()), lo, hi))
+            effects[index] = replace(effect, **{param: value})  # type: ignore[type-var]
+        sigma = self.world.scatter.stiffness_rel
+        factor = math.exp(sigma * rng.standard_normal()) if sigma > 0 else 1.0
+        return SeatedRoller(replace(self.world.law, effects=tuple(effects)), self.case, factor)
+
+
+@dataclass(frozen=True)
+class World:
+    """Hidden physics of a simulated rig."""
+
+    law: ContactLaw
+    setup_stiffness_factor: float = 1.0
+    scatter: Scatter = field(default_factory=Scatter)
+    instruments: dict[str, float] = field(default_factory=dict)  # SI overrides of the simulator's settings
+    source: str = ""
+    description: str = ""
+
+    def true_rig(self, rig: RigConfig) -> RigConfig:
+        """The rig as it really is in this world: its K_setup is the nominal one times the world's factor."""
+        if self.setup_stiffness_factor == 1.0:
+            return rig
+        return rig.with_setup_stiffness(self.setup_stiffness_factor * rig.setup_stiffness_n_per_m)
+
+    def specimen(self, case: ContactCase) -> WorldSpecimen:
+        return WorldSpecimen(self, case)
+
+    @property
+    def effect_names(self) -> tuple[str, ...]:
+        """Effects hidden in the data, including a setup stiffness off its nominal value."""
+        setup = (SetupCompliance.name,) if self.setup_stiffness_factor != 1.0 else ()
+        return self.law.effect_names + setup
+
+
+def ball(diameter_m: float, material: Material, roughness_ra_m: float = 0.01e-6) -> Roller:
+    """A bearing ball as the rolling element of a contact case (world baseline ``hertz``: only D matters)."""
+    return Roller(diameter_m, diameter_m, diameter_m, material, roughness_ra_m)
+
+
+def shipped_worlds() -> list[str]:
+    """Names of the world files shipped with labctl (``labctl/data/worlds/<name>.toml``)."""
+    return sorted(p.stem for p in data_path(WORLDS_DIR).glob("*.toml"))
+
+
+def world_path(world: str | Path | None) -> Path:
+    """A world file: an existing path, or the name of a shipped world (``None``: the default world)."""
+    if world is None:
+        world = DEFAULT_WORLD
+    p = Path(world)
+    if p.exists() or p.suffix or len(p.parts) > 1:
+        return p
+    shipped = data_path(f"{WORLDS_DIR}/{p.name}.toml")
+    if shipped.exists():
+        return shipped
+    raise InputError(f"world {str(world)!r}: no such file or shipped world; shipped: {', '.join(shipped_worlds())}")
+
+
+def load_world(path: str | Path | None = None) -> World:
+    """Read a world scenario file (the shipped default without a path), naming the file and key of any error."""
+    p = world_path(path)
+    doc = read_toml(p)
+    where = str(p)
+    unknown = sorted(set(doc) - TOP_LEVEL)
+    if unknown:
+        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; expected {', '.join(sorted(TOP_LEVEL))}")
+    baseline = require(doc, "baseline", dict, where)
+    law, setup_factor, params = _law(baseline, doc.get("effects", {}), where)
+    scatter_doc = doc.get("scatter", {})
+    _only(scatter_doc, {"stiffness_rel"}, f"{where}: scatter")
+    stiffness_rel = _number(scatter_doc, "stiffness_rel", f"{where}: scatter", 0.0, 0.0, 1.0)
+    return World(
+        law=law,
+        setup_stiffness_factor=setup_factor,
+        scatter=Scatter(stiffness_rel, params),
+        instruments=_instruments(doc.get("instruments", {}), f"{where}: instruments"),
+        source=where,
+        description=str(doc.get("description", "")),
+    )
+
+
+def _law(
+    baseline: dict[str, Any], effects_doc: Any, where: str
+) -> tuple[ContactLaw, float, tuple[tuple[int, str, float], ...]]:
+    b_where = f"{where}: baseline"
+    model = require(baseline, "model", str, b_where)
+    if model not in BASELINES:
+        raise InputError(f"{b_where}.model = {model!r}: expected one of {', '.join(BASELINES)}")
+    _only(baseline, {"model", "depth_mm"} if model == "tripp" else {"model"}, b_where)
+    depth_m = _number(baseline, "depth_mm", b_where, DEFAULT_DEPTH_M / 1e-3, 1e-3, 1e3) * 1e-3
+    if not isinstance(effects_doc, dict):
+        raise InputError(f"{where}: effects = {effects_doc!r}: expected a table of effect tables")
+    effects: list[Effect] = []
+    scatter: list[tuple[int, str, float]] = []
+    setup_factor = 1.0
+    for name, table in effects_doc.items():
+        e_where = f"{where}: effects.{name}"
+        if name not in EFFECTS:
+            raise InputError(f"{e_where}: unknown effect; expected one of {', '.join(EFFECTS)}")
+        if not isinstance(table, dict):
+            raise InputError(f"{e_where} = {table!r}: expected a table of parameters")
+        values, rel = _effect_parameters(EFFECTS[name], table, e_where)
+        if name == SetupCompliance.name:
+            if rel:
+                raise InputError(f"{e_where}: the setup stiffness has no per-seating scatter")
+            setup_factor = values.get("stiffness_factor", SetupCompliance().stiffness_factor)
+            continue
+        scatter.extend((len(effects), param, sigma) for param, sigma in rel.items())
+        effects.append(EFFECTS[name](**values))
+    return ContactLaw(model, depth_m, tuple(effects)), setup_factor, tuple(scatter)
+
+
+def _effect_parameters(cls: type, table: dict[str, Any], where: str) -> tuple[dict[str, float], dict[str, float]]:
+    """An effect's SI parameter values (checked against its BOUNDS) and the σ of those that scatter."""
+    bounds: dict[str, tuple[float, float]] = cls.BOUNDS  # type: ignore[attr-defined]
+    stems = {f"{_stem(p)}_rel": p for p in bounds}
+    values: dict[str, float] = {}
+    rel: dict[str, float] = {}
+    for key in table:
+        if key in stems:
+            rel[stems[key]] = _number(table, key, where, 0.0, 0.0, 1.0)
+            continue
+        si_key, _ = to_si(key, 0.0)
+        if si_key not in bounds:
+            expected = [*(_edge_name(p) for p in bounds), *stems]
+            raise InputError(f"{where}.{key}: unknown parameter; expected {', '.join(expected)}")
+        lo, hi = bounds[si_key]
+        _, scale = to_si(key, 1.0)
+        values[si_key] = _number(table, key, where, 0.0, lo / scale, hi / scale) * scale
+    return values, rel
+
+
+def _edge_name(si_name: str) -> str:
+    for suffix, (si, factor) in UNITS.items():
+        if si_name.endswith(si) and factor == 1e-3 and suffix in ("_mm", "_mrad"):
+            return si_name[: -len(si)] + suffix
+    return si_name
+
+
+def _instruments(table: Any, where: str) -> dict[str, float]:
+    if not isinstance(table, dict):
+        raise InputError(f"{where} = {table!r}: expected a table of simulator settings")
+    out: dict[str, float] = {}
+    for key in table:
+        value = require(table, key, float, where)
+        if not math.isfinite(value):
+            raise InputError(f"{where}.{key} = {value!r}: expected a finite number")
+        si_key, si_value = to_si(key, value)
+        out[si_key] = si_value
+    return out
+
+
+def _number(table: dict[str, Any], key: str, where: str, default: float, lo: float, hi: float) -> float:
+    if key not in table:
+        return default
+    value = require(table, key, float, where)
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise InputError(f"{where}.{key} = {value!r}: expected a number in [{lo:g}, {hi:g}]")
+    return float(value)
+
+
+def _only(table: Any, allowed: set[str], where: str) -> None:
+    if not isinstance(table, dict):
+        raise InputError(f"{where} = {table!r}: expected a table")
+    extra = sorted(set(table) - allowed)
+    if extra:
+        raise InputError(f"{where}: unknown key(s) {', '.join(extra)}; expected {', '.join(sorted(allowed))}")
