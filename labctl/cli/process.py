@@ -1,0 +1,52 @@
+"""``labctl process``: recompute every step of a campaign from its raw impacts; export the stiffness table."""
+
+from __future__ import annotations
+
+import argparse
+
+from labctl.cli.common import add_json, emit
+from labctl.reprocess import process_campaign
+from labctl.stiffness_table import write_stiffness_table
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("process", help="(re)process a campaign file; export the stiffness table as CSV")
+    p.add_argument("file", metavar="FILE.h5", help="campaign file")
+    p.add_argument("--csv", metavar="OUT", help="write the stiffness table (DESIGN.md §4 columns) to this CSV")
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    done = process_campaign(args.file)
+    if args.csv:
+        write_stiffness_table(args.csv, done.points)
+    steps = []
+    for r in done.rows:
+        item = {"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
+                "knob_angle_deg": r.knob_angle_deg}
+        if r.result:
+            item.update({k: r.result[k] for k in ("bounce_hz", "bounce_damping_ratio", "tilt_hz",
+                                                   "roller_stiffness_n_per_m", "coherence_at_bounce")
+                         if k in r.result})
+            item["rejected_impacts"] = sum(1 for i in r.result.get("impacts", []) if not i.get("accepted"))
+        else:
+            item["error"] = r.error
+        steps.append(item)
+    result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
+              "csv": args.csv}
+
+    def text(res: dict) -> str:
+        lines = [f"{res['path']} ({res['status']}): {res['points']} stiffness points"
+                 + (f" → {res['csv']}" if res["csv"] else "")]
+        lines.append("  run step   load [N]   bounce [Hz]   k [N/m]")
+        for s in res["steps"]:
+            if "error" in s:
+                lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   not identified: {s['error']}")
+            else:
+                lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   {s['bounce_hz']:10.2f}"
+                             f"   {s['roller_stiffness_n_per_m']:.4e}")
+        return "\n".join(lines)
+
+    emit(result, args.json, text)
+    return 0

@@ -1,0 +1,62 @@
+"""``labctl run``: an unattended campaign with a progress display; Ctrl-C stops cleanly and leaves a resumable file."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from labctl.campaign import run_campaign
+from labctl.cli.common import add_json, emit
+from labctl.cli.progress import ProgressPrinter
+from labctl.engine import RunControl
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("run", help="run a protocol on the simulated or real rig, writing a campaign file")
+    p.add_argument("protocol", metavar="PROTOCOL", help="protocol TOML file (or a shipped name: quick_check)")
+    p.add_argument("--backend", choices=("sim", "hw"), default="sim", help="simulated rig or hardware (default sim)")
+    p.add_argument("--out", default="campaign.h5", help="campaign file to write (default campaign.h5)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted campaign file after its last impact")
+    p.add_argument("--world", help="world scenario TOML for the simulated rig (hidden effects)")
+    p.add_argument("--seed", type=int, help="random seed for the simulated rig")
+    p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
+    p.add_argument("--devices", help="devices TOML file for --backend hw")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def install_sigint(control: RunControl) -> None:
+    """First Ctrl-C: clean stop at the next safe point; a second one interrupts at once."""
+
+    def handler(signum: int, frame: object) -> None:
+        if control.stop_status:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            raise KeyboardInterrupt
+        sys.stderr.write("\nstopping after the current impact (Ctrl-C again to interrupt now)\n")
+        control.stop()
+
+    signal.signal(signal.SIGINT, handler)
+
+
+def run(args: argparse.Namespace) -> int:
+    control = RunControl()
+    install_sigint(control)
+    subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
+    outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume, world=args.world,
+                           seed=args.seed, rig=args.rig, devices=args.devices, subscribers=subs, control=control)
+    result = {"status": outcome.status, "path": outcome.path, "message": outcome.message,
+              "runs": [{k: c[k] for k in ("series", "run", "specimen", "load_n", "stiffness_n_per_m")}
+                       for c in outcome.curves]}
+
+    def text(r: dict) -> str:
+        lines = [f"campaign {r['status']}: {r['path']}" + (f" ({r['message']})" if r["message"] else "")]
+        for c in r["runs"]:
+            lines.append(f"  {c['specimen']} repetition {c['run']}: {len(c['load_n'])} steps")
+        return "\n".join(lines)
+
+    emit(result, args.json, text)
+    return 0 if outcome.status == "complete" else (130 if outcome.status == "interrupted" else 1)
+
+

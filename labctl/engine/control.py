@@ -1,0 +1,63 @@
+"""Pause, resume, abort and clean stop, honoured by the engine at its next safe point (between impacts)."""
+
+from __future__ import annotations
+
+import threading
+
+
+class StopRequested(Exception):
+    """Raised inside the engine at a safe point after ``abort`` or ``stop``; carries the final status."""
+
+    def __init__(self, status: str) -> None:
+        super().__init__(status)
+        self.status = status
+
+
+class RunControl:
+    """Thread-safe controls a UI, a signal handler or a script uses while the engine runs in another thread."""
+
+    def __init__(self) -> None:
+        self._running = threading.Event()
+        self._running.set()
+        self._status: str | None = None
+        self._lock = threading.Lock()
+
+    def pause(self) -> None:
+        self._running.clear()
+
+    def resume(self) -> None:
+        self._running.set()
+
+    def abort(self) -> None:
+        """Stop at the next safe point; the campaign is marked aborted (it can still be resumed)."""
+        self._finish("aborted")
+
+    def stop(self) -> None:
+        """Clean stop (Ctrl-C): the campaign is marked interrupted and is resumable."""
+        self._finish("interrupted")
+
+    def _finish(self, status: str) -> None:
+        with self._lock:
+            self._status = self._status or status
+        self._running.set()
+
+    @property
+    def paused(self) -> bool:
+        return not self._running.is_set()
+
+    @property
+    def stop_status(self) -> str | None:
+        return self._status
+
+    def checkpoint(self, on_pause: callable | None = None, on_resume: callable | None = None) -> None:  # type: ignore[valid-type]
+        """Block while paused; raise StopRequested if a stop was asked for."""
+        if self._status:
+            raise StopRequested(self._status)
+        if not self._running.is_set():
+            if on_pause:
+                on_pause()
+            self._running.wait()
+            if self._status:
+                raise StopRequested(self._status)
+            if on_resume:
+                on_resume()

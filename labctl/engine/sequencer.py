@@ -1,0 +1,227 @@
+"""The protocol engine: the paper's §2.3 sequence over instrument interfaces, never losing an impact.
+
+Per step: actuate the load, wait for a stable load-cell reading, record it, arm the DAQ, strike, check the
+impact, store it at once, re-hit rejected impacts (bounded), then identify the step from the accepted impacts.
+After each repetition the stiffness-vs-load curve is stored. Resuming continues after the last complete impact.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.interfaces import Record, Rig, TriggerSpec
+from labctl import events as ev
+from labctl.engine.calls import GuardedCaller
+from labctl.engine.control import RunControl, StopRequested
+from labctl.engine.plan import StepPlan, next_load_n, plan_steps
+from labctl.engine.steps import StepRunner
+from labctl.errors import LabctlError
+from labctl.physics.references import reference_curves
+from labctl.physics.rig_config import RigConfig
+from labctl.protocol import Protocol, SpecimenSpec
+from labctl.storage import schema
+from labctl.storage.writer import CampaignWriter
+
+RigFactory = Callable[[SpecimenSpec, int], Rig]
+
+
+class Interlock(LabctlError):
+    """The load cell read more than the protocol's cap: the run stopped and the operator was asked to unload."""
+
+
+@dataclass
+class Outcome:
+    status: str
+    path: str
+    message: str = ""
+    curves: list[dict] = field(default_factory=list)
+
+
+def specimen_attrs(spec: SpecimenSpec) -> dict:
+    case = spec.case()
+    r = case.roller
+    return {"kind": spec.kind, "label": spec.label, "roller_type": spec.roller_type,
+            "ball_diameter_m": spec.ball_diameter_m, "diameter_m": r.diameter_m,
+            "contact_length_m": r.contact_length_m, "roller_length_m": r.total_length_m,
+            "material": r.material.name, "youngs_modulus_pa": r.material.youngs_modulus_pa,
+            "poisson_ratio": r.material.poisson_ratio, "hardness_hrc": r.material.hardness_hrc,
+            "rail_material": spec.rail_material, "rail_ra_m": spec.rail_ra_m, "max_load_n": spec.max_load_n,
+            "knob_step_deg": spec.knob_step_deg}
+
+
+class Engine:
+    """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``writer``'s file."""
+
+    def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, writer: CampaignWriter,
+                 bus: ev.EventBus | None = None, control: RunControl | None = None) -> None:
+        self.protocol, self.rig_config, self.rig_factory, self.writer = protocol, rig_config, rig_factory, writer
+        self.bus = bus or ev.EventBus()
+        self.control = control or RunControl()
+        self.t0 = time.monotonic()
+        acq = protocol.acquisition
+        self.call = GuardedCaller(acq.timeout_s, acq.retries, on_retry=lambda m: self.notify("warning", m))
+        self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
+        steps = sum(p.steps_estimate for p in self.plans)
+        self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
+        self.impacts_done = self._count_done()
+        self._session_start = (time.monotonic(), self.impacts_done)
+
+    # --- events -------------------------------------------------------------------------------------------
+    def now(self) -> float:
+        return time.monotonic() - self.t0
+
+    def emit(self, event: ev.Event) -> None:
+        self.bus.publish(event)
+
+    def notify(self, level: str, message: str) -> None:
+        self.emit(ev.Notice(self.now(), level, message))
+
+    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",)) -> str:
+        answer = rig.operator.prompt(message, choices, action)  # a person may take as long as they need
+        self.emit(ev.OperatorPrompted(self.now(), message, action, answer))
+        return answer
+
+    def checkpoint(self, pos: ev.Position) -> None:
+        self.control.checkpoint(on_pause=lambda: self.emit(ev.Paused(self.now(), pos)),
+                                on_resume=lambda: self.emit(ev.Resumed(self.now(), pos)))
+
+    def progress(self, pos: ev.Position) -> None:
+        t_start, done_start = self._session_start
+        rate_n = self.impacts_done - done_start
+        remaining = max(self.impacts_total - self.impacts_done, 0)
+        eta = (time.monotonic() - t_start) / rate_n * remaining if rate_n > 0 else None
+        self.emit(ev.Progress(self.now(), pos, self.impacts_done, self.impacts_total, eta))
+
+    def _count_done(self) -> int:
+        n = 0
+        for sname in (k for k in self.writer.h5 if k.startswith("series_")):
+            for run in self.writer.h5[sname].values():
+                for step in (v for k, v in run.items() if k.startswith("step_")):
+                    n += sum(1 for k, g in step.items() if k.startswith("impact_") and g.attrs.get("accepted"))
+        return n
+
+    # --- campaign -----------------------------------------------------------------------------------------
+    def run(self) -> Outcome:
+        """Run (or continue) the whole campaign; the file's status tells how it ended."""
+        resumed = self.impacts_done > 0 or any(k.startswith("series_") for k in self.writer.h5)
+        self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.writer.path,
+                                     str(self.writer.h5.attrs.get("backend", "")), len(self.protocol.specimens),
+                                     self.protocol.repetitions.count, tuple(p.steps_estimate for p in self.plans),
+                                     self.protocol.acquisition.impacts_per_step, resumed))
+        outcome = Outcome("complete", self.writer.path)
+        try:
+            for index, (spec, plan) in enumerate(zip(self.protocol.specimens, self.plans, strict=True), start=1):
+                outcome.curves.extend(self._series(index, spec, plan))
+        except StopRequested as stop:
+            outcome.status, outcome.message = stop.status, f"stopped by request ({stop.status}); resume with --resume"
+        except Interlock as exc:
+            outcome.status, outcome.message = "interlock", str(exc)
+        except LabctlError as exc:
+            outcome.status, outcome.message = "failed", str(exc)
+        except KeyboardInterrupt:
+            outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
+        finally:
+            self.call.close()
+            self.writer.set_status(outcome.status, outcome.message)
+            self.emit(ev.CampaignFinished(self.now(), outcome.status, self.writer.path, outcome.message))
+        return outcome
+
+    def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> list[dict]:
+        sg = self.writer.series(index, specimen_attrs(spec))
+        runs_done = {k for k, g in sg.items() if k.startswith("run_") and g.attrs.get(schema.COMPLETE)}
+        if len(runs_done) >= self.protocol.repetitions.count:
+            return []
+        curves = []
+        with ExitStack() as stack:
+            rig = self.rig_factory(spec, index)
+            for inst in (rig.daq, rig.hammer, rig.load_cell, rig.actuator):
+                stack.enter_context(inst)
+            acq = self.protocol.acquisition
+            fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
+            if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
+                self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)")
+            if not sg.attrs.get("mounted"):
+                self.prompt(rig, f"Mount {spec.label} between the rails (rail Ra {spec.rail_ra_m * 1e6:g} µm) and "
+                            "set the knobs to the preload", "mount_specimen")
+                sg.attrs["mounted"] = True
+            for run in range(1, self.protocol.repetitions.count + 1):
+                if schema.run_name(run) in runs_done:
+                    continue
+                pos = ev.Position(index, run)
+                self.checkpoint(pos)
+                started = schema.run_name(run) in sg
+                if run > 1 and not started:
+                    self._unload(rig)
+                    self.prompt(rig, f"Lift the upper disc and rotate the rollers about "
+                                f"±{self.protocol.repetitions.rotate_rollers_deg:g}°, then lower the disc",
+                                "rotate_rollers")
+                self.writer.run(index, run)
+                self.emit(ev.RunStarted(self.now(), pos, spec.label))
+                curves.append(self._run(rig, index, run, spec, plan))
+            self._unload(rig)
+        return curves
+
+    def _unload(self, rig: Rig) -> None:
+        angle = rig.actuator.knob_angle_deg
+        if angle:
+            self.call("actuator", rig.actuator.turn_knobs, -angle)
+
+    def _run(self, rig: Rig, series: int, run: int, spec: SpecimenSpec, plan: StepPlan) -> dict:
+        steps = StepRunner(self, rig, series, run, spec)
+        loads: list[float] = []
+        step = 1
+        while True:
+            pos = ev.Position(series, run, step)
+            done = steps.completed_load(step)
+            if done is None:
+                self.checkpoint(pos)
+                done = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan)
+            if done is not None:
+                loads.append(done)
+            if not loads or step >= plan.steps_estimate + 5:
+                break
+            if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + 1e-6):
+                break
+            step += 1
+        return self._store_curve(series, run, spec)
+
+    def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> dict:
+        rg = self.writer.h5[schema.series_name(series)][schema.run_name(run)]
+        rows = []
+        for name in sorted(k for k in rg if k.startswith("step_")):
+            g = rg[name]
+            res = g.get(schema.RESULT)
+            if res is None or not res.attrs.get(schema.COMPLETE):
+                continue
+            tilt = np.asarray(res.attrs.get("tilt_hz", [np.nan, np.nan]), dtype=float).ravel()
+            if tilt.size < 2:
+                tilt = np.array([np.nan, np.nan])
+            rows.append((float(g.attrs["load_n"]), float(res.attrs["roller_stiffness_n_per_m"]),
+                         float(res.attrs.get("roller_stiffness_std_n_per_m", np.nan)), float(res.attrs["bounce_hz"]),
+                         float(res.attrs.get("bounce_damping_ratio", np.nan)), tilt[0], tilt[1],
+                         float(res.attrs.get("coherence_at_bounce", np.nan)), float(g.attrs["knob_angle_deg"])))
+        cols = ("load_n", "stiffness_n_per_m", "stiffness_std_n_per_m", "bounce_hz", "bounce_damping_ratio",
+                "tilt_a_hz", "tilt_b_hz", "coherence_at_bounce", "knob_angle_deg")
+        table = {c: np.array([r[i] for r in rows]) for i, c in enumerate(cols)}
+        self.writer.write_curve(series, run, table)
+        refs = reference_curves(spec.case(), spec.kind, table["load_n"]) if rows else {}
+        self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(table["load_n"]),
+                                  tuple(table["stiffness_n_per_m"]), {k: tuple(v) for k, v in refs.items()}))
+        return {"series": series, "run": run, "specimen": spec.label, **{k: v.tolist() for k, v in table.items()}}
+
+    def acquire(self, rig: Rig, pos: ev.Position) -> Record:
+        """Arm, strike and fetch one record, retrying timeouts (a missed blow) a bounded number of times."""
+        acq = self.protocol.acquisition
+        trigger = TriggerSpec(acq.trigger_level_n, acq.pretrigger_samples)
+
+        def once() -> Record:
+            rig.daq.arm(trigger)
+            rig.hammer.strike()
+            return rig.daq.acquire(acq.timeout_s)
+
+        return self.call("daq+hammer", once, timeout_s=acq.timeout_s + 30.0)

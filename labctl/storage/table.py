@@ -1,0 +1,39 @@
+"""The stiffness table of a campaign file: one StiffnessPoint per identified step of every repetition."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl.stiffness_table import StiffnessPoint
+from labctl.storage.reader import CampaignReader
+
+
+def specimen_point(specimen: dict[str, Any], repetition: int, load_n: float, stiffness_n_per_m: float
+                   ) -> StiffnessPoint:
+    """A table row for a measured point of a stored specimen."""
+    rt = specimen.get("roller_type")
+    return StiffnessPoint(
+        diameter_m=float(specimen["diameter_m"]), contact_length_m=float(specimen["contact_length_m"]),
+        rail_ra_m=float(specimen["rail_ra_m"]), load_n=float(load_n), stiffness_n_per_m=float(stiffness_n_per_m),
+        roller_type=None if rt is None or rt == "" else int(rt),
+        roller_length_m=float(specimen["roller_length_m"]) if "roller_length_m" in specimen else None,
+        material=specimen.get("material"), youngs_modulus_pa=specimen.get("youngs_modulus_pa"),
+        poisson_ratio=specimen.get("poisson_ratio"), hardness_hrc=specimen.get("hardness_hrc"),
+        repetition=int(repetition))
+
+
+def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
+    """Points from the stored step results (run ``labctl process`` to recompute them from raw impacts)."""
+    points: list[StiffnessPoint] = []
+    with CampaignReader(path) as reader:
+        for series in reader.series_indices():
+            spec = reader.specimen(series)
+            for run in reader.runs(series):
+                for step in run.steps:
+                    if step.result and np.isfinite(step.result.get("roller_stiffness_n_per_m", np.nan)):
+                        points.append(specimen_point(spec, run.run, step.load_n,
+                                                     step.result["roller_stiffness_n_per_m"]))
+    return points
