@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 
 from labctl.cli.common import add_json, emit
-from labctl.reprocess import process_campaign
-from labctl.stiffness_table import write_stiffness_table
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,6 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.reprocess import process_campaign
+    from labctl.stiffness_table import write_stiffness_table
+
     done = process_campaign(args.file)
     if args.csv:
         write_stiffness_table(args.csv, done.points)

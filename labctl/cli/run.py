@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from typing import TYPE_CHECKING
 
-from labctl.campaign import run_campaign
 from labctl.cli.common import add_json, emit
-from labctl.cli.progress import ProgressPrinter
-from labctl.engine import RunControl
+
+if TYPE_CHECKING:
+    from labctl.engine import RunControl
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,6 +42,10 @@ def install_sigint(control: RunControl) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.campaign import run_campaign
+    from labctl.cli.progress import ProgressPrinter
+    from labctl.engine import RunControl
+
     control = RunControl()
     install_sigint(control)
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
