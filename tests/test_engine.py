@@ -1,0 +1,139 @@
+"""The engine on the simulated rig: sequence, storage, events, controls, interlock, drift and failing subscribers."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import h5py
+import numpy as np
+import pytest
+
+from labctl import events as ev
+from labctl.campaign import run_campaign
+from labctl.engine import RunControl
+from labctl.physics import load_rig
+from labctl.storage import CampaignReader, campaign_stiffness_points
+from tests.engine_util import Recorder, short_protocol
+
+
+def test_short_campaign_writes_every_impact_and_curve(tmp_path):
+    rec = Recorder()
+    out = tmp_path / "c.h5"
+    outcome = run_campaign(short_protocol(), out=out, seed=3, subscribers=[rec])
+    assert outcome.status == "complete"
+    assert len(outcome.curves) == 2
+    with CampaignReader(out) as r:
+        assert r.attrs["status"] == "complete"
+        assert "[specimen]" in r.config_text("protocol.toml") and "upper_disc" in r.config_text("rig.toml")
+        runs = r.runs(1)
+        assert [run.complete for run in runs] == [True, True]
+        loads = [s.load_n for s in runs[0].steps]
+        assert loads[0] == pytest.approx(load_rig().preload_per_roller_n, rel=0.03)
+        assert all(b > a for a, b in zip(loads, loads[1:], strict=False)) and loads[-1] <= 120 * 1.05
+        for run in runs:
+            for step in run.steps:
+                assert step.accepted_count == 2 and step.result is not None
+                data = r.impact_arrays(1, run.run, step.step)
+                assert data.force_n.shape == (2, 16384) and data.accel_m_per_s2.shape == (2, 12, 16384)
+                assert data.channels[0] == "A1X" and data.sample_rate_hz == pytest.approx(20480)
+        assert r.curve(1, 1)["stiffness_n_per_m"].size == len(runs[0].steps)
+    points = campaign_stiffness_points(out)
+    assert {p.repetition for p in points} == {1, 2} and all(p.roller_type == 1 for p in points)
+    kinds = {type(e) for e in rec.events}
+    assert {ev.CampaignStarted, ev.RunStarted, ev.StepStarted, ev.LoadMeasured, ev.ImpactAcquired, ev.StepProcessed,
+            ev.RunProcessed, ev.Progress, ev.OperatorPrompted, ev.CampaignFinished} <= kinds
+    actions = [e.action for e in rec.of(ev.OperatorPrompted)]
+    assert actions.count("mount_specimen") == 1 and actions.count("rotate_rollers") == 1
+    assert rec.of(ev.RunProcessed)[0].reference_n_per_m.keys() == {"tripp", "fit-ra0.2"}
+
+
+def test_failing_subscriber_never_stops_the_run(tmp_path):
+    def broken(event: ev.Event) -> None:
+        raise RuntimeError("display crashed")
+
+    rec = Recorder()
+    outcome = run_campaign(short_protocol(reps=1), out=tmp_path / "c.h5", seed=1, subscribers=[broken, rec])
+    assert outcome.status == "complete" and rec.of(ev.CampaignFinished)
+
+
+def test_pause_resume_and_abort_at_safe_points(tmp_path):
+    control = RunControl()
+    rec = Recorder()
+    seen = threading.Event()
+
+    def on_event(event: ev.Event) -> None:
+        rec(event)
+        if isinstance(event, ev.ImpactAcquired) and not seen.is_set():
+            seen.set()
+            control.pause()
+            threading.Timer(0.2, control.resume).start()
+        if isinstance(event, ev.StepProcessed) and event.position.step == 2:
+            control.abort()
+
+    out = tmp_path / "c.h5"
+    outcome = run_campaign(short_protocol(reps=1), out=out, seed=1, subscribers=[on_event], control=control)
+    assert outcome.status == "aborted"
+    assert rec.of(ev.Paused) and rec.of(ev.Resumed)
+    with CampaignReader(out) as r:
+        assert r.attrs["status"] == "aborted"
+        assert len(r.runs(1)[0].steps) == 2
+    resumed = run_campaign(short_protocol(reps=1), out=out, resume=True, seed=1)
+    assert resumed.status == "complete"
+
+
+def test_interlock_unloads_when_the_load_exceeds_the_cap(tmp_path):
+    rig = load_rig()
+    soft = dataclasses.replace(rig, loading=dataclasses.replace(rig.loading, spring_rate_n_per_m=rig.loading.
+                                                                   spring_rate_n_per_m / 4))
+    rec = Recorder()
+    from labctl.campaign import rig_factory
+    from labctl.engine import Engine
+    from labctl.storage import CampaignWriter
+
+    proto = short_protocol(max_load=100.0, step=360.0, reps=1)
+    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=1,
+                                   config_files={"protocol.toml": proto.source_text}, description={})
+    bus = ev.EventBus()
+    bus.subscribe(rec)
+    # the engine believes the springs are 4x softer than they are, so a step overshoots the cap
+    outcome = Engine(proto, soft, rig_factory("sim", rig, seed=1), writer, bus).run()
+    writer.close()
+    assert outcome.status == "interlock" and "exceeds the cap" in outcome.message
+    assert [e.action for e in rec.of(ev.OperatorPrompted)][-1] == "unload"
+
+
+def test_rejected_impacts_are_kept_and_rehit(tmp_path):
+    from drivers.sim import twin_of
+    from labctl.campaign import rig_factory
+
+    made = []
+    base = rig_factory("sim", load_rig(), seed=2)
+
+    def factory(spec, series):
+        rig = base(spec, series)
+        twin = twin_of(rig)
+        twin.next_blow_double(delay_s=0.005, ratio=0.3)
+        made.append(twin)
+        return rig
+
+    from labctl.engine import Engine
+    from labctl.storage import CampaignWriter
+
+    proto = short_protocol(reps=1, max_load=60.0)
+    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=2,
+                                   config_files={}, description={})
+    rec = Recorder()
+    bus = ev.EventBus()
+    bus.subscribe(rec)
+    assert Engine(proto, load_rig(), factory, writer, bus).run().status == "complete"
+    writer.close()
+    rejected = rec.of(ev.ImpactRejected)
+    assert len(rejected) == 1 and "double_hit" in rejected[0].reasons
+    with h5py.File(tmp_path / "c.h5") as f:
+        first = f["series_01/run_01/step_001/impact_001"]
+        assert not first.attrs["accepted"] and "double_hit" in first.attrs["reasons"]
+        assert f["series_01/run_01/step_001"].attrs["complete"]
+        assert sum(bool(g.attrs["accepted"]) for g in f["series_01/run_01/step_001"].values()
+                   if isinstance(g, h5py.Group) and "force_n" in g) == 2
+    assert np.isfinite(campaign_stiffness_points(tmp_path / "c.h5")[0].stiffness_n_per_m)

@@ -1,0 +1,61 @@
+"""Protocol files: the shipped ones validate; malformed ones give exit 2 and one line naming the field."""
+
+from __future__ import annotations
+
+import pytest
+
+from labctl.errors import InputError
+from labctl.protocol import load_protocol, parse_protocol, shipped_protocols
+from tests.cli_util import assert_one_line_error, labctl
+
+GOOD = """
+[protocol]
+name = "t"
+[specimen]
+roller_type = 1
+[acquisition]
+impacts_per_step = 3
+"""
+
+
+def test_shipped_protocols_validate_and_follow_the_paper():
+    assert {"roller_stiffness", "ball_verification", "quick_check"} <= set(shipped_protocols())
+    p = load_protocol("protocols/roller_stiffness.toml")
+    assert p.acquisition.sample_rate_hz == 20480 and p.acquisition.samples == 65536
+    assert p.acquisition.impacts_per_step == 3 and p.repetitions.count == 3
+    assert p.loading.knob_step_deg == 180 and p.repetitions.rotate_rollers_deg == 5
+    assert p.specimens[0].max_load_n == pytest.approx(440, rel=0.02)  # 30 % of C0 with L_r
+    balls = load_protocol("ball_verification")
+    assert [s.ball_diameter_m for s in balls.specimens] == pytest.approx([3e-3, 6e-3, 9e-3])
+
+
+@pytest.mark.parametrize(
+    ("text", "fragments"),
+    [
+        (GOOD.replace("impacts_per_step = 3", "impacts_per_step = 0"), ["[acquisition].impacts_per_step = 0"]),
+        (GOOD.replace("impacts_per_step = 3", "impacts_per_step = \"three\""), ["impacts_per_step", "integer"]),
+        (GOOD + "[loading]\nmax_load_kn = 1.0\n", ["unknown key 'max_load_kn'"]),
+        (GOOD.replace("roller_type = 1", "roller_type = 1\nmax_load_n = 2000.0"), ["max_load_n = 2000.0", "C0 cap"]),
+        (GOOD.replace("roller_type = 1", "roller_type = 42"), ["roller_type = 42"]),
+        (GOOD.replace("roller_type = 1", "roller_type = 1\nrail_material = \"cheese\""), ["rail_material"]),
+        (GOOD + "[acquisition2]\n", ["unknown key 'acquisition2'"]),
+        (GOOD.replace("[acquisition]", "[acquisition]\nsample_rate_hz = -5"), ["sample_rate_hz = -5"]),
+        (GOOD.replace("[acquisition]", "[acquisition]\nduration_ms = 3200"), ["duration_ms"]),
+        ("[protocol]\nname = 'x'\n", ["missing [specimen]"]),
+        (GOOD.replace("[specimen]\nroller_type = 1", "[specimen]\nkind = 'ball'\nball_diameter_mm = 6"),
+         ["max_load_n"]),
+        ("[protocol\nname=", ["not valid TOML"]),
+    ],
+)
+def test_malformed_protocols_exit_2_naming_the_field(tmp_path, text, fragments):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(InputError):
+        parse_protocol(text, str(path))
+    line = assert_one_line_error(labctl("run", str(path), "--out", str(tmp_path / "c.h5")), *fragments)
+    assert str(path) in line or "bad.toml" in line
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_missing_protocol_file_names_shipped_ones(tmp_path):
+    assert_one_line_error(labctl("run", str(tmp_path / "nope.toml")), "not found", "quick_check")

@@ -1,0 +1,73 @@
+"""Kill test: SIGKILL a running campaign, resume it, and find every step exactly once and old impacts unchanged."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from labctl.storage import CampaignReader
+
+
+def _labctl_cmd(*args: str) -> list[str]:
+    exe = shutil.which("labctl")
+    return [exe, *args] if exe else [sys.executable, "-m", "labctl", *args]
+
+
+def _impacts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    out = {}
+    with h5py.File(path, "r") as f:
+        def visit(name, obj):
+            if isinstance(obj, h5py.Group) and name.rsplit("/", 1)[-1].startswith("impact_") and obj.attrs.get("complete"):
+                out[name] = (obj["force_n"][()], obj["accel_m_per_s2"][()])
+        f.visititems(visit)
+    return out
+
+
+@pytest.mark.slow
+def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_path):
+    out = tmp_path / "c.h5"
+    proc = subprocess.Popen(_labctl_cmd("run", "protocols/roller_stiffness.toml", "--backend", "sim", "--out", str(out),
+                                        "--seed", "5"),
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            cwd=os.path.dirname(os.path.dirname(__file__)))
+    seen = 0
+    deadline = time.monotonic() + 240
+    assert proc.stderr is not None
+    for line in proc.stderr:
+        if " impacts · ETA" in line:
+            seen += 1
+        if seen >= 40 or time.monotonic() > deadline:  # well into the second repetition
+            break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert seen >= 40, "the run did not get far enough before the kill"
+    before = _impacts(out)
+    assert len(before) >= 35
+    with CampaignReader(out) as r:
+        assert r.attrs["status"] == "running"  # killed: never marked finished
+
+    done = subprocess.run(_labctl_cmd("run", "protocols/roller_stiffness.toml", "--backend", "sim", "--out", str(out),
+                                      "--resume", "--quiet"), capture_output=True, text=True,
+                          cwd=os.path.dirname(os.path.dirname(__file__)), timeout=600)
+    assert done.returncode == 0, done.stderr
+    after = _impacts(out)
+    for name, (force, accel) in before.items():
+        assert np.array_equal(after[name][0], force) and np.array_equal(after[name][1], accel), name
+    with CampaignReader(out) as r:
+        assert r.attrs["status"] == "complete"
+        runs = r.runs(1)
+        assert len(runs) == 3 and all(run.complete for run in runs)
+        for run in runs:
+            steps = [s.step for s in run.steps]
+            assert steps == list(range(1, len(steps) + 1)) and len(steps) >= 10
+            for s in run.steps:
+                assert s.complete and s.accepted_count == 3 and s.result is not None
+            assert r.curve(1, run.run)["load_n"].size == len(steps)
