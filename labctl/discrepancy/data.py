@@ -1,0 +1,138 @@
+"""Measured points grouped into contact cases: the arrays every fit and check of the workflow runs on."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl.errors import InputError
+from labctl.physics.effects import ContactCase
+from labctl.stiffness_table import StiffnessPoint, read_stiffness_table
+
+HDF5_SUFFIXES = (".h5", ".hdf5")
+
+
+@dataclass(frozen=True)
+class CaseData:
+    """All points measured on one contact case (roller, materials, rail Ra), in file order."""
+
+    case: ContactCase
+    load_n: np.ndarray
+    ln_stiffness: np.ndarray
+    repetition: np.ndarray
+    """Repetition number per point, -1 where the table gives none."""
+
+    @property
+    def label(self) -> str:
+        r = self.case.roller
+        name = f"type {r.type_id}" if r.type_id is not None else f"D {r.diameter_m * 1e3:g} mm"
+        return (f"{name} (L_we {r.contact_length_m * 1e3:.4g} mm, {r.material.name}, "
+                f"rail Ra {self.case.rail_ra_m * 1e6:.3g} µm)")
+
+    def describe(self) -> dict[str, Any]:
+        """The case's descriptors at the user's edge (mm, µm)."""
+        r = self.case.roller
+        return {
+            "roller_type": r.type_id,
+            "diameter_mm": r.diameter_m * 1e3,
+            "contact_length_mm": r.contact_length_m * 1e3,
+            "material": r.material.name,
+            "rail_ra_um": self.case.rail_ra_m * 1e6,
+        }
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """The measured points as cases; residual vectors concatenate the cases in this order."""
+
+    cases: tuple[CaseData, ...]
+
+    @property
+    def n_points(self) -> int:
+        return int(sum(c.load_n.size for c in self.cases))
+
+    @property
+    def ln_stiffness(self) -> np.ndarray:
+        return np.concatenate([c.ln_stiffness for c in self.cases])
+
+    @property
+    def load_n(self) -> np.ndarray:
+        return np.concatenate([c.load_n for c in self.cases])
+
+    def case_slices(self) -> list[slice]:
+        """Where each case's points sit in the concatenated vectors."""
+        out, start = [], 0
+        for c in self.cases:
+            out.append(slice(start, start + c.load_n.size))
+            start += c.load_n.size
+        return out
+
+    def subset(self, keep: Iterable[int]) -> Dataset:
+        return Dataset(tuple(self.cases[i] for i in keep))
+
+    def repetitions(self) -> list[int]:
+        """Distinct repetition numbers present (empty when the table gives none)."""
+        reps = np.unique(np.concatenate([c.repetition for c in self.cases]))
+        return [int(r) for r in reps if r >= 0]
+
+    def select_repetitions(self, keep: Callable[[np.ndarray], np.ndarray]) -> Dataset:
+        """The points whose repetition passes ``keep`` (a mask function); cases left empty are dropped."""
+        out = []
+        for c in self.cases:
+            m = keep(c.repetition)
+            if np.any(m):
+                out.append(CaseData(c.case, c.load_n[m], c.ln_stiffness[m], c.repetition[m]))
+        return Dataset(tuple(out))
+
+
+def build_dataset(points: Sequence[StiffnessPoint]) -> Dataset:
+    """Group points by contact case (first-seen order); refuses empty input and non-physical values."""
+    if not points:
+        raise InputError("no measured points: give at least one stiffness table or campaign file with data")
+    groups: dict[ContactCase, list[StiffnessPoint]] = {}
+    for i, p in enumerate(points):
+        for name in ("load_n", "stiffness_n_per_m"):
+            v = getattr(p, name)
+            if not (np.isfinite(v) and v > 0):
+                raise InputError(f"measured point {i + 1}: {name} = {v!r}, expected a positive number")
+        groups.setdefault(p.case(), []).append(p)
+    cases = []
+    for case, pts in groups.items():
+        cases.append(CaseData(
+            case=case,
+            load_n=np.array([p.load_n for p in pts], dtype=float),
+            ln_stiffness=np.log(np.array([p.stiffness_n_per_m for p in pts], dtype=float)),
+            repetition=np.array([-1 if p.repetition is None else p.repetition for p in pts], dtype=int),
+        ))
+    return Dataset(tuple(cases))
+
+
+def load_points(paths: Sequence[str | Path]) -> list[StiffnessPoint]:
+    """Read stiffness tables (CSV) and campaign files (HDF5) into one list of points."""
+    if not paths:
+        raise InputError("give at least one measured file (stiffness-table CSV or campaign HDF5)")
+    points: list[StiffnessPoint] = []
+    for path in paths:
+        if Path(path).suffix.lower() in HDF5_SUFFIXES:
+            points.extend(_campaign_points(Path(path)))
+        else:
+            points.extend(read_stiffness_table(path))
+    return points
+
+
+def _campaign_points(path: Path) -> list[StiffnessPoint]:
+    try:
+        from labctl.storage import campaign_stiffness_points
+    except ImportError:
+        raise InputError(f"{path}: reading campaign HDF5 files needs labctl.storage, which is not available in "
+                         "this installation; export the campaign as a stiffness-table CSV instead") from None
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    points = list(campaign_stiffness_points(path))
+    if not points:
+        raise InputError(f"{path}: the campaign holds no processed stiffness points")
+    return points

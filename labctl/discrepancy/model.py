@@ -1,0 +1,185 @@
+"""Fitting a contact law to measured points: the baseline's nuisance parameters plus any effect terms.
+
+A :class:`ModelSpec` names the baseline and the effects; its parameter vector holds log10 of Tripp's
+evaluation depth (a nuisance parameter, always fitted) and each effect's physical parameters scaled to
+[0, 1] over the effect's BOUNDS. Every evaluation goes through :class:`labctl.physics.law.ContactLaw`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from labctl.discrepancy.data import Dataset
+from labctl.physics.effects import EFFECTS, Effect
+from labctl.physics.law import ContactLaw
+from labctl.physics.tripp import DEFAULT_DEPTH_M
+
+DEPTH_BOUNDS_M = (0.1e-3, 100e-3)
+BAD_RESIDUAL = 10.0
+"""Stands in for ln-residuals where a trial parameter set makes the model non-physical."""
+
+STARTS: dict[str, tuple[dict[str, float], ...]] = {
+    "surface_roughness": ({"asperity_scale": 1.0},),
+    "end_effects": ({"edge_length_m": 0.1e-3},),
+    "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5}),
+    "misalignment": ({"tilt_rad": 2e-4}, {"tilt_rad": 1e-3}),
+    "setup_compliance": ({"stiffness_factor": 0.8}, {"stiffness_factor": 1.3}),
+}
+"""Physically plausible starting points per effect; several where the term has a kink to cross."""
+
+
+def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """Effect names in the registry's order (contact terms first, the measurement chain's setup term last)."""
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown:
+        raise ValueError(f"unknown effect {unknown[0]!r}; expected one of {', '.join(EFFECTS)}")
+    return tuple(n for n in EFFECTS if n in names)
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Which baseline and effects a fit uses; effects the rig fixes (nominal K_setup) come in ``fixed``."""
+
+    baseline: str = "tripp"
+    effects: tuple[str, ...] = ()
+    fixed: dict[str, dict[str, float]] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def fits_depth(self) -> bool:
+        return self.baseline == "tripp"
+
+    def with_effects(self, *names: str) -> ModelSpec:
+        return ModelSpec(self.baseline, canonical([*self.effects, *names]), self.fixed)
+
+    def slots(self) -> list[tuple[str, str, float, float]]:
+        """(effect, parameter, lower, upper) per fitted effect parameter, in vector order after the depth."""
+        return [(n, k, lo, hi) for n in self.effects for k, (lo, hi) in EFFECTS[n].BOUNDS.items()]
+
+    def n_params(self) -> int:
+        return int(self.fits_depth) + len(self.slots())
+
+    def law(self, x: np.ndarray) -> ContactLaw:
+        """The contact law for a parameter vector."""
+        depth = 10.0 ** x[0] if self.fits_depth else DEFAULT_DEPTH_M
+        values = self.decode(x)
+        effects: list[Effect] = [EFFECTS[n](**values[n], **self.fixed.get(n, {})) for n in self.effects]
+        return ContactLaw(self.baseline, depth, tuple(effects))
+
+    def decode(self, x: np.ndarray) -> dict[str, dict[str, float]]:
+        """Physical effect parameters (SI) from the vector."""
+        out: dict[str, dict[str, float]] = {n: {} for n in self.effects}
+        for u, (n, k, lo, hi) in zip(x[int(self.fits_depth):], self.slots(), strict=True):
+            out[n][k] = float(lo + u * (hi - lo))
+        return out
+
+    def encode(self, depth_m: float, values: dict[str, dict[str, float]]) -> np.ndarray:
+        head = [math.log10(depth_m)] if self.fits_depth else []
+        tail = [(values[n][k] - lo) / (hi - lo) for n, k, lo, hi in self.slots()]
+        return np.array(head + tail, dtype=float)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = [math.log10(DEPTH_BOUNDS_M[0])] if self.fits_depth else []
+        hi = [math.log10(DEPTH_BOUNDS_M[1])] if self.fits_depth else []
+        n = len(self.slots())
+        return np.array(lo + [0.0] * n), np.array(hi + [1.0] * n)
+
+
+def predict_ln(data: Dataset, law: ContactLaw) -> np.ndarray:
+    """ln of the modelled stiffness at every measured point (cases concatenated)."""
+    return np.concatenate([np.log(law.stiffness_n_per_m(c.case, c.load_n)) for c in data.cases])
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted model: its law, parameters and residuals r = ln(k_model/k_measured), each with its noise σ."""
+
+    spec: ModelSpec
+    x: np.ndarray
+    law: ContactLaw
+    residuals: np.ndarray
+    sigma: np.ndarray
+
+    @property
+    def z(self) -> np.ndarray:
+        """Residuals in units of their noise."""
+        return self.residuals / self.sigma
+
+    @property
+    def score(self) -> float:
+        """rms of z: about 1 when the model explains all but the noise."""
+        return math.sqrt(float(np.mean(self.z**2)))
+
+    @property
+    def n_points(self) -> int:
+        return int(self.residuals.size)
+
+    @property
+    def rss(self) -> float:
+        return float(np.sum(self.residuals**2))
+
+    @property
+    def gap(self) -> float:
+        """DESIGN.md §4: rms over all points of ln(k_model/k_measured)."""
+        return math.sqrt(self.rss / self.n_points)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion of the noise-weighted fit, the noise scale profiled out."""
+        n = self.n_points
+        return n * math.log(max(self.score, 1e-150) ** 2) + self.spec.n_params() * math.log(n)
+
+    @property
+    def depth_m(self) -> float | None:
+        return 10.0 ** float(self.x[0]) if self.spec.fits_depth else None
+
+    def effect_parameters(self) -> dict[str, dict[str, float]]:
+        return self.spec.decode(self.x)
+
+    def baseline_parameters(self) -> dict[str, Any]:
+        return {"depth_m": self.depth_m} if self.spec.fits_depth else {}
+
+
+def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        r = predict_ln(data, spec.law(x)) - measured
+    return np.where(np.isfinite(r), r, BAD_RESIDUAL)
+
+
+def _starts(spec: ModelSpec, warm: Fit | None) -> list[np.ndarray]:
+    depth = warm.depth_m if warm is not None and warm.depth_m else DEFAULT_DEPTH_M
+    known = warm.effect_parameters() if warm is not None else {}
+    fresh = [n for n in spec.effects if n not in known]
+    out = []
+    for combo in itertools.product(*(STARTS[n] for n in fresh)):
+        values = {**known, **dict(zip(fresh, combo, strict=True))}
+        out.append(np.clip(spec.encode(depth, values), *spec.bounds()))
+    return out
+
+
+def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None) -> Fit:
+    """Noise-weighted least squares on ln k, from the warm fit's values and each effect's start grid.
+
+    ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same.
+    """
+    measured = data.ln_stiffness
+    sig = np.ones(measured.size) if sigma is None else np.asarray(sigma, dtype=float)
+    lo, hi = spec.bounds()
+    best: tuple[float, np.ndarray] | None = None
+    for x0 in _starts(spec, warm):
+        if x0.size == 0:
+            best = (0.0, x0)
+            break
+        sol = least_squares(lambda x: _residuals(data, spec, x, measured) / sig, x0, bounds=(lo, hi),
+                            x_scale=1.0, diff_step=1e-6, xtol=1e-10, ftol=1e-10, max_nfev=400)
+        cost = float(np.sum(sol.fun**2))
+        if best is None or cost < best[0]:
+            best = (cost, sol.x)
+    assert best is not None
+    x = best[1]
+    return Fit(spec, x, spec.law(x), _residuals(data, spec, x, measured), sig)

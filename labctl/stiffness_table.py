@@ -1,0 +1,200 @@
+"""The stiffness-table CSV (DESIGN.md §4): one measured roller stiffness per row, read and written.
+
+Units live only in the column names (mm, µm, GPa at this edge; SI in :class:`StiffnessPoint`). Optional
+columns default to a bearing-steel roller (1.3505: 210 GPa, ν 0.29, HRC 60) between bearing-steel rails.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from labctl.errors import InputError
+from labctl.physics.catalogue import Roller, rollers
+from labctl.physics.effects import ContactCase
+from labctl.physics.materials import BEARING_STEEL, GPA, Material, material, materials
+
+MM = 1e-3
+UM = 1e-6
+DEFAULT_ROLLER_RA_M = 0.03 * UM
+GEOMETRY_MATCH = 0.01
+
+REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffness_n_per_m")
+OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
+            "repetition")
+COLUMNS = REQUIRED + OPTIONAL
+
+
+@dataclass(frozen=True)
+class StiffnessPoint:
+    """One measured roller stiffness at one load, with the contact it was measured on (SI units)."""
+
+    diameter_m: float
+    contact_length_m: float
+    rail_ra_m: float
+    load_n: float
+    stiffness_n_per_m: float
+    roller_type: int | None = None
+    roller_length_m: float | None = None
+    material: str | None = None
+    youngs_modulus_pa: float | None = None
+    poisson_ratio: float | None = None
+    hardness_hrc: float | None = None
+    repetition: int | None = None
+
+    def roller_material(self) -> Material:
+        """The roller's material: catalogue values for a known name, overridden by any explicit column."""
+        name = self.material or BEARING_STEEL
+        known = materials()
+        if name not in known and (self.youngs_modulus_pa is None or self.poisson_ratio is None):
+            raise InputError(f"unknown material {name!r}: give youngs_modulus_gpa and poisson_ratio, or use one of "
+                             f"{', '.join(sorted(known))}")
+        base = known.get(name) or material(BEARING_STEEL)
+        return Material(
+            name=name,
+            youngs_modulus_pa=base.youngs_modulus_pa if self.youngs_modulus_pa is None else self.youngs_modulus_pa,
+            poisson_ratio=base.poisson_ratio if self.poisson_ratio is None else self.poisson_ratio,
+            hardness_hrc=base.hardness_hrc if self.hardness_hrc is None else self.hardness_hrc,
+        )
+
+    def case(self) -> ContactCase:
+        """Roller between bearing-steel rails of the given Ra.
+
+        The roller's own Ra comes from the catalogue when ``roller_type`` names a catalogue roller of the same
+        geometry (within 1 %), else the catalogue default 0.03 µm.
+        """
+        roller = Roller(
+            diameter_m=self.diameter_m,
+            contact_length_m=self.contact_length_m,
+            total_length_m=self.roller_length_m or self.contact_length_m,
+            material=self.roller_material(),
+            roughness_ra_m=_catalogue_roller_ra_m(self.roller_type, self.diameter_m, self.contact_length_m),
+            type_id=self.roller_type,
+        )
+        return ContactCase(roller=roller, rail=material(BEARING_STEEL), rail_ra_m=self.rail_ra_m)
+
+
+def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:
+    known = rollers().get(type_id) if type_id is not None else None
+    if known is None:
+        return DEFAULT_ROLLER_RA_M
+    same = (abs(known.diameter_m / diameter_m - 1.0) <= GEOMETRY_MATCH
+            and abs(known.contact_length_m / contact_length_m - 1.0) <= GEOMETRY_MATCH)
+    return known.roughness_ra_m if same else DEFAULT_ROLLER_RA_M
+
+
+def _positive(v: float) -> bool:
+    return v > 0
+
+
+def _non_negative(v: float) -> bool:
+    return v >= 0
+
+
+def _poisson(v: float) -> bool:
+    return -1.0 < v < 0.5
+
+
+def _integer(text: str) -> int:
+    value = float(text)
+    if not value.is_integer():
+        raise ValueError(text)
+    return int(value)
+
+
+# column -> (field, scale to SI, parser, check, what is expected)
+_Spec = tuple[str, float, Callable[[str], Any], Callable[[Any], bool] | None, str]
+_SPECS: dict[str, _Spec] = {
+    "diameter_mm": ("diameter_m", MM, float, _positive, "a positive diameter in mm"),
+    "contact_length_mm": ("contact_length_m", MM, float, _positive, "a positive contact length L_we in mm"),
+    "rail_ra_um": ("rail_ra_m", UM, float, _non_negative, "a rail roughness Ra ≥ 0 in µm"),
+    "load_n": ("load_n", 1.0, float, _positive, "a positive load per roller in N"),
+    "stiffness_n_per_m": ("stiffness_n_per_m", 1.0, float, _positive, "a positive stiffness in N/m"),
+    "roller_type": ("roller_type", 1, _integer, None, "an integer roller type"),
+    "roller_length_mm": ("roller_length_m", MM, float, _positive, "a positive total roller length L_r in mm"),
+    "material": ("material", 1, str, None, "a material name"),
+    "youngs_modulus_gpa": ("youngs_modulus_pa", GPA, float, _positive, "a positive Young's modulus in GPa"),
+    "poisson_ratio": ("poisson_ratio", 1.0, float, _poisson, "a Poisson ratio in (-1, 0.5)"),
+    "hardness_hrc": ("hardness_hrc", 1.0, float, _positive, "a positive Rockwell C hardness"),
+    "repetition": ("repetition", 1, _integer, None, "an integer repetition number"),
+}
+
+
+def _cell(path: Path, row: int, column: str, text: str) -> Any:
+    attr, scale, parse, check, expected = _SPECS[column]
+    where = f"{path}: row {row}, column {column}"
+    try:
+        value = parse(text)
+    except ValueError:
+        raise InputError(f"{where}: {text!r} is not {expected}") from None
+    if isinstance(value, float) and not math.isfinite(value) or check is not None and not check(value):
+        raise InputError(f"{where}: {text!r} is not {expected}")
+    return value * scale if isinstance(value, float) else value
+
+
+def _row_point(path: Path, row: int, record: dict[str, str]) -> StiffnessPoint:
+    values: dict[str, Any] = {}
+    for column in COLUMNS:
+        text = (record.get(column) or "").strip()
+        if not text:
+            if column in REQUIRED:
+                raise InputError(f"{path}: row {row}, column {column}: empty, expected {_SPECS[column][4]}")
+            continue
+        values[_SPECS[column][0]] = _cell(path, row, column, text)
+    point = StiffnessPoint(**values)
+    try:
+        point.roller_material()
+    except InputError as exc:
+        raise InputError(f"{path}: row {row}, column material: {exc}") from None
+    return point
+
+
+def read_stiffness_table(path: str | Path) -> list[StiffnessPoint]:
+    """Parse a stiffness-table CSV; any problem is an InputError naming the file, row, column and value."""
+    p = Path(path)
+    try:
+        with p.open(newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            missing = [c for c in REQUIRED if c not in header]
+            if missing:
+                raise InputError(f"{p}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+                                 f"(required: {', '.join(REQUIRED)})")
+            reader.fieldnames = header
+            points = []
+            for record in reader:
+                if not any((v or "").strip() for v in record.values() if isinstance(v, str)):
+                    continue
+                points.append(_row_point(p, reader.line_num, record))
+    except FileNotFoundError:
+        raise InputError(f"{p}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{p}: is a directory, expected a stiffness-table CSV") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{p}: not a readable CSV file ({exc})") from None
+    if not points:
+        raise InputError(f"{p}: no data rows (expected one row per measured point under the header)")
+    return points
+
+
+def _format(value: Any, scale: float) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, str | int):
+        return str(value)
+    return f"{float(value) / scale:.12g}"
+
+
+def write_stiffness_table(path: str | Path, points: Iterable[StiffnessPoint]) -> None:
+    """Write points as a stiffness-table CSV: required columns always, optional ones when any point has them."""
+    rows = list(points)
+    columns = [c for c in COLUMNS if c in REQUIRED or any(getattr(r, _SPECS[c][0]) is not None for r in rows)]
+    with Path(path).open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(columns)
+        for r in rows:
+            writer.writerow([_format(getattr(r, _SPECS[c][0]), _SPECS[c][1]) for c in columns])
