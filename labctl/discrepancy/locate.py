@@ -36,16 +36,17 @@ def _trend(slope: float, sigma: float) -> str:
     return "rises with load" if slope > 0 else "falls with load"
 
 
-def locate(data: Dataset, residuals: np.ndarray, sigma: float) -> list[dict[str, Any]]:
-    """Load ranges per roller case where the residuals exceed the noise, with sign and trend."""
+def locate(data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> list[dict[str, Any]]:
+    """Load ranges per roller case where the residuals exceed the noise (σ per point), with sign and trend."""
     regions: list[dict[str, Any]] = []
     for c, sl in zip(data.cases, data.case_slices(), strict=True):
-        r = residuals[sl]
+        r, s = residuals[sl], sigma[sl]
         order = np.argsort(c.load_n, kind="stable")
         cells = []
         for part in np.array_split(order, min(LOAD_BINS, order.size)):
             mean = float(r[part].mean())
-            flagged = abs(mean) > sigma and abs(mean) >= SIGNIFICANT * sigma / math.sqrt(part.size)
+            noise = float(np.sqrt(np.mean(s[part] ** 2)))
+            flagged = abs(mean) > noise and abs(mean) >= SIGNIFICANT * noise / math.sqrt(part.size)
             cells.append((part, mean if flagged else 0.0))
         merged: list[np.ndarray] = []
         last_sign = 0.0
@@ -69,7 +70,7 @@ def locate(data: Dataset, residuals: np.ndarray, sigma: float) -> list[dict[str,
                 "mean_residual": mean,
                 "direction": _direction(mean),
                 "slope_per_decade_load": slope,
-                "trend": _trend(slope, sigma),
+                "trend": _trend(slope, float(np.sqrt(np.mean(s[part] ** 2)))),
             })
     return regions
 

@@ -35,6 +35,9 @@ class DiscrepancyResult:
     noise: NoiseFloor
     steps: tuple[Step, ...]
     regions: list[dict[str, Any]]
+    """Where the fitted baseline disagrees with the data beyond the noise."""
+    regions_after: list[dict[str, Any]]
+    """Where the final model still does."""
     trends: list[dict[str, Any]]
 
     @property
@@ -63,6 +66,7 @@ class DiscrepancyResult:
                 for s in self.steps
             ],
             "regions": self.regions,
+            "regions_after": self.regions_after,
             "trends": self.trends,
         }
 
@@ -92,7 +96,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         current = new[-1].fit
     return DiscrepancyResult(
         data=data, baseline=base, final=current, noise=noise, steps=tuple(steps),
-        regions=locate(data, base.residuals, noise.sigma), trends=trends(data, base.residuals, noise.sigma),
+        regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
+        trends=trends(data, base.residuals, noise.sigma),
     )
 
 
