@@ -1,0 +1,152 @@
+"""Devices file → drivers.Rig, its validation, and ``labctl devices check`` against emulated instruments."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from drivers.hw import ManualActuator, ManualHammer, MccUsbDaq, MtSicsLoadCell, NiDaq, SerialHammer
+from drivers.operators import ScriptedOperator
+from labctl.backends import make_rig
+from labctl.errors import InputError
+from labctl.hardware import check_devices, example_path, load_devices, make_hw_rig
+from labctl.physics import ContactCase, material, roller
+from tests.cli_util import assert_one_line_error, labctl
+from tests.emulators.fake_nidaqmx import FakeNiHardware
+from tests.emulators.fake_usb import FakeMcc1608, FakeUsbBackend
+from tests.emulators.instruments import HammerDevice, MtSicsDevice
+from tests.emulators.pty_serial import PtySerialEmulator
+
+G = 9.80665
+
+NI_DAQ = """
+[daq]
+type = "nidaqmx"
+iepe_current_ma = 2.0
+[[daq.channels]]
+name = "F"
+kind = "force"
+input = "cDAQ1Mod1/ai0"
+sensitivity_mv_per_n = 0.23
+range_n = 2200.0
+[[daq.channels]]
+name = "A4Z"
+kind = "acceleration"
+input = "cDAQ1Mod2/ai3"
+sensitivity_mv_per_g = 100.0
+range_g = 50.0
+"""
+
+
+def devices_file(tmp_path: Path, *, load_port: str = "/dev/ttyUSB0", hammer: str = 'type = "manual"',
+                 daq: str | None = None, edit: tuple[str, str] | None = None) -> Path:
+    """The shipped example with the load-cell port, the hammer, the DAQ section or one line replaced."""
+    text = example_path().read_text(encoding="utf-8").replace('port = "/dev/ttyUSB0"', f'port = "{load_port}"')
+    head, _, tail = text.partition("[hammer]")
+    text = head + f"[hammer]\n{hammer}\n\n[actuator]\n" + tail.partition("[actuator]")[2]
+    if daq is not None:
+        head, _, rest = text.partition("[daq]")
+        text = head + daq + "\n[hammer]" + rest.partition("[hammer]")[2]
+    if edit is not None:
+        assert edit[0] in text, edit[0]
+        text = text.replace(edit[0], edit[1], 1)
+    path = tmp_path / "devices.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_example_file_builds_the_rig_in_si_units() -> None:
+    operator = ScriptedOperator()
+    rig = make_hw_rig(example_path(), operator=operator)
+    assert rig.backend == "hw" and rig.operator is operator
+    assert isinstance(rig.load_cell, MtSicsLoadCell) and rig.load_cell.port == "/dev/ttyUSB0"
+    assert isinstance(rig.daq, MccUsbDaq) and isinstance(rig.hammer, ManualHammer)
+    assert isinstance(rig.actuator, ManualActuator) and rig.actuator.knobs == 4
+    channels = {c.name: c for c in rig.daq.channels}
+    assert list(channels) == ["F", "A1Z", "A2Z", "A3Z", "A4Z", "A1X", "A2X", "A3X"]
+    assert channels["F"].sensitivity_v_per_unit == pytest.approx(0.23e-3)
+    assert channels["A1Z"].sensitivity_v_per_unit == pytest.approx(0.1 / G)
+    assert channels["A1Z"].range_units == pytest.approx(50 * G, rel=1e-3)  # ±5 V range holds 50 g at 100 mV/g
+    assert rig.description["daq"].startswith("mcc_usb") and rig.description["devices"] == str(example_path())
+
+
+def test_serial_hammer_and_ni_daq_sections(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, hammer='type = "serial"\nport = "/dev/ttyACM0"\nlevel = 60\nboot_delay_s = 0',
+                        daq=NI_DAQ)
+    rig = make_hw_rig(path, operator=ScriptedOperator(), nidaqmx_module=FakeNiHardware().module())
+    assert isinstance(rig.hammer, SerialHammer) and rig.hammer.level == 60
+    assert isinstance(rig.daq, NiDaq) and rig.daq.iepe_current_a == pytest.approx(0.002)
+    assert rig.description["daq"] == "nidaqmx cDAQ1Mod1, cDAQ1Mod2"
+
+
+def test_backend_factory_hands_hw_to_the_devices_file() -> None:
+    case = ContactCase(roller(1), material("1.3505"), 0.2e-6)
+    rig = make_rig("hw", case=case, devices=example_path(), operator=ScriptedOperator())
+    assert rig.backend == "hw" and isinstance(rig.daq, MccUsbDaq)
+
+
+@pytest.mark.parametrize(("edit", "fragments"), [
+    (('knobs = 4', 'knobs = 4\nspeed = 2'), ("actuator", "unknown key(s) speed")),
+    (('type = "mcc_usb"', 'type = "usb-6009"'), ("daq.type = 'usb-6009'", "mcc_usb, nidaqmx")),
+    (('name = "A2Z"', 'name = "A5Z"'), ("daq.channels[2].name = 'A5Z'", "A1X")),
+    (('input = 7', 'input = 9'), ("daq:", "input '9'", "inputs 0-7")),
+    (('input = 7', 'input = "ai7"'), ("daq.channels[7].input = 'ai7'", "expected int")),
+    (('sensitivity_mv_per_n = 0.23', 'sensitivity_mv_per_n = -0.23'), ("sensitivity_mv_per_n = -0.23", "positive")),
+    (('range_g = 50.0', 'range_mm = 50.0'), ("daq.channels[1]", "unknown key(s) range_mm")),
+    (('port = "/dev/ttyUSB0"', 'port = 3'), ("load_cell.port = 3", "expected str")),
+    (('busy_retries = 3', 'busy_retries = -1'), ("busy_retries = -1", "integer at least 0")),
+    (('[actuator]', '[actuators]'), ("unknown key(s) actuators",)),
+])
+def test_bad_devices_files_name_file_key_and_value(tmp_path: Path, edit: tuple[str, str],
+                                                   fragments: tuple[str, ...]) -> None:
+    path = devices_file(tmp_path, edit=edit)
+    with pytest.raises(InputError) as err:
+        load_devices(path)
+    for fragment in (str(path), *fragments):
+        assert fragment in str(err.value)
+
+
+def test_serial_hammer_level_out_of_range(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, hammer='type = "serial"\nport = "/dev/ttyACM0"\nlevel = 300')
+    with pytest.raises(InputError, match=r"hammer.level = 300: expected an integer 1-255"):
+        load_devices(path)
+
+
+def test_check_with_every_instrument_answering(tmp_path: Path) -> None:
+    with PtySerialEmulator(MtSicsDevice(lambda: 114.0)) as cell, PtySerialEmulator(HammerDevice()) as hammer:
+        path = devices_file(tmp_path, load_port=cell.port,
+                            hammer=f'type = "serial"\nport = "{hammer.port}"\nboot_delay_s = 0')
+        checks = check_devices(path, usb_backend=FakeUsbBackend(FakeMcc1608(serial="01D2B3A4")))
+    assert [c.role for c in checks] == ["load_cell", "daq", "hammer", "actuator"]
+    assert all(c.ok for c in checks), checks
+    detail = {c.role: c.detail for c in checks}
+    assert "B947123456" in detail["load_cell"] and "114.00 N (stable)" in detail["load_cell"]
+    assert "serial 01D2B3A4" in detail["daq"] and "AUTOHAMMER" in detail["hammer"]
+
+
+def test_check_cli_reports_what_works_and_what_does_not(tmp_path: Path) -> None:
+    with PtySerialEmulator(MtSicsDevice(lambda: 38.5)) as cell:
+        path = devices_file(tmp_path, load_port=cell.port)
+        proc = labctl("devices", "check", "--devices", str(path), "--json")
+        text = labctl("devices", "check", "--devices", str(path))
+    assert proc.returncode == 1, proc.stderr
+    out = json.loads(proc.stdout)
+    by_role = {d["role"]: d for d in out["devices"]}
+    assert out["ok"] is False and out["devices_file"] == str(path)
+    assert by_role["load_cell"]["ok"] and "38.50 N" in by_role["load_cell"]["detail"]
+    assert not by_role["daq"]["ok"] and ("USB-1608FS-Plus" in by_role["daq"]["detail"]
+                                         or "libusb" in by_role["daq"]["detail"])
+    assert by_role["hammer"]["ok"] and by_role["actuator"]["ok"]
+    assert "FAILED daq" in text.stdout and text.returncode == 1
+
+
+def test_check_without_a_devices_file(tmp_path: Path) -> None:
+    proc = labctl("devices", "check", cwd=str(tmp_path))
+    assert_one_line_error(proc, "no devices file", "--devices")
+
+
+def test_check_with_a_broken_devices_file(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, edit=('kind = "force"', 'kind = "pressure"'))
+    assert_one_line_error(labctl("devices", "check", "--devices", str(path)), str(path), "kind = 'pressure'")
