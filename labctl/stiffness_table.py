@@ -7,20 +7,18 @@ columns default to a bearing-steel roller (1.3505: 210 GPa, ν 0.29, HRC 60) bet
 from __future__ import annotations
 
 import csv
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
 
 from labctl.errors import InputError
 from labctl.physics.catalogue import Roller, rollers
 from labctl.physics.effects import ContactCase
-from labctl.physics.materials import BEARING_STEEL, GPA, Material, material, materials
+from labctl.physics.materials import BEARING_STEEL, Material, material, materials
 
-MM = 1e-3
-UM = 1e-6
-DEFAULT_ROLLER_RA_M = 0.03 * UM
+DEFAULT_ROLLER_RA_M = 0.03e-6
 GEOMETRY_MATCH = 0.01
 
 REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffness_n_per_m")
@@ -87,53 +85,63 @@ def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_lengt
     return known.roughness_ra_m if same else DEFAULT_ROLLER_RA_M
 
 
-def _positive(v: float) -> bool:
+def _positive(v: Decimal) -> bool:
     return v > 0
 
 
-def _non_negative(v: float) -> bool:
+def _non_negative(v: Decimal) -> bool:
     return v >= 0
 
 
-def _poisson(v: float) -> bool:
-    return -1.0 < v < 0.5
+def _poisson(v: Decimal) -> bool:
+    return Decimal(-1) < v < Decimal("0.5")
 
 
 def _integer(text: str) -> int:
-    value = float(text)
-    if not value.is_integer():
+    value = _number(text)
+    if value != value.to_integral_value():
         raise ValueError(text)
     return int(value)
 
 
-# column -> (field, scale to SI, parser, check, what is expected)
-_Spec = tuple[str, float, Callable[[str], Any], Callable[[Any], bool] | None, str]
+def _number(text: str) -> Decimal:
+    try:
+        value = Decimal(text)
+    except InvalidOperation:
+        raise ValueError(text) from None
+    if not value.is_finite():
+        raise ValueError(text)
+    return value
+
+
+# column -> (field, decimal exponent from the column's unit to SI, parser, check, what is expected)
+_Spec = tuple[str, int, Callable[[str], Any], Callable[[Any], bool] | None, str]
 _SPECS: dict[str, _Spec] = {
-    "diameter_mm": ("diameter_m", MM, float, _positive, "a positive diameter in mm"),
-    "contact_length_mm": ("contact_length_m", MM, float, _positive, "a positive contact length L_we in mm"),
-    "rail_ra_um": ("rail_ra_m", UM, float, _non_negative, "a rail roughness Ra ≥ 0 in µm"),
-    "load_n": ("load_n", 1.0, float, _positive, "a positive load per roller in N"),
-    "stiffness_n_per_m": ("stiffness_n_per_m", 1.0, float, _positive, "a positive stiffness in N/m"),
-    "roller_type": ("roller_type", 1, _integer, None, "an integer roller type"),
-    "roller_length_mm": ("roller_length_m", MM, float, _positive, "a positive total roller length L_r in mm"),
-    "material": ("material", 1, str, None, "a material name"),
-    "youngs_modulus_gpa": ("youngs_modulus_pa", GPA, float, _positive, "a positive Young's modulus in GPa"),
-    "poisson_ratio": ("poisson_ratio", 1.0, float, _poisson, "a Poisson ratio in (-1, 0.5)"),
-    "hardness_hrc": ("hardness_hrc", 1.0, float, _positive, "a positive Rockwell C hardness"),
-    "repetition": ("repetition", 1, _integer, None, "an integer repetition number"),
+    "diameter_mm": ("diameter_m", -3, _number, _positive, "a positive diameter in mm"),
+    "contact_length_mm": ("contact_length_m", -3, _number, _positive, "a positive contact length L_we in mm"),
+    "rail_ra_um": ("rail_ra_m", -6, _number, _non_negative, "a rail roughness Ra ≥ 0 in µm"),
+    "load_n": ("load_n", 0, _number, _positive, "a positive load per roller in N"),
+    "stiffness_n_per_m": ("stiffness_n_per_m", 0, _number, _positive, "a positive stiffness in N/m"),
+    "roller_type": ("roller_type", 0, _integer, None, "an integer roller type"),
+    "roller_length_mm": ("roller_length_m", -3, _number, _positive, "a positive total roller length L_r in mm"),
+    "material": ("material", 0, str, None, "a material name"),
+    "youngs_modulus_gpa": ("youngs_modulus_pa", 9, _number, _positive, "a positive Young's modulus in GPa"),
+    "poisson_ratio": ("poisson_ratio", 0, _number, _poisson, "a Poisson ratio in (-1, 0.5)"),
+    "hardness_hrc": ("hardness_hrc", 0, _number, _positive, "a positive Rockwell C hardness"),
+    "repetition": ("repetition", 0, _integer, None, "an integer repetition number"),
 }
 
 
 def _cell(path: Path, row: int, column: str, text: str) -> Any:
-    attr, scale, parse, check, expected = _SPECS[column]
+    attr, exponent, parse, check, expected = _SPECS[column]
     where = f"{path}: row {row}, column {column}"
     try:
         value = parse(text)
     except ValueError:
         raise InputError(f"{where}: {text!r} is not {expected}") from None
-    if isinstance(value, float) and not math.isfinite(value) or check is not None and not check(value):
+    if check is not None and not check(value):
         raise InputError(f"{where}: {text!r} is not {expected}")
-    return value * scale if isinstance(value, float) else value
+    return float(value.scaleb(exponent)) if isinstance(value, Decimal) else value
 
 
 def _row_point(path: Path, row: int, record: dict[str, str]) -> StiffnessPoint:
@@ -181,12 +189,12 @@ def read_stiffness_table(path: str | Path) -> list[StiffnessPoint]:
     return points
 
 
-def _format(value: Any, scale: float) -> str:
+def _format(value: Any, exponent: int) -> str:
     if value is None:
         return ""
     if isinstance(value, str | int):
         return str(value)
-    return f"{float(value) / scale:.12g}"
+    return f"{float(value) * 10.0 ** -exponent:.12g}"
 
 
 def write_stiffness_table(path: str | Path, points: Iterable[StiffnessPoint]) -> None:
