@@ -3,8 +3,8 @@
 Points of one case are grouped into replicate sets (one per load step, one point per repetition); the
 pooled within-set scatter is the pure error of regression's lack-of-fit test. Scatter falls with load (a few %
 at the preload, < 1 % near C0), so it is pooled in bands of load per length and interpolated between them:
-each point gets its own σ, which weights the fits. Without repetitions the scatter about a smooth per-case
-curve (cubic in ln F) stands in, as one σ for all points.
+each point gets its own σ, which weights the fits. Without repetitions each point's distance from the line
+through its two neighbours (in ln F) stands in, as one σ for all points.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from labctl.errors import InputError
 
 SAME_STEP = 0.05
 """Loads of two repetitions' points within this relative distance count as the same step."""
-SMOOTH_DEGREE = 3
 CONSISTENT_P = 0.01
 """Lack-of-fit p-value above which the residuals count as noise."""
 BAND_DOF = 12
@@ -109,17 +108,25 @@ def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float,
     return tuple(centre), tuple(sigma)
 
 
-def _smooth_scatter(data: Dataset) -> tuple[float, int]:
-    ss, dof = 0.0, 0
+def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
+    """Gasser-Sargent-Sengupta: each point against the straight line through its neighbours in ln F.
+
+    Removes any smooth trend (and all but the nearest points of a kink) without a model of the curve.
+    """
+    ss, n = 0.0, 0
     for c in data.cases:
-        deg = min(SMOOTH_DEGREE, c.load_n.size - 3)
-        if deg < 1:
+        order = np.argsort(c.load_n, kind="stable")
+        x, y = np.log(c.load_n[order]), c.ln_stiffness[order]
+        if x.size < 3:
             continue
-        x = np.log(c.load_n)
-        coef = np.polyfit(x, c.ln_stiffness, deg)
-        ss += float(np.sum((np.polyval(coef, x) - c.ln_stiffness) ** 2))
-        dof += c.load_n.size - deg - 1
-    return ss, dof
+        span = x[2:] - x[:-2]
+        ok = span > 0
+        a = np.where(ok, (x[2:] - x[1:-1]) / np.where(ok, span, 1.0), 0.5)
+        b = 1.0 - a
+        eps = a * y[:-2] + b * y[2:] - y[1:-1]
+        ss += float(np.sum(eps**2 / (a**2 + b**2 + 1.0)))
+        n += eps.size
+    return ss, n
 
 
 def estimate_noise(data: Dataset) -> NoiseFloor:
@@ -135,8 +142,8 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         centre, sigma = _bands(np.array([x[g].mean() for g in groups]), ss, dof)
         return NoiseFloor(math.sqrt(ss.sum() / dof.sum()), int(dof.sum()), "repetitions", tuple(groups),
                           centre, sigma)
-    ss, dof = _smooth_scatter(data)
+    ss, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss <= 0:
         raise InputError("cannot estimate the measurement noise: give repetitions of the load steps or at least "
-                         "five load steps per roller")
-    return NoiseFloor(math.sqrt(ss / dof), dof, "smooth-fit", tuple(groups))
+                         "three load steps per roller")
+    return NoiseFloor(math.sqrt(ss / dof), dof, "neighbour-differences", tuple(groups))

@@ -92,8 +92,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         new = select_step(data, current, noise)
         if not new:
             break
-        steps.extend(new)
-        current = new[-1].fit
+        steps.extend(new[: max_effects - len(steps)])
+        current = steps[-1].fit
     return DiscrepancyResult(
         data=data, baseline=base, final=current, noise=noise, steps=tuple(steps),
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
