@@ -10,9 +10,9 @@ from drivers.hw import ManualActuator, ManualHammer, MccUsbDaq, SerialHammer
 from drivers.interfaces import Hammer, LoadActuator
 from drivers.operators import ScriptedOperator
 from tests.emulators.fake_usb import FakeMcc1608, FakeUsbBackend, PlaybackSource
+from tests.emulators.impacts import FS, TRIGGER, impact_volts, wiring
 from tests.emulators.instruments import HammerDevice
 from tests.emulators.pty_serial import ExpectedProtocol, PtySerialEmulator
-from tests.test_hw_mcc import FS, TRIGGER, impact_volts, wiring
 
 
 def test_fire_ok_and_identify_exchange() -> None:
