@@ -87,6 +87,8 @@ def test_scan_left_running_by_a_crashed_program_is_stopped_first() -> None:
 def test_no_blow_times_out_and_stops_the_scan() -> None:
     device = FakeMcc1608()
     with rig(device) as daq:
+        with pytest.raises(DeviceError, match="not armed"):
+            daq.acquire(timeout_s=0.1)
         daq.arm(TRIGGER)
         with pytest.raises(DeviceTimeout, match="no force above the trigger level within 0.2 s"):
             daq.acquire(timeout_s=0.2)

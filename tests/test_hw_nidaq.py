@@ -122,6 +122,10 @@ def test_failures_are_typed() -> None:
         daq.acquire(1.0)
     with pytest.raises(DeviceError, match="configure"):
         make(FakeNiHardware()).arm(TRIGGER)
+    unarmed = make(FakeNiHardware())
+    unarmed.configure(20480.0, N)
+    with pytest.raises(DeviceError, match="not armed"):
+        unarmed.acquire(0.1)
 
 
 def test_probe_names_missing_modules() -> None:

@@ -238,6 +238,7 @@ class MccUsbDaq:
             raise DeviceDisconnected(self.name, "open", "no USB-1608FS-Plus (vendor 0x09db, product 0x00ea) "
                                      "on the USB bus")
         claimed: dict[str, Any] = {}
+        refused: list[usb.core.USBError] = []
         for dev in found:
             try:
                 if dev.is_kernel_driver_active(0):
@@ -249,8 +250,9 @@ class MccUsbDaq:
                 usb.util.claim_interface(dev, 0)
                 claimed[self._serial_number(dev)] = dev
             except usb.core.USBError as exc:
-                if len(found) == 1:
-                    raise usb_error(self.name, "open", exc) from exc
+                refused.append(exc)
+        if not claimed:
+            raise usb_error(self.name, "open", refused[0]) from refused[0]
         chosen = claimed.get(self.serial) if self.serial else next(iter(claimed.values()), None)
         if self.serial is None and len(claimed) > 1:
             chosen = None

@@ -54,6 +54,7 @@ class NiDaq:
         self._task: Any = None
         self._rate_hz = 0.0
         self._n_samples = 0
+        self._pretrigger: int | None = None  # set by arm, cleared by acquire
         self.requested_rate_hz = 0.0
 
     @property
@@ -110,8 +111,9 @@ class NiDaq:
 
     def acquire(self, timeout_s: float) -> Record:
         """Wait for the trigger and the post-trigger samples; read all channels in physical units."""
-        if self._task is None:
-            raise DeviceError(self.name, "acquire", "not armed")
+        if self._task is None or self._pretrigger is None:
+            raise DeviceError(self.name, "acquire", "not armed: call arm() before acquire()")
+        pretrigger, self._pretrigger = self._pretrigger, None
         record_s = self._n_samples / self._rate_hz
         with self._errors("acquire"):
             self._task.wait_until_done(timeout=timeout_s + record_s)
@@ -119,7 +121,7 @@ class NiDaq:
             overloaded = self._overloaded()
             self._task.stop()
         data = data.reshape(len(self._wiring), self._n_samples)
-        return make_record(self._wiring, data, self._rate_hz, self._pretrigger, time.time() - record_s, overloaded)
+        return make_record(self._wiring, data, self._rate_hz, pretrigger, time.time() - record_s, overloaded)
 
     def probe(self) -> str:
         ni = self._module()
