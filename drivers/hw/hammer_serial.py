@@ -20,6 +20,7 @@ from __future__ import annotations
 import time
 
 from drivers.errors import DeviceBusy, DeviceError
+from drivers.hw.lifecycle import Lifecycle
 from drivers.hw.serial_line import LineTransport
 
 LEVEL_RANGE = (1, 255)
@@ -29,7 +30,7 @@ def _is_reply(line: str, heads: tuple[str, ...]) -> bool:
     return line.isascii() and line.strip().split(" ", 1)[0] in heads
 
 
-class SerialHammer:
+class SerialHammer(Lifecycle):
     """``strike()`` sends ``FIRE <level>`` and returns once the device answers ``OK``."""
 
     def __init__(self, port: str, *, level: int = 128, baudrate: int = 115200, timeout_s: float = 2.0,
@@ -51,12 +52,6 @@ class SerialHammer:
     def close(self) -> None:
         self._line.close()
 
-    def __enter__(self) -> SerialHammer:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def identify(self) -> str:
         self.open()

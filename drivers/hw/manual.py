@@ -7,28 +7,17 @@ manual actuator asks for the knob turn and keeps the total turned since the prel
 from __future__ import annotations
 
 from drivers.errors import DeviceError
+from drivers.hw.lifecycle import Lifecycle
 from drivers.interfaces import Operator
 
 DONE, CANCEL = "done", "cancel"
 
 
-class ManualHammer:
+class ManualHammer(Lifecycle):
     """``strike()`` asks the operator for one blow (``action="strike"``)."""
 
     def __init__(self, operator: Operator, *, name: str = "hammer (manual)") -> None:
         self.name, self.operator = name, operator
-
-    def open(self) -> None:
-        return None
-
-    def close(self) -> None:
-        return None
-
-    def __enter__(self) -> ManualHammer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
 
     def strike(self) -> None:
         answer = self.operator.prompt(
@@ -41,7 +30,7 @@ class ManualHammer:
         return "manual: the operator strikes, the DAQ's force trigger catches the blow"
 
 
-class ManualActuator:
+class ManualActuator(Lifecycle):
     """``turn_knobs(angle)`` asks the operator to turn every star knob by ``angle`` degrees together."""
 
     def __init__(self, operator: Operator, *, knobs: int = 4, name: str = "star knobs (manual)") -> None:
@@ -53,18 +42,6 @@ class ManualActuator:
     @property
     def knob_angle_deg(self) -> float:
         return self._angle_deg
-
-    def open(self) -> None:
-        return None
-
-    def close(self) -> None:
-        return None
-
-    def __enter__(self) -> ManualActuator:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
 
     def turn_knobs(self, angle_deg: float) -> None:
         """Positive tightens, negative loosens; loosening stops at the preload (the knobs' start)."""

@@ -24,6 +24,7 @@ import usb.util
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 from drivers.hw import mcc_protocol as mcc
 from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record
+from drivers.hw.lifecycle import Lifecycle
 from drivers.interfaces import Channel, Record, TriggerSpec
 
 _CONTROL_TIMEOUT_MS = 1000
@@ -45,7 +46,7 @@ def usb_error(device: str, action: str, exc: Exception) -> DeviceError:
     return DeviceError(device, action, str(exc) or type(exc).__name__)
 
 
-class MccUsbDaq:
+class MccUsbDaq(Lifecycle):
     """USB-1608FS-Plus: ``configure`` → actual pacer rate; ``arm`` starts the scan; ``acquire`` the record."""
 
     def __init__(self, wiring: Sequence[InputWiring], *, serial: str | None = None, backend: Any = None,
@@ -116,12 +117,6 @@ class MccUsbDaq:
             usb.util.dispose_resources(self._dev)
         self._dev = None
 
-    def __enter__(self) -> MccUsbDaq:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def arm(self, trigger: TriggerSpec) -> None:
         """Start a continuous scan and watch it for the force crossing ``trigger.level_n``."""

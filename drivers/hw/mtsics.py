@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass
 
 from drivers.errors import DeviceBusy, DeviceError
+from drivers.hw.lifecycle import Lifecycle
 from drivers.hw.serial_line import LineTransport
 from drivers.interfaces import LoadReading
 
@@ -58,7 +59,7 @@ def to_newton(value: float, unit: str, gravity_m_per_s2: float = STANDARD_GRAVIT
     raise ValueError(f"unit {unit!r} is not a force or mass unit ({known})")
 
 
-class MtSicsLoadCell:
+class MtSicsLoadCell(Lifecycle):
     """The rig's load cell: ``read()`` is the TOTAL force through the three rollers, in N."""
 
     def __init__(self, port: str, *, baudrate: int = 9600, timeout_s: float = 2.0, busy_retries: int = 3,
@@ -76,12 +77,6 @@ class MtSicsLoadCell:
     def close(self) -> None:
         self._line.close()
 
-    def __enter__(self) -> MtSicsLoadCell:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def read(self) -> LoadReading:
         """The force now (``SI``), flagged stable or dynamic; the engine waits for stability itself."""

@@ -18,6 +18,7 @@ import numpy as np
 
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 from drivers.hw.acquisition import InputWiring, check_wiring, make_record
+from drivers.hw.lifecycle import Lifecycle
 from drivers.interfaces import Channel, Record, TriggerSpec
 
 STANDARD_GRAVITY_M_PER_S2 = 9.80665
@@ -41,7 +42,7 @@ def ni_error(device: str, action: str, exc: Exception) -> DeviceError:
     return DeviceError(device, action, f"DAQmx {code}: {text}" if code is not None else text)
 
 
-class NiDaq:
+class NiDaq(Lifecycle):
     """A finite, reference-triggered acquisition of every wired channel; ``configure`` returns the real rate."""
 
     def __init__(self, wiring: Sequence[InputWiring], *, iepe_current_a: float = 0.002, name: str = "daq@nidaqmx",
@@ -74,12 +75,6 @@ class NiDaq:
                 self._task.close()
         self._task = None
 
-    def __enter__(self) -> NiDaq:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def configure(self, sample_rate_hz: float, n_samples: int) -> float:
         """Create the task; the sample clock is read back (an NI 9234 coerces 20 480 Hz to 25 600 Hz)."""
