@@ -46,7 +46,8 @@ def test_independent_h1_finds_bounce_and_tilt(acceptance):
     bounce, tilt = bounce_and_tilt_peaks(freqs, frf, d["channels"].tolist())
     assert bounce == pytest.approx(truth["bounce_hz"], rel=0.005)
     assert tilt == pytest.approx(0.78 * bounce, rel=0.03)
-    assert tilt == pytest.approx(truth["tilt_hz"][0], rel=0.005)
+    # the tilt pair (split by unequal rollers, far closer than its half-power bandwidth) shows as one peak
+    assert 0.99 * truth["tilt_hz"][0] < tilt < 1.01 * truth["tilt_hz"][1]
     # the rig file's first flexible disc mode shows above 2 kHz
     a1z = frf[d["channels"].tolist().index("A1Z")]
     flex_hz = RIG.flexible_modes[0].frequency_hz

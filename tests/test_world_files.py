@@ -110,12 +110,16 @@ def test_bad_instrument_settings_are_refused_when_the_rig_is_built(tmp_path):
         assert str(path) in str(exc.value) and message in str(exc.value)
 
 
-def test_unknown_backend_and_missing_hardware_are_clear():
+def test_unknown_backend_is_refused_and_hw_is_handed_to_the_hardware_factory(tmp_path):
     case = ContactCase(roller(1), STEEL, 0.2e-6)
     with pytest.raises(InputError, match="unknown backend 'lab'; valid backends: sim, hw"):
         make_rig("lab", case=case)
+    missing = tmp_path / "devices.toml"
     try:
         import labctl.hardware  # noqa: F401
     except ImportError:
         with pytest.raises(InputError, match="hardware backend not available"):
-            make_rig("hw", case=case)
+            make_rig("hw", case=case, devices=missing)
+    else:
+        with pytest.raises(InputError, match=str(missing)):
+            make_rig("hw", case=case, devices=missing)
