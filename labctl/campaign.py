@@ -17,6 +17,7 @@ from labctl.engine import Engine, Outcome, RunControl
 from labctl.errors import InputError
 from labctl.events import Event, EventBus
 from labctl.physics.rig_config import RigConfig, load_rig
+from labctl.physics.world import world_path
 from labctl.protocol import Protocol, SpecimenSpec, load_protocol
 from labctl.storage import CampaignWriter
 
@@ -29,7 +30,7 @@ def _config_files(protocol: Protocol, rig: RigConfig, world: str | Path | None,
                   devices: str | Path | None) -> dict[str, str]:
     files = {"protocol.toml": protocol.source_text, "rig.toml": _text(rig.source)}
     if world is not None:
-        files["world.toml"] = _text(world)
+        files["world.toml"] = _text(world_path(world))
     if devices is not None:
         files["devices.toml"] = _text(devices)
     return files

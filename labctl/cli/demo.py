@@ -1,60 +1,72 @@
-"""``labctl demo``: the roller-type-1 load sweep of the paper's §2.3 on the paper rig, model side."""
+"""``labctl demo``: the README's main job — the roller-type-1 campaign (paper §2.3) on the simulated rig."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from labctl.cli.common import add_json, emit
-from labctl.physics import (
-    EQ5,
-    ContactCase,
-    ContactLaw,
-    EmpiricalFit,
-    SurfaceRoughness,
-    TrippContact,
-    load_rig,
-    material,
-    rig_modes,
-    roller,
-    roller_stiffness_from_bounce,
-    static_load_rating_n,
-)
+
+PROTOCOL = "roller_stiffness"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="roller type 1 on the paper rig: load steps, modes and stiffness vs models")
-    p.add_argument("--out", help="directory for results")
+    p = sub.add_parser("demo", help="run the roller-type-1 campaign on the simulated rig and compare with models")
+    p.add_argument("--out", default="labctl-demo", help="directory for campaign.h5 and stiffness.csv")
+    p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig (default 1)")
+    p.add_argument("--world", help="world scenario for the simulated rig (default: Tripp + surface roughness)")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
     add_json(p)
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    rig = load_rig()
-    r, steel = roller(1), material("1.3505")
-    case = ContactCase(r, steel, 0.2e-6)
-    world = ContactLaw("tripp", 1.5e-3, (SurfaceRoughness(1.5),))
-    cap = 0.3 * static_load_rating_n(r, steel)
-    step = rig.loading.rods * rig.loading.spring_rate_n_per_m * 0.5 * rig.loading.thread_pitch_m / 3
-    loads = np.arange(rig.preload_per_roller_n, cap + 1e-9, step)
-    rows = []
-    for f in loads:
-        k_true = float(world.stiffness_n_per_m(case, f))
-        modes = rig_modes(rig, k_true)
-        k_back = roller_stiffness_from_bounce(rig, modes.bounce_hz)
-        rows.append({"load_n": float(f), "bounce_hz": modes.bounce_hz, "tilt_hz": list(modes.tilt_hz),
-                     "stiffness_n_per_m": k_back,
-                     "tripp_n_per_m": float(TrippContact(r, steel).stiffness_n_per_m(f)),
-                     "eq5_n_per_m": float(EmpiricalFit(EQ5, r.contact_length_m).stiffness_n_per_m(f))})
+def summarise(curves: list[dict[str, Any]], case: Any) -> list[dict[str, float]]:
+    """Per load step over the repetitions: mean load and stiffness, spread (max-min)/mean, and the models."""
+    from labctl.physics.references import reference_curves
 
-    def text(res: dict) -> str:
-        lines = [f"roller type 1 on {rig.name}; load cap 30 % of C0 = {cap:.0f} N",
-                 " load [N]  bounce [Hz]  tilt [Hz]   k [N/m]     Tripp [N/m]   Eq.5 [N/m]"]
-        for s in res["steps"]:
-            lines.append(f"{s['load_n']:8.1f}  {s['bounce_hz']:10.2f}  {s['tilt_hz'][0]:8.2f}  "
-                         f"{s['stiffness_n_per_m']:.4e}  {s['tripp_n_per_m']:.4e}  {s['eq5_n_per_m']:.4e}")
+    n = min(len(c["load_n"]) for c in curves)
+    loads = np.array([c["load_n"][:n] for c in curves])
+    k = np.array([c["stiffness_n_per_m"][:n] for c in curves])
+    mean_load, mean_k = loads.mean(axis=0), k.mean(axis=0)
+    refs = reference_curves(case, "roller", mean_load)
+    return [{"step": i + 1, "load_n": float(mean_load[i]), "stiffness_n_per_m": float(mean_k[i]),
+             "spread": float((k[:, i].max() - k[:, i].min()) / mean_k[i]),
+             "tripp_n_per_m": float(refs["tripp"][i]), "eq5_n_per_m": float(refs["fit-ra0.2"][i]),
+             "vs_eq5": float(mean_k[i] / refs["fit-ra0.2"][i] - 1.0)} for i in range(n)]
+
+
+def run(args: argparse.Namespace) -> int:
+    from labctl.campaign import run_campaign
+    from labctl.cli.progress import ProgressPrinter
+    from labctl.protocol import load_protocol
+    from labctl.reprocess import process_campaign
+    from labctl.stiffness_table import write_stiffness_table
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "campaign.h5"
+    path.unlink(missing_ok=True)
+    protocol = load_protocol(PROTOCOL)
+    subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
+    outcome = run_campaign(protocol, out=path, backend="sim", seed=args.seed, world=args.world, subscribers=subs)
+    if outcome.status != "complete" or not outcome.curves:
+        raise RuntimeError(f"demo campaign ended {outcome.status}: {outcome.message}")
+    csv = out / "stiffness.csv"
+    write_stiffness_table(csv, process_campaign(path).points)
+    steps = summarise(outcome.curves, protocol.specimens[0].case())
+    result = {"campaign": str(path), "csv": str(csv), "repetitions": len(outcome.curves), "steps": steps}
+
+    def text(r: dict[str, Any]) -> str:
+        lines = [f"roller type 1 on Ra 0.2 µm rails, {r['repetitions']} repetitions → {r['campaign']}, {r['csv']}",
+                 " step  load [N]   k mean [N/m]  spread   Tripp [N/m]   Eq. 5 [N/m]   k/Eq.5-1"]
+        for s in r["steps"]:
+            lines.append(f" {s['step']:4d} {s['load_n']:9.1f}   {s['stiffness_n_per_m']:.4e}  {s['spread']:6.2%}"
+                         f"   {s['tripp_n_per_m']:.4e}    {s['eq5_n_per_m']:.4e}   {s['vs_eq5']:+7.2%}")
         return "\n".join(lines)
 
-    emit({"roller_type": 1, "steps": rows}, args.json, text)
+    emit(result, args.json, text)
     return 0
