@@ -6,10 +6,7 @@ import argparse
 from typing import Any
 
 from labctl.cli.common import add_json, emit
-from labctl.discrepancy import load_points, run_discrepancy
-from labctl.discrepancy.report import summary_text, write_report
 from labctl.errors import InputError
-from labctl.physics.rig_config import load_rig
 
 BASELINE_CHOICES = ("tripp", "palmgren", "fit-ra0.2", "fit-ra0.03")
 
@@ -35,6 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.discrepancy import load_points, run_discrepancy  # heavy (scipy, matplotlib): only when used
+    from labctl.discrepancy.report import summary_text, write_report
+    from labctl.physics.rig_config import load_rig
+
     if not 0 <= args.max_effects <= 5:
         raise InputError(f"--max-effects {args.max_effects}: expected 0 to 5")
     k_setup = load_rig(args.rig).setup_stiffness_n_per_m

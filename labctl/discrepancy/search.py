@@ -79,10 +79,16 @@ def _candidate(data: Dataset, current: Fit, added: tuple[str, ...]) -> Candidate
     return Candidate(added, fit, current.bic - fit.bic, beyond(current, fit))
 
 
-def rank_candidates(data: Dataset, current: Fit) -> list[Candidate]:
-    """Every missing effect alone and every pair of them; best BIC first."""
+def rank_candidates(data: Dataset, current: Fit, noise: NoiseFloor) -> list[Candidate]:
+    """Every missing effect alone and every pair of them; best BIC first.
+
+    Pairs are skipped when the best single term already brings the residuals down to the noise: no pair could
+    then explain a further twice the noise, so none could be named.
+    """
     remaining = [n for n in EFFECTS if n not in current.spec.effects]
-    singles = [_candidate(data, current, (n,)) for n in remaining]
+    singles = sorted((_candidate(data, current, (n,)) for n in remaining), key=lambda c: -c.delta_bic)
+    if singles and noise.consistent(singles[0].fit.z, singles[0].fit.spec.n_params()):
+        return singles
     pairs = [_candidate(data, current, p) for p in itertools.combinations(remaining, 2)]
     return sorted(singles + pairs, key=lambda c: -c.delta_bic)
 
@@ -134,7 +140,7 @@ def _eligible(ranked: list[Candidate], noise: NoiseFloor) -> list[Candidate]:
 
 def select_step(data: Dataset, current: Fit, noise: NoiseFloor) -> list[Step]:
     """The effect(s) to add next, or [] when no candidate's evidence is decisive."""
-    ranked = rank_candidates(data, current)
+    ranked = rank_candidates(data, current, noise)
     for cand in _eligible(ranked, noise)[:MAX_CHECKED]:
         check = held_out(data, noise, current, cand.fit)
         if check is not None and not check.passed:
