@@ -54,6 +54,11 @@ class TrippContact:
         p, ln_r, ln_t, c_roller, c_rail, nu = self._terms(load_n)
         return p * (c_roller * (ln_r - 0.5) + 2.0 * c_rail * (2.0 * ln_t - nu / (1.0 - nu)))
 
+    def rail_compliance_m_per_n(self, load_n: ArrayLike) -> FloatArray:
+        """Tangent compliance of the two rail indentations alone (2 × Eq. 2): what separates roller from rails."""
+        _, _, ln_t, _, c_rail, nu = self._terms(load_n)
+        return 2.0 * c_rail * (2.0 * ln_t - nu / (1.0 - nu) - 1.0) / self.roller.contact_length_m
+
     def stiffness_n_per_m(self, load_n: ArrayLike) -> FloatArray:
         """Tangent stiffness dF/dδ = L_we / (dδ/dP)."""
         _, ln_r, ln_t, c_roller, c_rail, nu = self._terms(load_n)

@@ -1,0 +1,274 @@
+"""Single-impact checks run right after each blow: double hit, overload, pulse width, low force.
+
+The force pulse is located on a baseline-removed, polarity-corrected force record. Its width is the
+half-sine equivalent duration (1.5 × the full width at half maximum, exact for a half-sine). A second hit
+is searched with a filter matched to the measured main pulse (zero-mean over three pulse lengths, so
+baseline drift cancels and anti-alias filter ringing, far above the pulse's band, is strongly suppressed):
+its output, scaled so the main pulse reads 1, is the second hit's amplitude ratio.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+DOUBLE_HIT = "double_hit"
+OVERLOAD = "overload"
+PULSE_WIDTH = "pulse_width"
+LOW_FORCE = "low_force"
+LOW_COHERENCE = "low_coherence"
+REASONS = (DOUBLE_HIT, OVERLOAD, PULSE_WIDTH, LOW_FORCE, LOW_COHERENCE)
+PULSE_SEARCH_S = 5e-3  # the blow's extent is searched this far either side of its peak
+
+
+@dataclass(frozen=True)
+class CheckConfig:
+    """Acceptance thresholds for one impact (and, for coherence, for the impact set)."""
+
+    overload_fraction: float = 0.95  # of a channel's range
+    pulse_width_min_s: float = 1.0e-4  # the hammer tip's pulse range
+    pulse_width_max_s: float = 1.0e-3
+    min_peak_force_n: float = 10.0
+    double_hit_ratio: float = 0.05  # a second pulse at least this fraction of the first rejects the impact
+    double_hit_noise_sigmas: float = 6.0  # ... provided it also stands this far above the force noise
+    min_coherence: float = 0.9  # at the identified modes, over the impact set
+    double_hit_window_s: float = 0.25  # matched-filter search this far around the blow (raw force beyond)
+
+    def __post_init__(self) -> None:
+        if not 0 < self.overload_fraction <= 1:
+            raise ValueError(f"overload_fraction = {self.overload_fraction!r}: expected a fraction in (0, 1]")
+        if not 0 < self.pulse_width_min_s < self.pulse_width_max_s:
+            raise ValueError(f"pulse width range {self.pulse_width_min_s!r}..{self.pulse_width_max_s!r} s: "
+                             "expected 0 < min < max")
+        if not 0 < self.double_hit_ratio < 1:
+            raise ValueError(f"double_hit_ratio = {self.double_hit_ratio!r}: expected a fraction in (0, 1)")
+        if not 0 <= self.min_coherence <= 1:
+            raise ValueError(f"min_coherence = {self.min_coherence!r}: expected a value in [0, 1]")
+
+
+@dataclass(frozen=True)
+class ImpactCheck:
+    """Outcome of the checks on one impact; a rejected impact keeps its data and names its reasons."""
+
+    index: int
+    accepted: bool
+    reasons: tuple[str, ...]
+    peak_force_n: float
+    pulse_width_s: float
+    pulse_start: int = 0  # first sample of the blow
+    pulse_end: int = 0  # last sample of the blow
+    second_hit_ratio: float = 0.0  # largest other pulse / main pulse (matched filter)
+    second_hit_delay_s: float | None = None  # its delay after the main pulse (negative: before it)
+    overloaded: tuple[str, ...] = ()
+    force_noise_n: float = 0.0
+    coherence: float | None = None  # at the modes, set by the impact-set check
+    polarity: float = 1.0  # -1 when the force channel reads blows as negative
+    notes: tuple[str, ...] = field(default=())
+
+    def rejected_for(self, reason: str, note: str = "") -> ImpactCheck:
+        """The same check with one more rejection reason."""
+        reasons = self.reasons if reason in self.reasons else (*self.reasons, reason)
+        return replace(self, accepted=False, reasons=reasons, notes=(*self.notes, note) if note else self.notes)
+
+
+@dataclass(frozen=True)
+class Pulse:
+    """The located main blow on a baseline-free, positive force record."""
+
+    force_n: np.ndarray
+    peak: int
+    start: int
+    end: int
+    peak_n: float
+    width_s: float
+    noise_n: float
+    polarity: float
+
+
+def _noise_sigma(x: np.ndarray) -> float:
+    """Robust white-noise σ from first differences of the record's last part (the blow is early)."""
+    d = np.diff(x[-min(len(x), 4096):])
+    return float(1.4826 * np.median(np.abs(d)) / math.sqrt(2.0)) if len(d) else 0.0
+
+
+def _crossing(x: np.ndarray, i0: int, i1: int, level: float) -> float:
+    """Fractional index where x crosses ``level`` between samples i0 and i1 (linear interpolation)."""
+    a, b = x[i0], x[i1]
+    return i0 + (level - a) / (b - a) * (i1 - i0) if b != a else float(i0)
+
+
+def locate_pulse(force_n: ArrayLike, fs_hz: float) -> Pulse:
+    """Find the main blow: baseline, polarity, peak, extent and half-sine equivalent width."""
+    f = np.asarray(force_n, dtype=float)
+    base = float(np.median(f[:: max(1, len(f) // 8192)]))
+    g = f - base
+    polarity = -1.0 if -g.min() > g.max() else 1.0
+    if polarity < 0:
+        g = -g
+    noise = _noise_sigma(g)
+    peak = int(np.argmax(g))
+    p = float(g[peak])
+    lo = max(0.02 * p, 3.0 * noise)
+    span = max(8, int(PULSE_SEARCH_S * fs_hz))
+    i0 = max(0, peak - span)
+    before, after = g[i0:peak], g[peak:peak + span]
+    below_l = np.flatnonzero(before <= lo)
+    below_r = np.flatnonzero(after <= lo)
+    start = i0 + int(below_l[-1]) + 1 if len(below_l) else i0
+    end = peak + int(below_r[0]) - 1 if len(below_r) else peak + len(after) - 1
+    half = 0.5 * p
+    left = np.flatnonzero(before < half)
+    right = np.flatnonzero(after < half)
+    t0 = _crossing(g, i0 + int(left[-1]), i0 + int(left[-1]) + 1, half) if len(left) else float(start)
+    t1 = _crossing(g, peak + int(right[0]) - 1, peak + int(right[0]), half) if len(right) else float(end)
+    width = 1.5 * max(t1 - t0, 0.0) / fs_hz
+    return Pulse(g, peak, start, end, p, width, noise, polarity)
+
+
+def second_hit(pulse: Pulse, fs_hz: float, window_s: float) -> tuple[float, float | None, float]:
+    """Largest other pulse relative to the main one: (ratio, delay s, ratio the noise alone could reach).
+
+    Within ``window_s`` of the blow the matched filter is used; beyond it (a rare, late second blow) the
+    raw force is compared with the peak.
+    """
+    g = pulse.force_n
+    tpl = g[pulse.start:pulse.end + 1]
+    n_t = len(tpl)
+    lo = max(0, pulse.start - n_t - int(window_s * fs_hz))
+    hi = min(len(g), pulse.end + n_t + int(window_s * fs_hz))
+    best: tuple[float, float | None, float] = (0.0, None, pulse.noise_n / max(pulse.peak_n, 1e-300))
+    if hi - lo >= 3 * n_t + 2:
+        kernel = np.concatenate([np.zeros(n_t), tpl, np.zeros(n_t)])
+        kernel -= kernel.mean()
+        main = float(kernel @ kernel)
+        if main > 0:
+            ratio = np.correlate(g[lo:hi], kernel, mode="valid") / main  # index j: template at g[lo + j + n_t]
+            j0 = pulse.start - n_t - lo
+            guard = n_t + max(2, n_t // 2)
+            ratio[max(0, j0 - guard + 1):max(0, j0 + guard)] = -np.inf
+            k = int(np.argmax(ratio))
+            if np.isfinite(ratio[k]):
+                best = (float(ratio[k]), (k - j0) / fs_hz, pulse.noise_n / math.sqrt(main))
+    outside = np.concatenate([g[:lo], g[hi:]])
+    if len(outside) and pulse.peak_n > 0:
+        k = int(np.argmax(outside))
+        raw = float(outside[k]) / pulse.peak_n
+        noise_raw = pulse.noise_n / pulse.peak_n
+        if raw / max(noise_raw, 1e-300) > best[0] / max(best[2], 1e-300) and raw > best[0]:
+            at = k if k < lo else k - lo + hi
+            best = (raw, (at - pulse.start) / fs_hz, noise_raw)
+    return best
+
+
+def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None:
+    if ranges is None:
+        return None
+    r = np.broadcast_to(np.asarray(ranges, dtype=float), (n,))
+    return r
+
+
+def _plateau_clipped(x: np.ndarray) -> bool:
+    """Clipping without a known range: three or more consecutive samples pinned at the record's extreme,
+    far above the data's quantisation step (a small quantised signal may repeat its peak value)."""
+    top, bottom = x.max(), x.min()
+    if top == bottom:  # a flat (dead) channel is not an overload
+        return False
+    for value in (top, bottom):
+        at = np.flatnonzero(x == value)
+        if len(at) < 3 or not np.any((at[2:] - at[:-2]) == 2):
+            continue
+        steps = np.abs(np.diff(x[: min(len(x), 4096)]))
+        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+        if quantum == 0.0 or abs(value) / quantum > 256:
+            return True
+    return False
+
+
+def overloaded_channels(
+    force_n: np.ndarray,
+    accel_m_per_s2: np.ndarray,
+    *,
+    accel_ranges: float | Sequence[float] | None,
+    force_range_n: float | None,
+    fraction: float,
+    names: Sequence[str],
+) -> tuple[str, ...]:
+    """Channels that reached ``fraction`` of their range, or that show a clipped plateau when no range is known."""
+    out: list[str] = []
+    peaks = np.maximum(accel_m_per_s2.max(axis=-1), -accel_m_per_s2.min(axis=-1))
+    ranges = _ranges(accel_ranges, accel_m_per_s2.shape[0])
+    for c, name in enumerate(names):
+        if ranges is not None and np.isfinite(ranges[c]):
+            if peaks[c] >= fraction * ranges[c]:
+                out.append(name)
+        elif _plateau_clipped(accel_m_per_s2[c]):
+            out.append(name)
+    f_peak = float(np.max(np.abs(force_n)))
+    if force_range_n is not None and f_peak >= fraction * force_range_n or force_range_n is None and \
+            _plateau_clipped(force_n):
+        out.append("force")
+    return tuple(out)
+
+
+def check_impact(
+    force_n: ArrayLike,
+    accel_m_per_s2: ArrayLike,
+    fs_hz: float,
+    *,
+    index: int = 0,
+    accel_ranges: float | Sequence[float] | None = None,
+    force_range_n: float | None = None,
+    config: CheckConfig = CheckConfig(),  # noqa: B008 - frozen, shared default is safe
+    channels: Sequence[str] | None = None,
+) -> ImpactCheck:
+    """Check one impact: ``double_hit``, ``overload``, ``pulse_width``, ``low_force`` (each a named reason).
+
+    ``accel_ranges`` (one value or one per channel, m/s²) and ``force_range_n`` are the channels' full
+    scales; without them an overload is recognised by a clipped plateau.
+    """
+    f = np.asarray(force_n, dtype=float)
+    a = np.asarray(accel_m_per_s2, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if f.ndim != 1 or a.shape[-1] != f.shape[0]:
+        raise ValueError(f"impact {index}: force has shape {f.shape} and accel {a.shape}; expected (n,) and (n_ch, n)")
+    names = tuple(channels) if channels is not None else tuple(f"channel {c}" for c in range(a.shape[0]))
+    pulse = locate_pulse(f, fs_hz)
+    reasons: list[str] = []
+    notes: list[str] = []
+    ratio, delay, noise_ratio = second_hit(pulse, fs_hz, config.double_hit_window_s)
+    threshold = max(config.double_hit_ratio, config.double_hit_noise_sigmas * noise_ratio)
+    if ratio >= threshold:
+        reasons.append(DOUBLE_HIT)
+        notes.append(f"second pulse {ratio:.0%} of the first at {1e3 * (delay or 0.0):+.1f} ms")
+    over = overloaded_channels(f, a, accel_ranges=accel_ranges, force_range_n=force_range_n,
+                               fraction=config.overload_fraction, names=names)
+    if over:
+        reasons.append(OVERLOAD)
+        notes.append(f"near full scale: {', '.join(over)}")
+    if not config.pulse_width_min_s <= pulse.width_s <= config.pulse_width_max_s:
+        reasons.append(PULSE_WIDTH)
+        notes.append(f"pulse {1e3 * pulse.width_s:.2f} ms outside {1e3 * config.pulse_width_min_s:.2f}-"
+                     f"{1e3 * config.pulse_width_max_s:.2f} ms")
+    if pulse.peak_n < config.min_peak_force_n or pulse.peak_n < 20.0 * pulse.noise_n:
+        reasons.append(LOW_FORCE)
+        notes.append(f"peak {pulse.peak_n:.3g} N below {config.min_peak_force_n:g} N or the noise")
+    return ImpactCheck(
+        index=index,
+        accepted=not reasons,
+        reasons=tuple(reasons),
+        peak_force_n=pulse.peak_n,
+        pulse_width_s=pulse.width_s,
+        pulse_start=pulse.start,
+        pulse_end=pulse.end,
+        second_hit_ratio=max(ratio, 0.0),
+        second_hit_delay_s=delay,
+        overloaded=over,
+        force_noise_n=pulse.noise_n,
+        polarity=pulse.polarity,
+        notes=tuple(notes),
+    )

@@ -1,0 +1,306 @@
+"""The load step's pipeline: impact checks → windowed FRF → contact modes → bounce/tilt → stiffness.
+
+Every impact is checked on its own (double hit, overload, pulse width, force); the accepted ones are
+averaged into H1/H2/coherence; the contact modes are fitted and classified by shape; an impact that spoils
+the coherence at the modes is rejected (``low_coherence``) and the step is redone without it. The bounce
+frequency gives the per-roller stiffness through the rig model (Eq. 4).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from labctl.errors import InputError
+from labctl.physics import RigConfig, TrippContact
+from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
+from labctl.processing.errors import ProcessingError
+from labctl.processing.frf import FrfEstimate, Spectra, WindowConfig, coherence_at, estimate_frf, impact_spectra
+from labctl.processing.search import ContactModes, fit_contact_modes, search_range_hz
+from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
+from labctl.processing.stiffness import Stiffness, roller_only, stiffness_from_bounce
+
+
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """Everything the pipeline lets a user tune; defaults suit the paper's rig and hammer."""
+
+    checks: CheckConfig = CheckConfig()
+    window: WindowConfig = WindowConfig()
+    band_widths: float = 4.0  # the fit band reaches this many half-power bandwidths past the outer modes
+    search_hz: tuple[float, float] | None = None  # where contact modes are sought (default: from the rig)
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One identified contact mode: natural frequency and damping (window removed) with 1-σ, and its shape."""
+
+    kind: str  # "bounce" or "tilt"
+    frequency_hz: float
+    frequency_std_hz: float
+    damping_ratio: float
+    damping_ratio_std: float
+    shape: dict[str, float]  # real modal constant per channel, largest component +1
+    bounce_mac: float  # MAC with the rig model's bounce shape over the live channels
+    tilt_fraction: float  # share of the shape inside the model's tilt subspace
+    coherence: float  # at this mode, over the used impacts
+
+
+@dataclass
+class Identification:
+    """Result for one load step: modes, stiffness, the FRF they came from, and every impact's verdict."""
+
+    bounce_hz: float
+    bounce_hz_std: float
+    bounce_damping_ratio: float
+    bounce_damping_ratio_std: float
+    tilt_hz: tuple[float, float]
+    tilt_hz_std: tuple[float, float]
+    tilt_pair_resolved: bool
+    roller_stiffness_n_per_m: float
+    roller_stiffness_std_n_per_m: float
+    coherence_at_bounce: float
+    impacts: list[ImpactCheck]
+    frequencies_hz: np.ndarray
+    h1: np.ndarray
+    h2: np.ndarray
+    coherence: np.ndarray
+    channels: tuple[str, ...]
+    modes: list[Mode]
+    fs_hz: float
+    window_decay_rate_per_s: float  # the exponential window's rate; its damping is removed from the modes
+    fit_band_hz: tuple[float, float]
+    dead_channels: tuple[str, ...] = ()
+    classified_by_shape: bool = True
+    roller_only_stiffness_n_per_m: float | None = None
+    roller_only_stiffness_std_n_per_m: float | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def accepted(self) -> list[int]:
+        return [c.index for c in self.impacts if c.accepted]
+
+    def to_dict(self) -> dict:
+        """The ``labctl identify --json`` object (no spectra)."""
+        out = {
+            "bounce_hz": self.bounce_hz,
+            "bounce_hz_std": self.bounce_hz_std,
+            "bounce_damping_ratio": self.bounce_damping_ratio,
+            "bounce_damping_ratio_std": self.bounce_damping_ratio_std,
+            "tilt_hz": list(self.tilt_hz),
+            "tilt_hz_std": list(self.tilt_hz_std),
+            "tilt_pair_resolved": self.tilt_pair_resolved,
+            "roller_stiffness_n_per_m": self.roller_stiffness_n_per_m,
+            "roller_stiffness_std_n_per_m": self.roller_stiffness_std_n_per_m,
+            "coherence_at_bounce": self.coherence_at_bounce,
+            "impacts": [
+                {"index": c.index, "accepted": c.accepted, "reasons": list(c.reasons),
+                 "peak_force_n": c.peak_force_n, "pulse_width_s": c.pulse_width_s,
+                 "second_hit_ratio": c.second_hit_ratio, "notes": list(c.notes)}
+                for c in self.impacts
+            ],
+            "modes": [
+                {"kind": m.kind, "frequency_hz": m.frequency_hz, "frequency_std_hz": m.frequency_std_hz,
+                 "damping_ratio": m.damping_ratio, "damping_ratio_std": m.damping_ratio_std,
+                 "bounce_mac": m.bounce_mac, "tilt_fraction": m.tilt_fraction, "coherence": m.coherence,
+                 "shape": m.shape}
+                for m in self.modes
+            ],
+            "channels": list(self.channels),
+            "dead_channels": list(self.dead_channels),
+            "classified_by_shape": self.classified_by_shape,
+            "fs_hz": self.fs_hz,
+            "window_decay_rate_per_s": self.window_decay_rate_per_s,
+            "fit_band_hz": list(self.fit_band_hz),
+            "warnings": list(self.warnings),
+        }
+        if self.roller_only_stiffness_n_per_m is not None:
+            out["roller_only_stiffness_n_per_m"] = self.roller_only_stiffness_n_per_m
+            out["roller_only_stiffness_std_n_per_m"] = self.roller_only_stiffness_std_n_per_m
+        return out
+
+
+def _inputs(force_n: np.ndarray, accel: np.ndarray, fs_hz: float, channels: Sequence[str],
+            rig: RigConfig) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    f = np.asarray(force_n, dtype=float)
+    a = np.asarray(accel, dtype=float)
+    if f.ndim == 1:
+        f, a = f[None], a[None]
+    if f.ndim != 2 or a.ndim != 3 or a.shape[0] != f.shape[0] or a.shape[2] != f.shape[1]:
+        raise InputError(f"force has shape {f.shape} and accel {a.shape}; expected (n_impacts, n_samples) and "
+                         "(n_impacts, n_channels, n_samples)")
+    names = tuple(str(c) for c in channels)
+    if len(names) != a.shape[1]:
+        raise InputError(f"{len(names)} channel names for {a.shape[1]} response channels")
+    unknown = [c for c in names if c not in rig.channels]
+    if unknown:
+        raise InputError(f"channel(s) {', '.join(unknown)} are not sensors of rig '{rig.name}' "
+                         f"(expected names among {', '.join(rig.channels)})")
+    if not (math.isfinite(fs_hz) and fs_hz > 0):
+        raise InputError(f"sample rate {fs_hz!r} Hz: expected a positive number")
+    return f, a, names
+
+
+def _mode_bins(freqs: np.ndarray, frequency_hz: float) -> np.ndarray:
+    k = int(np.searchsorted(freqs, frequency_hz))
+    return np.arange(max(k - 2, 0), min(k + 3, len(freqs)))
+
+
+def mode_coherence(frf: FrfEstimate, modes: ContactModes) -> list[float]:
+    """Coherence within ±2 lines of each mode, channels weighted by the mode's constants²."""
+    out = []
+    for r, fr in enumerate(modes.fit.frequencies_hz):
+        w = modes.fit.constants[r] ** 2
+        coh = frf.coherence[:, _mode_bins(frf.frequencies_hz, fr)].mean(axis=1)
+        out.append(float(w @ coh / w.sum()) if w.sum() > 0 else 0.0)
+    return out
+
+
+def _set_coherence(spectra: Spectra, used: list[int], modes: ContactModes) -> float:
+    """Lowest coherence at the modes over the impacts ``used`` (from their spectra)."""
+    values = []
+    for r, fr in enumerate(modes.fit.frequencies_hz):
+        bins = _mode_bins(spectra.frequencies_hz, fr)
+        weights = np.repeat((modes.fit.constants[r] ** 2)[:, None], len(bins), axis=1)
+        values.append(coherence_at(spectra, used, bins, weights))
+    return min(values)
+
+
+def _coherence_check(spectra: Spectra, frf: FrfEstimate, used: list[int], modes: ContactModes,
+                     min_coherence: float) -> int | None:
+    """The impact whose removal lifts the coherence at the modes above ``min_coherence`` (if one does)."""
+    if min(mode_coherence(frf, modes)) >= min_coherence or len(used) < 3:
+        return None
+    without = [_set_coherence(spectra, [u for u in used if u != i], modes) for i in used]
+    best = int(np.argmax(without))
+    return used[best] if without[best] >= min_coherence else None
+
+
+def _channel_noise(accel: np.ndarray, used: list[int]) -> np.ndarray:
+    """Each channel's noise floor: its spread over the record's last part, where the response has died out."""
+    tail = accel[used, :, -min(accel.shape[-1] // 4, 4096):]
+    return np.sqrt(np.mean(np.var(tail, axis=-1), axis=0))
+
+
+def _live_channels(spectra: Spectra) -> np.ndarray:
+    """Channels with signal: a flat (dead) sensor leaves a response spectrum of round-off only."""
+    x = spectra.response[..., 1:]
+    power = np.sum(x.real**2 + x.imag**2, axis=(0, 2))
+    if not (np.isfinite(power).all() and np.isfinite(spectra.force).all()):
+        raise InputError("force or accel holds non-finite values (NaN or infinity)")
+    live = power > 1e-12 * float(power.max(initial=0.0))
+    if not live.any():
+        raise ProcessingError("every response channel is flat: no sensor signal")
+    return live
+
+
+def _fit(spectra: Spectra, used: list[int], pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
+         zeta: float, cfg: IdentifyConfig, noise: np.ndarray) -> tuple[FrfEstimate, ContactModes]:
+    frf = estimate_frf(spectra, used)
+    modes = fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
+                              decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
+                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise)
+    return frf, modes
+
+
+def identify(
+    force_n: np.ndarray,
+    accel_m_per_s2: np.ndarray,
+    fs_hz: float,
+    channels: Sequence[str],
+    rig: RigConfig,
+    *,
+    accel_ranges: float | Sequence[float] | None = None,
+    force_range_n: float | None = None,
+    config: IdentifyConfig | CheckConfig | None = None,
+    contact: TrippContact | None = None,
+    load_n: float | None = None,
+) -> Identification:
+    """Identify one load step from its impacts; ``contact`` and ``load_n`` add the roller-only stiffness.
+
+    Raises ProcessingError when no impact or no mode is usable.
+    """
+    cfg = config if isinstance(config, IdentifyConfig) else IdentifyConfig(checks=config or CheckConfig())
+    force, accel, names = _inputs(force_n, accel_m_per_s2, fs_hz, channels, rig)
+    checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
+                           config=cfg.checks, channels=names) for i in range(force.shape[0])]
+    accepted = [c.index for c in checks if c.accepted]
+    if not accepted:
+        summary = "; ".join(f"impact {c.index}: {', '.join(c.reasons)}" for c in checks)
+        raise ProcessingError(f"all {len(checks)} impacts rejected ({summary})")
+    pred = predicted_shapes(rig, names)
+    pulses = [(checks[i].pulse_start, checks[i].pulse_end) for i in accepted]
+    spectra = impact_spectra(force[accepted], accel[accepted], fs_hz, pulses, cfg.window)
+    live = _live_channels(spectra)
+    noise = _channel_noise(accel, accepted)
+    search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
+    zeta = rig.modal_damping_ratio
+    used = list(range(len(accepted)))
+    frf, modes = _fit(spectra, used, pred, live, search, zeta, cfg, noise)
+    warnings: list[str] = []
+    drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence)
+    if drop is not None:
+        i = accepted[drop]
+        checks[i] = checks[i].rejected_for(LOW_COHERENCE, "coherence at the modes rises above "
+                                           f"{cfg.checks.min_coherence:g} without this impact")
+        used.remove(drop)
+        frf, modes = _fit(spectra, used, pred, live, search, zeta, cfg, noise)
+    return _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings)
+
+
+def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, spectra: Spectra, used: list[int],
+            names: tuple[str, ...], live: np.ndarray, rig: RigConfig, fs_hz: float, cfg: IdentifyConfig,
+            contact: TrippContact | None, load_n: float | None, warnings: list[str]) -> Identification:
+    fit, cls = modes.fit, modes.classes
+    coh = mode_coherence(frf, modes)
+    order = [cls.bounce, *cls.tilt]
+    out_modes = [
+        Mode("bounce" if r == cls.bounce else "tilt", float(fit.frequencies_hz[r]), float(fit.frequency_std_hz[r]),
+             float(fit.damping_ratios[r]), float(fit.damping_std[r]),
+             dict(zip(names, (float(v) for v in signed_shape(fit.constants[r])), strict=True)),
+             float(cls.bounce_mac[r]), float(cls.tilt_fraction[r]), coh[r])
+        for r in order
+    ]
+    b = cls.bounce
+    tilt = list(cls.tilt) * (2 if len(cls.tilt) == 1 else 1)
+    k = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
+    alone: Stiffness | None = roller_only(k, contact, load_n) if contact is not None and load_n is not None else None
+    if coh[b] < cfg.checks.min_coherence:
+        warnings.append(f"coherence at the bounce {coh[b]:.3f} is below {cfg.checks.min_coherence:g}")
+    if not modes.pair_resolved:
+        warnings.append("the tilt pair is not resolved by the data: reported as one (degenerate) frequency")
+    if not cls.by_shape:
+        warnings.append("the live channels cannot separate bounce from tilt shapes: assigned by frequency order")
+    dead = tuple(n for n, ok in zip(names, live, strict=True) if not ok)
+    if dead:
+        warnings.append(f"dead channel(s) left out: {', '.join(dead)}")
+    return Identification(
+        bounce_hz=float(fit.frequencies_hz[b]),
+        bounce_hz_std=float(fit.frequency_std_hz[b]),
+        bounce_damping_ratio=float(fit.damping_ratios[b]),
+        bounce_damping_ratio_std=float(fit.damping_std[b]),
+        tilt_hz=(float(fit.frequencies_hz[tilt[0]]), float(fit.frequencies_hz[tilt[1]])),
+        tilt_hz_std=(float(fit.frequency_std_hz[tilt[0]]), float(fit.frequency_std_hz[tilt[1]])),
+        tilt_pair_resolved=modes.pair_resolved,
+        roller_stiffness_n_per_m=k.value_n_per_m,
+        roller_stiffness_std_n_per_m=k.std_n_per_m,
+        coherence_at_bounce=coh[b],
+        impacts=checks,
+        frequencies_hz=frf.frequencies_hz,
+        h1=frf.h1,
+        h2=frf.h2,
+        coherence=frf.coherence,
+        channels=names,
+        modes=out_modes,
+        fs_hz=fs_hz,
+        window_decay_rate_per_s=spectra.decay_rate_per_s,
+        fit_band_hz=fit.band_hz,
+        dead_channels=dead,
+        classified_by_shape=cls.by_shape,
+        roller_only_stiffness_n_per_m=alone.value_n_per_m if alone else None,
+        roller_only_stiffness_std_n_per_m=alone.std_n_per_m if alone else None,
+        warnings=warnings,
+    )

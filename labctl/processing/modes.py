@@ -1,0 +1,220 @@
+"""Multi-channel parametric fit of the rig's contact modes (common poles, real modal constants).
+
+Model, per channel c, evaluated at ``s = iω + a`` (``a`` = the exponential window's rate, so the window's
+added damping is removed exactly)::
+
+    H_c(s) = Σ_r C_rc · s² / (s² + 2 ζ_r Ω_r s + Ω_r²)  +  R0_c + R2_c · (s/Ω_ref)²
+
+with real modal constants C (proportional damping) and complex residual terms for the modes outside the
+band (rigid-body support modes below, flexible modes above). Poles start from a multi-channel least-squares
+complex-frequency estimate (common denominator, Sanathanan–Koerner reweighted) and are refined by variable
+projection: the linear constants are eliminated, Levenberg–Marquardt moves the frequencies and damping
+ratios only, and their covariance (the Schur complement) gives the uncertainties.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+LOG_ZETA_MIN = math.log(1e-6)
+RESIDUAL_POWERS = (-2, 0, 2, 4)  # complex residual terms (s/Ω_ref)^p for the modes outside the band
+
+
+@dataclass(frozen=True)
+class ModalFit:
+    """Fitted poles with 1-σ uncertainties and the modal constants per channel."""
+
+    frequencies_hz: np.ndarray  # (M,) undamped natural frequencies Ω/2π
+    damping_ratios: np.ndarray
+    frequency_std_hz: np.ndarray
+    damping_std: np.ndarray
+    constants: np.ndarray  # (M, n_ch) real modal constants (m/s² per N)
+    cost: float  # weighted sum of squared residuals
+    sigma2: float  # residual variance per real datum after weighting
+    n_data: int
+    band_hz: tuple[float, float]
+    converged: bool
+    channel_rms: np.ndarray  # (n_ch,) residual RMS per channel, in the FRF's units
+    significance: np.ndarray  # (M,) rise of the cost (in σ² units) if the mode's constants were dropped
+
+
+def _stack(z: np.ndarray) -> np.ndarray:
+    """Complex (n, ...) → real (2n, ...) as [Re; Im]."""
+    return np.concatenate([z.real, z.imag], axis=0)
+
+
+class _Problem:
+    """Variable-projection residual and Gauss–Newton terms for M modes on one band, all channels at once.
+
+    With the Kaufman Jacobian J_k = -vec(P⊥ ∂B/∂θ_k ⊗ c_r), JᵀJ and Jᵀr reduce to small products, so
+    the (n_bins·n_channels × 2M) Jacobian is never formed.
+    """
+
+    def __init__(self, freqs_hz: np.ndarray, h: np.ndarray, decay_rate: float, weights: np.ndarray) -> None:
+        self.s = TWO_PI * 1j * freqs_hz + decay_rate
+        s_ref = TWO_PI * float(np.mean(freqs_hz))
+        sn = self.s / s_ref
+        terms = [sn**p for p in RESIDUAL_POWERS]
+        self.residual_basis = _stack(np.stack([t * z for t in terms for z in (1.0, 1j)], axis=1))
+        self.y = _stack(h.T) * weights[None, :]
+        self.weights = weights
+
+    def solve(self, x: np.ndarray) -> float:
+        """Project out the linear constants at poles ``x``; return the cost."""
+        omega = TWO_PI * x[0::2]
+        zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
+        s = self.s[:, None]
+        d = s**2 + 2.0 * zeta * omega * s + omega**2
+        basis = np.concatenate([_stack(s**2 / d), self.residual_basis], axis=1)
+        self.basis, self.gram = basis, _gram_factor(basis)
+        self.coef = _cho_solve(self.gram, basis.T @ self.y)
+        self.resid = self.y - basis @ self.coef
+        self.d, self.zeta, self.omega = d, zeta, omega
+        return float(np.sum(self.resid**2))
+
+    def project_out(self, v: np.ndarray) -> np.ndarray:
+        """The part of ``v`` orthogonal to the basis."""
+        return v - self.basis @ _cho_solve(self.gram, self.basis.T @ v)
+
+    def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
+        """JᵀJ and Jᵀr at the last solved point."""
+        s, d = self.s[:, None], self.d
+        deriv = np.empty((2 * len(self.s), 2 * d.shape[1]))
+        deriv[:, 0::2] = _stack(-(s**2) * (2.0 * self.zeta * s + 2.0 * self.omega) / d**2 * TWO_PI)
+        deriv[:, 1::2] = _stack(-(s**2) * (2.0 * self.omega * s) * self.zeta / d**2)
+        pdb = self.project_out(deriv)
+        c = np.repeat(self.coef[: d.shape[1]], 2, axis=0)  # mode r's constants for both its parameters
+        jtj = (pdb.T @ pdb) * (c @ c.T)
+        jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
+        return jtj, jtr
+
+
+def _gram_factor(basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cholesky factor of the column-scaled Gram matrix (small: one row and column per basis function)."""
+    scale = 1.0 / np.sqrt(np.maximum(np.einsum("ij,ij->j", basis.conj(), basis).real, 1e-300))
+    gram = (np.ascontiguousarray(basis.conj().T) @ basis) * np.outer(scale, scale)
+    gram = gram + 1e-13 * np.eye(len(gram))
+    return np.linalg.cholesky(gram), scale
+
+
+def _cho_solve(factor: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
+    """(BᴴB)⁻¹ rhs from the scaled Cholesky factor."""
+    low, scale = factor
+    z = np.linalg.solve(low, rhs * scale[:, None])
+    return np.linalg.solve(low.conj().T, z) * scale[:, None]
+
+
+def _levenberg_marquardt(prob: _Problem, x0: np.ndarray, max_iter: int) -> tuple[np.ndarray, bool]:
+    """Minimise the projected cost over the poles; returns the solution and whether it converged."""
+    x, cost = x0.copy(), prob.solve(x0)
+    lam = 1e-4
+    for _ in range(max_iter):
+        jtj, jtr = prob.normal_equations()
+        scale = np.sqrt(np.maximum(np.diag(jtj), 1e-300))
+        a = jtj / np.outer(scale, scale)
+        b = jtr / scale
+        while True:
+            try:
+                z = np.linalg.solve(a + lam * np.eye(len(x)), -b)
+            except np.linalg.LinAlgError:
+                return x, False
+            predicted = -float(b @ z)  # first-order decrease the step promises
+            if predicted <= 1e-12 * cost:
+                prob.solve(x)
+                return x, True
+            step = z / scale
+            new_cost = prob.solve(x + step)
+            if new_cost < cost:
+                break
+            lam *= 10.0
+            if lam > 1e8:
+                prob.solve(x)
+                return x, True
+        x, old, cost = x + step, cost, new_cost
+        lam = max(lam / 10.0, 1e-9)
+        if old - cost <= 1e-10 * old:
+            return x, True
+    return x, False
+
+
+def fit_modes(
+    freqs_hz: np.ndarray,
+    h: np.ndarray,
+    start: Sequence[tuple[float, float]],
+    *,
+    decay_rate_per_s: float = 0.0,
+    channel_weights: np.ndarray | None = None,
+    noise_inflation: float = 1.0,
+    max_iter: int = 30,
+) -> ModalFit:
+    """Refine M modes (start: (frequency Hz, damping ratio) each) on the band ``freqs_hz`` of ``h`` (n_ch, n_f)."""
+    weights = np.ones(h.shape[0]) if channel_weights is None else np.asarray(channel_weights, float)
+    prob = _Problem(np.asarray(freqs_hz), h, decay_rate_per_s, weights)
+    x0 = np.array([v for f, z in start for v in (f, math.log(max(z, 1e-5)))])
+    x, converged = _levenberg_marquardt(prob, x0, max_iter)
+    cost = prob.solve(x)
+    m = len(start)
+    n_data = prob.resid.size
+    dof = max(n_data - prob.coef.size - len(x), 1)
+    sigma2 = cost / dof
+    jtj, _ = prob.normal_equations()
+    try:
+        std = np.sqrt(np.clip(np.diag(np.linalg.inv(jtj)), 0.0, None) * sigma2 * noise_inflation)
+    except np.linalg.LinAlgError:
+        std = np.full(len(x), np.inf)
+    zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
+    low, scale = prob.gram
+    inv_diag = np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0)[:m] * scale[:m] ** 2
+    significance = np.sum(prob.coef[:m] ** 2, axis=1) / inv_diag / max(sigma2, 1e-300)
+    return ModalFit(
+        frequencies_hz=x[0::2].copy(),
+        damping_ratios=zeta,
+        frequency_std_hz=std[0::2],
+        damping_std=zeta * std[1::2],
+        constants=prob.coef[:m] / weights[None, :],
+        cost=cost,
+        sigma2=sigma2,
+        n_data=n_data,
+        band_hz=(float(freqs_hz[0]), float(freqs_hz[-1])),
+        converged=converged,
+        channel_rms=np.sqrt(2.0 * np.mean(prob.resid**2, axis=0)) / weights,
+        significance=significance,
+    )
+
+
+def lscf_poles(freqs_hz: np.ndarray, h: np.ndarray, n_modes: int, *, decay_rate_per_s: float = 0.0,
+               extra_numerator: int = 2, iterations: int = 3) -> np.ndarray:
+    """Poles λ (s-plane, upper half) of a common-denominator fit on the band: linear least squares in a
+    normalised local variable, reweighted by the previous denominator (Sanathanan–Koerner)."""
+    s = TWO_PI * 1j * np.asarray(freqs_hz) + decay_rate_per_s
+    centre = TWO_PI * 1j * 0.5 * (freqs_hz[0] + freqs_hz[-1])
+    half = TWO_PI * 0.5 * (freqs_hz[-1] - freqs_hz[0])
+    u = (s - centre) / half
+    vn = u[:, None] ** np.arange(n_modes + extra_numerator + 1)[None, :]
+    vd = u[:, None] ** np.arange(n_modes + 1)[None, :]
+    weight = np.ones(len(u))
+    roots = np.array([], dtype=complex)
+    for _ in range(iterations):
+        vw = vn / weight[:, None]
+        factor = _gram_factor(vw)
+        hv = (h / weight[None, :])[:, :, None] * vd[None, :, :]  # (n_ch, n_f, M + 1)
+        hv = hv - vw @ _cho_solve(factor, np.ascontiguousarray(vw.conj().T) @ hv)
+        a = hv[..., :n_modes].reshape(-1, n_modes)
+        ah = np.ascontiguousarray(a.conj().T)  # a transposed complex view takes numpy's slow matmul path
+        d = np.linalg.solve(ah @ a, -(ah @ hv[..., n_modes].ravel()))
+        coeffs = np.concatenate([d, [1.0]])[::-1]
+        roots = np.roots(coeffs)
+        weight = np.maximum(np.abs(np.polyval(coeffs, u)), 1e-12)
+        weight /= np.median(weight)
+    return centre + half * roots
+
+
+def pole_to_mode(pole: complex) -> tuple[float, float]:
+    """(natural frequency Hz, damping ratio) of an s-plane pole."""
+    omega = abs(pole)
+    return omega / TWO_PI, -pole.real / omega if omega > 0 else 0.0

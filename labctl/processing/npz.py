@@ -1,0 +1,91 @@
+"""Reader for the impacts NPZ contract (DESIGN.md §4): ``fs``, ``force``, ``accel``, ``channels``.
+
+Loaded with ``allow_pickle=False``: a file that hides Python objects is refused, never executed. Every
+error names the file, the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from labctl.errors import InputError
+
+KEYS = ("fs", "force", "accel", "channels")
+
+
+@dataclass(frozen=True)
+class ImpactSet:
+    """One load step's impacts: force (n_impacts, n_samples) N, accel (n_impacts, n_channels, n_samples) m/s²."""
+
+    fs_hz: float
+    force_n: np.ndarray
+    accel_m_per_s2: np.ndarray
+    channels: tuple[str, ...]
+    source: str = ""
+
+
+def _read(data: np.lib.npyio.NpzFile, key: str, where: str) -> np.ndarray:
+    if key not in data.files:
+        raise InputError(f"{where}: missing key '{key}' (an impacts NPZ holds {', '.join(KEYS)})")
+    try:
+        return data[key]
+    except ValueError as exc:
+        if "allow_pickle" in str(exc):
+            raise InputError(f"{where}: key '{key}' holds pickled Python objects; expected a plain numeric or "
+                             "string array (files are read with allow_pickle=False)") from None
+        raise InputError(f"{where}: key '{key}' cannot be read ({exc})") from None
+
+
+def _numeric(value: np.ndarray, key: str, ndim: int, layout: str, where: str) -> np.ndarray:
+    if value.dtype.kind not in "iuf" or value.ndim != ndim:
+        raise InputError(f"{where}: '{key}' has shape {value.shape} and dtype {value.dtype}; "
+                         f"expected real numbers shaped {layout}")
+    if value.size == 0:
+        raise InputError(f"{where}: '{key}' is empty; expected {layout}")
+    out = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(out)
+    if bad.any():
+        at = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise InputError(f"{where}: '{key}' holds a non-finite value at index {at}")
+    return out
+
+
+def load_impacts_npz(path: str | Path) -> ImpactSet:
+    """Read and validate an impacts NPZ; shapes must agree and channel names must be unique strings."""
+    where = str(path)
+    try:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise InputError(f"{where}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{where}: is a directory, expected an impacts .npz file") from None
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputError(f"{where}: not a readable NPZ file ({type(exc).__name__})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise InputError(f"{where}: holds a single array, expected an NPZ archive with keys {', '.join(KEYS)}")
+    with data:
+        fs = _read(data, "fs", where)
+        force = _read(data, "force", where)
+        accel = _read(data, "accel", where)
+        names = _read(data, "channels", where)
+    if fs.size != 1 or fs.dtype.kind not in "iuf" or not np.isfinite(fs).all() or not float(fs.ravel()[0]) > 0:
+        raise InputError(f"{where}: 'fs' = {fs.tolist()!r}; expected one positive sample rate in Hz")
+    force = _numeric(force, "force", 2, "(n_impacts, n_samples)", where)
+    accel = _numeric(accel, "accel", 3, "(n_impacts, n_channels, n_samples)", where)
+    if accel.shape[0] != force.shape[0] or accel.shape[2] != force.shape[1]:
+        raise InputError(f"{where}: 'accel' has shape {accel.shape} but 'force' has {force.shape}; expected "
+                         f"accel shaped ({force.shape[0]}, n_channels, {force.shape[1]})")
+    if names.dtype.kind != "U" or names.ndim != 1:
+        raise InputError(f"{where}: 'channels' has shape {names.shape} and dtype {names.dtype}; expected a 1-D "
+                         "array of channel names such as 'A1X'")
+    channels = tuple(str(c) for c in names)
+    if len(channels) != accel.shape[1]:
+        raise InputError(f"{where}: 'channels' names {len(channels)} channels but 'accel' has {accel.shape[1]}")
+    if len(set(channels)) != len(channels):
+        dup = sorted({c for c in channels if channels.count(c) > 1})
+        raise InputError(f"{where}: 'channels' repeats {', '.join(dup)}; expected unique names")
+    return ImpactSet(float(fs.ravel()[0]), force, accel, channels, where)

@@ -1,0 +1,164 @@
+"""Find and fit the contact modes (bounce + tilt pair) in an FRF: band, start poles, fit, pair test.
+
+The contact modes are sought between the rig's support modes and its first flexible mode (both from the
+rig file). The fit band spans the dominant resonances there plus a few half-power bandwidths; the
+multi-channel LSCF estimate gives three start poles that the variable-projection fit refines. If the tilt
+pair is not resolved by the data (the fit's two tilt poles are closer than their uncertainty, or a pole
+left the band), a two-mode fit is compared by the Bayesian information criterion and, when it explains
+the data as well, the pair is reported as degenerate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.signal import find_peaks
+
+from labctl.physics import RigConfig
+from labctl.processing.errors import ProcessingError
+from labctl.processing.modes import ModalFit, fit_modes, lscf_poles, pole_to_mode
+from labctl.processing.shapes import Classification, PredictedShapes, classify
+
+N_CONTACT_MODES = 3
+MAX_DAMPING = 0.3
+MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is taken for model residue
+
+
+@dataclass(frozen=True)
+class ContactModes:
+    """The fitted contact modes, which one is the bounce, and whether the tilt pair was resolved."""
+
+    fit: ModalFit
+    classes: Classification
+    pair_resolved: bool
+    band: slice
+
+
+def search_range_hz(rig: RigConfig, pred: PredictedShapes, f_top_hz: float) -> tuple[float, float]:
+    """Above the support modes, below the first flexible mode (or the top of the spectra)."""
+    lo = max(3.0 * pred.support_hz, 20.0)
+    flex = [m.frequency_hz for m in rig.flexible_modes]
+    hi = min([0.95 * min(flex)] if flex else [f_top_hz]) if flex else f_top_hz
+    return lo, min(hi, f_top_hz)
+
+
+def fit_band(freqs_hz: np.ndarray, h: np.ndarray, lo_hz: float, hi_hz: float, zeta: float,
+             band_widths: float) -> slice:
+    """Bins spanning the (up to three) most prominent resonances plus ``band_widths`` half-power widths."""
+    i0, i1 = np.searchsorted(freqs_hz, [lo_hz, hi_hz])
+    step = max(1, int(zeta * freqs_hz[i0] / (4.0 * (freqs_hz[1] - freqs_hz[0])))) if i0 > 0 else 1
+    hs = h[:, i0:i1:step]  # a few lines per half-power width are enough to see the peaks
+    power = np.sum(hs.real**2 + hs.imag**2, axis=0)
+    if power.size < 8 or not np.any(power > 0):
+        raise ProcessingError(f"no response between {lo_hz:.0f} and {hi_hz:.0f} Hz")
+    peaks, props = find_peaks(power, prominence=0.005 * float(power.max()))
+    if not len(peaks):
+        peaks = np.array([int(np.argmax(power))])
+    else:
+        peaks = peaks[np.argsort(props["prominences"])[::-1][: 2 * N_CONTACT_MODES]]
+    f_peaks = freqs_hz[i0 + step * peaks]
+    margin = band_widths * 2.0 * zeta
+    lo = max(lo_hz, float(f_peaks.min()) * (1.0 - margin))
+    hi = min(hi_hz, float(f_peaks.max()) * (1.0 + margin))
+    a, b = np.searchsorted(freqs_hz, [lo, hi])
+    return slice(int(a), int(b) + 1)
+
+
+def _start_poles(f: np.ndarray, h: np.ndarray, rate: float, zeta: float) -> list[tuple[float, float]]:
+    step = max(1, len(f) // 300)  # start poles only: a few hundred lines are plenty
+    poles = lscf_poles(f[::step], h[:, ::step], N_CONTACT_MODES, decay_rate_per_s=rate)
+    modes = [pole_to_mode(p) for p in poles if p.imag > 0]
+    good = sorted((fr, z) for fr, z in modes if f[0] <= fr <= f[-1] and 0 < z < MAX_DAMPING)
+    power = np.sum(np.abs(h) ** 2, axis=0)
+    while len(good) < N_CONTACT_MODES:  # fill from the strongest bins not yet covered
+        taken = np.zeros(len(f), bool)
+        for fr, _ in good:
+            taken |= np.abs(f - fr) < 2.0 * zeta * fr
+        free = np.where(taken, -np.inf, power)
+        k = int(np.argmax(free))
+        fr = float(f[k]) if np.isfinite(free[k]) else float(good[-1][0]) * (1.0 + 0.2 * zeta)
+        good.append((fr, zeta))
+        good.sort()
+    return good
+
+
+def _valid(fit: ModalFit) -> bool:
+    lo, hi = fit.band_hz
+    return bool(fit.converged and np.all((fit.frequencies_hz > lo) & (fit.frequencies_hz < hi))
+                and np.all((fit.damping_ratios > 1e-5) & (fit.damping_ratios < MAX_DAMPING))
+                and np.all(np.isfinite(fit.frequency_std_hz)))
+
+
+def _channel_weights(noise: np.ndarray) -> np.ndarray:
+    """1/σ per channel from each channel's noise floor: a noisier channel counts less."""
+    sigma = np.maximum(noise, 1e-3 * float(np.median(noise)) + 1e-300)
+    w = 1.0 / sigma
+    return w / float(np.median(w))
+
+
+def fit_contact_modes(
+    freqs_hz: np.ndarray,
+    h: np.ndarray,
+    pred: PredictedShapes,
+    live: np.ndarray,
+    *,
+    search_hz: tuple[float, float],
+    decay_rate_per_s: float,
+    noise_inflation: float,
+    zeta: float,
+    band_widths: float = 4.0,
+    channel_noise: np.ndarray | None = None,
+) -> ContactModes:
+    """Band, start poles, 3-mode fit (and 2-mode fallback for an unresolved tilt pair), classification."""
+    hl = h[live]
+    band = fit_band(freqs_hz, hl, search_hz[0], search_hz[1], zeta, band_widths)
+    f, hb = freqs_hz[band], hl[:, band]
+    if len(f) < 4 * (N_CONTACT_MODES + 2):
+        raise ProcessingError(f"the fit band {f[0]:.0f}-{f[-1]:.0f} Hz holds too few frequency lines")
+    weights = np.ones(hb.shape[0]) if channel_noise is None else _channel_weights(channel_noise[live])
+    kw = {"decay_rate_per_s": decay_rate_per_s, "noise_inflation": noise_inflation, "channel_weights": weights}
+    fit = fit_modes(f, hb, _start_poles(f, hb, decay_rate_per_s, zeta), **kw)
+    constants = np.zeros((len(fit.frequencies_hz), h.shape[0]))
+    constants[:, live] = fit.constants
+    fit = _with_constants(fit, constants)
+    classes = classify(fit.constants, fit.frequencies_hz, pred, live)
+    t = list(classes.tilt)
+    penalty = (int(live.sum()) + 2) * math.log(fit.n_data)
+    sharp = fit.frequency_std_hz < 0.25 * 2.0 * fit.damping_ratios * fit.frequencies_hz
+    apart = abs(fit.frequencies_hz[t[0]] - fit.frequencies_hz[t[1]]) > 3.0 * math.hypot(
+        fit.frequency_std_hz[t[0]], fit.frequency_std_hz[t[1]])
+    strength = np.sqrt(np.sum(fit.constants**2, axis=1)) / fit.damping_ratios  # peak response per mode
+    strong = strength >= MIN_RELATIVE_STRENGTH * float(strength.max())
+    trusted = _valid(fit) and bool(np.all(sharp & strong & (fit.significance > penalty)))
+    if trusted and apart:
+        return ContactModes(fit, classes, True, band)
+    if _valid(fit):
+        keep = sorted(np.argsort(fit.significance)[1:])
+        start2 = [(float(fit.frequencies_hz[i]), float(fit.damping_ratios[i])) for i in keep]
+    else:
+        start2 = _two_starts(f, hb, decay_rate_per_s, zeta, pred)
+    fit2 = fit_modes(f, hb, start2, **kw)
+    if trusted and (fit2.cost - fit.cost) / max(fit.sigma2, 1e-300) > penalty:
+        return ContactModes(fit, classes, True, band)
+    constants2 = np.zeros((2, h.shape[0]))
+    constants2[:, live] = fit2.constants
+    fit2 = _with_constants(fit2, constants2)
+    return ContactModes(fit2, classify(fit2.constants, fit2.frequencies_hz, pred, live), False, band)
+
+
+def _two_starts(f: np.ndarray, h: np.ndarray, rate: float, zeta: float,
+                pred: PredictedShapes) -> list[tuple[float, float]]:
+    poles = lscf_poles(f, h, 2, decay_rate_per_s=rate)
+    modes = sorted(pole_to_mode(p) for p in poles if p.imag > 0)
+    good = [(fr, z) for fr, z in modes if f[0] <= fr <= f[-1] and 0 < z < MAX_DAMPING]
+    if len(good) == 2:
+        return good
+    ratio = pred.tilt_hz / pred.bounce_hz
+    k = int(np.argmax(np.sum(np.abs(h) ** 2, axis=0)))
+    return [(float(f[k]), zeta), (float(f[k]) * ratio if ratio < 1 else float(f[k]) / ratio, zeta)]
+
+
+def _with_constants(fit: ModalFit, constants: np.ndarray) -> ModalFit:
+    return replace(fit, constants=constants)

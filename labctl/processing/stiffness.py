@@ -1,0 +1,44 @@
+"""Per-roller stiffness from the identified bounce frequency, with its uncertainty carried through.
+
+The inverse of the rig model (labctl.physics.rig: Eq. 4 with mass and K_setup from the rig file) gives k;
+its sensitivity dk/df comes from the forward model, so σ_k = (dk/df)·σ_f. Optionally the two rail
+indentations (Tripp, Eq. 2 at the evaluation depth) are removed in series to leave the roller alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from labctl.errors import ModelDomainError
+from labctl.physics import RigConfig, TrippContact, bounce_hz, roller_stiffness_from_bounce
+
+
+@dataclass(frozen=True)
+class Stiffness:
+    """A stiffness (N/m) and its 1-σ uncertainty."""
+
+    value_n_per_m: float
+    std_n_per_m: float
+
+
+def stiffness_from_bounce(rig: RigConfig, bounce_frequency_hz: float, bounce_std_hz: float = 0.0) -> Stiffness:
+    """Per-roller stiffness k (equal rollers) for this bounce frequency, and σ_k from σ_f."""
+    k = roller_stiffness_from_bounce(rig, bounce_frequency_hz)
+    dk = 1e-6 * k
+    df_dk = (bounce_hz(rig, k + dk) - bounce_hz(rig, k - dk)) / (2.0 * dk)
+    std = abs(bounce_std_hz / df_dk) if df_dk > 0 and math.isfinite(bounce_std_hz) else math.inf
+    return Stiffness(k, std)
+
+
+def roller_only(measured: Stiffness, contact: TrippContact, load_n: float) -> Stiffness:
+    """Remove the two rails' compliance (Tripp's Eq. 2) from the measured roller-path stiffness."""
+    rails = float(contact.rail_compliance_m_per_n(load_n))
+    remaining = 1.0 / measured.value_n_per_m - rails
+    if not remaining > 0:
+        raise ModelDomainError(
+            f"the rails' compliance {rails:.3e} m/N at {load_n:g} N (Tripp, depth {contact.depth_m * 1e3:g} mm) "
+            f"exceeds the measured {1.0 / measured.value_n_per_m:.3e} m/N: no roller-only stiffness is left"
+        )
+    k = 1.0 / remaining
+    return Stiffness(k, (k / measured.value_n_per_m) ** 2 * measured.std_n_per_m)
