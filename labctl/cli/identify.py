@@ -1,0 +1,87 @@
+"""``labctl identify FILE.npz``: bounce, tilt pair, damping and per-roller stiffness from one load step's impacts."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from labctl.cli.common import add_json, emit
+from labctl.errors import InputError
+from labctl.physics import TrippContact, load_rig, material, roller
+from labctl.physics.tripp import DEFAULT_DEPTH_M
+from labctl.processing import CheckConfig, IdentifyConfig, WindowConfig, identify, load_impacts_npz
+
+MM = 1e-3
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("identify", help="identify the rig's modes and the roller stiffness from an impacts NPZ")
+    p.add_argument("file", metavar="FILE.npz", help="impacts NPZ (fs, force, accel, channels; DESIGN.md §4)")
+    p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
+    p.add_argument("--accel-range", type=float, metavar="A",
+                   help="accelerometer full scale, m/s² (default: overload seen as a clipped plateau)")
+    p.add_argument("--force-range-n", type=float, metavar="F", help="force channel full scale, N")
+    p.add_argument("--exp-window-end", type=float, default=0.01, metavar="E",
+                   help="exponential window's value at the record end (default 0.01; 1 = no window)")
+    p.add_argument("--min-coherence", type=float, default=CheckConfig.min_coherence,
+                   help="coherence at the bounce below which an impact is rejected "
+                        f"(default {CheckConfig.min_coherence})")
+    roll = p.add_argument_group("roller-only stiffness (rails' Tripp compliance removed)")
+    roll.add_argument("--roller-type", type=int, metavar="N", help="roller type of the catalogue (Table 1)")
+    roll.add_argument("--load-n", type=float, metavar="F", help="load per roller, N")
+    roll.add_argument("--depth-mm", type=float, default=DEFAULT_DEPTH_M / MM,
+                      help=f"rail evaluation depth t, mm (default {DEFAULT_DEPTH_M / MM:g})")
+    roll.add_argument("--rail-material", default="1.3505", help="rail material (default 1.3505)")
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def _contact(args: argparse.Namespace) -> TrippContact | None:
+    if (args.roller_type is None) != (args.load_n is None):
+        raise InputError("--roller-type and --load-n go together (both are needed for the roller-only stiffness)")
+    if args.roller_type is None:
+        return None
+    if not args.load_n > 0:
+        raise InputError(f"--load-n {args.load_n!r}: expected a positive load in N")
+    if not args.depth_mm > 0:
+        raise InputError(f"--depth-mm {args.depth_mm!r}: expected a positive depth in mm")
+    return TrippContact(roller(args.roller_type), material(args.rail_material), args.depth_mm * MM)
+
+
+def run(args: argparse.Namespace) -> int:
+    if not 0 < args.exp_window_end <= 1:
+        raise InputError(f"--exp-window-end {args.exp_window_end!r}: expected a value in (0, 1]")
+    for name in ("accel_range", "force_range_n"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise InputError(f"--{name.replace('_', '-')} {value!r}: expected a positive full scale")
+    contact = _contact(args)
+    rig = load_rig(args.rig)
+    data = load_impacts_npz(args.file)
+    window = WindowConfig(exponential_end=None if args.exp_window_end == 1 else args.exp_window_end)
+    config = IdentifyConfig(checks=CheckConfig(min_coherence=args.min_coherence), window=window)
+    result = identify(data.force_n, data.accel_m_per_s2, data.fs_hz, data.channels, rig,
+                      accel_ranges=args.accel_range, force_range_n=args.force_range_n, config=config,
+                      contact=contact, load_n=args.load_n)
+    emit(result.to_dict(), args.json, _text)
+    return 0
+
+
+def _text(r: dict[str, Any]) -> str:
+    t, ts = r["tilt_hz"], r["tilt_hz_std"]
+    lines = [
+        f"bounce  {r['bounce_hz']:.4f} ± {r['bounce_hz_std']:.4f} Hz   damping {r['bounce_damping_ratio']:.5f} "
+        f"± {r['bounce_damping_ratio_std']:.1e}   coherence {r['coherence_at_bounce']:.4f}",
+        f"tilt    {t[0]:.3f} ± {ts[0]:.3f} / {t[1]:.3f} ± {ts[1]:.3f} Hz"
+        + ("" if r["tilt_pair_resolved"] else "   (pair not resolved)"),
+        f"roller stiffness {r['roller_stiffness_n_per_m']:.5e} ± {r['roller_stiffness_std_n_per_m']:.2e} N/m",
+    ]
+    if "roller_only_stiffness_n_per_m" in r:
+        lines.append(f"roller alone     {r['roller_only_stiffness_n_per_m']:.5e} ± "
+                     f"{r['roller_only_stiffness_std_n_per_m']:.2e} N/m (rails' Tripp compliance removed)")
+    for imp in r["impacts"]:
+        verdict = "accepted" if imp["accepted"] else "rejected: " + ", ".join(imp["reasons"])
+        lines.append(f"impact {imp['index']}: peak {imp['peak_force_n']:.1f} N, pulse "
+                     f"{1e3 * imp['pulse_width_s']:.3f} ms — {verdict}")
+    lines.extend(f"warning: {w}" for w in r["warnings"])
+    return "\n".join(lines)
