@@ -75,6 +75,10 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
     else:
         proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
     rig_config = load_rig(rig)
+    if backend == "hw" and devices is None:
+        from labctl.hardware import find_devices_file
+
+        devices = find_devices_file(None)
     factory = rig_factory(backend, rig_config, world=world, seed=seed, operator=operator, devices=devices)
     if not resume:
         writer = CampaignWriter.create(out, protocol_name=proto.name, backend=backend, seed=seed,

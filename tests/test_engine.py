@@ -68,7 +68,7 @@ def test_pause_resume_and_abort_at_safe_points(tmp_path):
             seen.set()
             control.pause()
             threading.Timer(0.2, control.resume).start()
-        if isinstance(event, ev.StepProcessed) and event.position.step == 2:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 1:
             control.abort()
 
     out = tmp_path / "c.h5"
@@ -77,7 +77,7 @@ def test_pause_resume_and_abort_at_safe_points(tmp_path):
     assert rec.of(ev.Paused) and rec.of(ev.Resumed)
     with CampaignReader(out) as r:
         assert r.attrs["status"] == "aborted"
-        assert len(r.runs(1)[0].steps) == 2
+        assert len(r.runs(1)[0].steps) == 1
     resumed = run_campaign(short_protocol(reps=1), out=out, resume=True, seed=1)
     assert resumed.status == "complete"
 
@@ -137,3 +137,40 @@ def test_rejected_impacts_are_kept_and_rehit(tmp_path):
         assert sum(bool(g.attrs["accepted"]) for g in f["series_01/run_01/step_001"].values()
                    if isinstance(g, h5py.Group) and "force_n" in g) == 2
     assert np.isfinite(campaign_stiffness_points(tmp_path / "c.h5")[0].stiffness_n_per_m)
+
+
+def test_load_drift_suspends_the_step_and_asks_the_operator(tmp_path):
+    from drivers.operators import ScriptedOperator
+    from drivers.sim import twin_of
+    from labctl.campaign import rig_factory
+    from labctl.engine import Engine
+    from labctl.storage import CampaignWriter
+
+    operator = ScriptedOperator()
+    base = rig_factory("sim", load_rig(), seed=3, operator=operator)
+
+    def factory(spec, series):
+        rig = base(spec, series)
+        twin, strike = twin_of(rig), rig.hammer.strike
+
+        def strike_then_creep() -> None:  # the springs start to creep once the step's impacts begin
+            strike()
+            twin.set_creep(3.0)
+
+        rig.hammer.strike = strike_then_creep
+        operator.on("confirm", lambda message, choices: twin.set_creep(0.0) or "continue")  # re-tightened
+        return rig
+
+    proto = short_protocol(reps=1, max_load=120.0)
+    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=3,
+                                   config_files={}, description={})
+    rec = Recorder()
+    bus = ev.EventBus()
+    bus.subscribe(rec)
+    outcome = Engine(proto, load_rig(), factory, writer, bus).run()
+    writer.close()
+    assert outcome.status == "complete"
+    suspended = rec.of(ev.Suspended)
+    assert suspended and "drifted" in suspended[0].reason
+    with h5py.File(tmp_path / "c.h5") as f:
+        assert f["series_01/run_01/step_001"].attrs["load_drift"]

@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drivers.errors import DeviceError
 from drivers.interfaces import Record, Rig, TriggerSpec
 from labctl import events as ev
-from labctl.engine.calls import GuardedCaller
+from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.plan import StepPlan, next_load_n, plan_steps
 from labctl.engine.steps import StepRunner
@@ -121,7 +122,7 @@ class Engine:
             outcome.status, outcome.message = stop.status, f"stopped by request ({stop.status}); resume with --resume"
         except Interlock as exc:
             outcome.status, outcome.message = "interlock", str(exc)
-        except LabctlError as exc:
+        except (LabctlError, DeviceError) as exc:
             outcome.status, outcome.message = "failed", str(exc)
         except KeyboardInterrupt:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
@@ -139,8 +140,10 @@ class Engine:
         curves = []
         with ExitStack() as stack:
             rig = self.rig_factory(spec, index)
-            for inst in (rig.daq, rig.hammer, rig.load_cell, rig.actuator):
-                stack.enter_context(inst)
+            for what, inst in (("daq", rig.daq), ("hammer", rig.hammer), ("load cell", rig.load_cell),
+                               ("actuator", rig.actuator)):
+                self.call(f"{what} (open)", inst.__enter__)
+                stack.callback(inst.__exit__, None, None, None)
             acq = self.protocol.acquisition
             fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
             if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
@@ -215,13 +218,21 @@ class Engine:
         return {"series": series, "run": run, "specimen": spec.label, **{k: v.tolist() for k, v in table.items()}}
 
     def acquire(self, rig: Rig, pos: ev.Position) -> Record:
-        """Arm, strike and fetch one record, retrying timeouts (a missed blow) a bounded number of times."""
+        """Arm, strike and fetch one record; a missed blow (trigger timeout) is retried a bounded number of times.
+
+        The strike itself has no deadline: a manual hammer waits for the technician.
+        """
         acq = self.protocol.acquisition
         trigger = TriggerSpec(acq.trigger_level_n, acq.pretrigger_samples)
-
-        def once() -> Record:
-            rig.daq.arm(trigger)
-            rig.hammer.strike()
-            return rig.daq.acquire(acq.timeout_s)
-
-        return self.call("daq+hammer", once, timeout_s=acq.timeout_s + 30.0)
+        last: Exception | None = None
+        for attempt in range(1 + acq.retries):
+            self.call("daq (arm)", rig.daq.arm, trigger, retries=0)
+            try:
+                rig.hammer.strike()
+                return self.call("daq (acquire)", rig.daq.acquire, acq.timeout_s, timeout_s=acq.timeout_s + 10.0,
+                                 retries=0)
+            except (DeviceError, LabctlError) as exc:
+                last = exc
+                if attempt < acq.retries:
+                    self.notify("warning", f"no usable record ({exc}); hit again ({attempt + 1}/{acq.retries})")
+        raise HardwareFailure(f"no record after {1 + acq.retries} blow(s): {last}")

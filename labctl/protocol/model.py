@@ -48,7 +48,7 @@ class LoadingSpec:
     c0_length: Literal["total", "contact"] = "total"
     max_steps: int = 60
     settle_timeout_s: float = 30.0
-    settle_poll_s: float = 0.5
+    settle_poll_s: float = 0.1
     load_tolerance_fraction: float = 0.05
 
 

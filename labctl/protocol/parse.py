@@ -83,7 +83,7 @@ def _loading(doc: dict[str, Any], path: str) -> LoadingSpec:
         c0_length=c0_length,
         max_steps=_number(t, "max_steps", 60, w, lo=1, hi=1000, integer=True),
         settle_timeout_s=_number(t, "settle_timeout_s", 30.0, w, lo=0, lo_open=True),
-        settle_poll_s=_number(t, "settle_poll_s", 0.5, w, lo=0),
+        settle_poll_s=_number(t, "settle_poll_s", 0.1, w, lo=0),
         load_tolerance_fraction=_number(t, "load_tolerance_fraction", 0.05, w, lo=0, hi=1, lo_open=True),
     )
 
