@@ -174,3 +174,21 @@ def test_load_drift_suspends_the_step_and_asks_the_operator(tmp_path):
     assert suspended and "drifted" in suspended[0].reason
     with h5py.File(tmp_path / "c.h5") as f:
         assert f["series_01/run_01/step_001"].attrs["load_drift"]
+
+
+def test_operator_override_rejects_an_accepted_impact_and_it_is_hit_again(tmp_path):
+    control = RunControl()
+    rec = Recorder()
+
+    def on_event(event: ev.Event) -> None:
+        rec(event)
+        if isinstance(event, ev.ImpactAcquired) and event.position == ev.Position(1, 1, 1, 1) and event.attempt == 1:
+            control.override_last_impact(False)
+
+    out = tmp_path / "c.h5"
+    assert run_campaign(short_protocol(reps=1), out=out, seed=1, subscribers=[on_event],
+                        control=control).status == "complete"
+    with h5py.File(out) as f:
+        step = f["series_01/run_01/step_001"]
+        assert not step["impact_001"].attrs["accepted"] and "operator_rejected" in step["impact_001"].attrs["reasons"]
+        assert [bool(step[f"impact_00{i}"].attrs["accepted"]) for i in (2, 3)] == [True, True]

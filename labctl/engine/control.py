@@ -20,7 +20,19 @@ class RunControl:
         self._running = threading.Event()
         self._running.set()
         self._status: str | None = None
+        self._override: bool | None = None
         self._lock = threading.Lock()
+
+    def override_last_impact(self, accept: bool) -> None:
+        """The technician's verdict on the step's latest impact: reject an accepted one (it is hit again) or
+        accept a rejected one. Applied at the next safe point while the step is still acquiring."""
+        with self._lock:
+            self._override = bool(accept)
+
+    def take_override(self) -> bool | None:
+        with self._lock:
+            verdict, self._override = self._override, None
+        return verdict
 
     def pause(self) -> None:
         self._running.clear()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from typing import TYPE_CHECKING
 
@@ -124,7 +125,10 @@ class StepRunner:
         accepted = sum(1 for k in g if k.startswith("impact_") and g[k].attrs.get("accepted"))
         rejected = len(attempts) - accepted
         attempt = attempts[-1] if attempts else 0
-        while accepted < acq.impacts_per_step:
+        while True:
+            accepted, rejected = self._apply_override(step, attempt, accepted, rejected)
+            if accepted >= acq.impacts_per_step:
+                break
             if rejected > acq.max_rehits:
                 e.notify("warning", f"step {step}: {rejected} rejected impacts, more than {acq.max_rehits} re-hits; "
                          "going on with the accepted ones")
@@ -139,6 +143,24 @@ class StepRunner:
             if ok:
                 e.impacts_done += 1
             e.progress(ipos)
+
+    def _apply_override(self, step: int, attempt: int, accepted: int, rejected: int) -> tuple[int, int]:
+        """Apply a pending operator verdict to the latest impact of this step (kept in the file with the reason)."""
+        verdict = self.e.control.take_override()
+        g = self._group(step).get(schema.impact_name(attempt)) if attempt else None
+        if verdict is None or g is None or bool(g.attrs["accepted"]) == verdict:
+            return accepted, rejected
+        reasons = [r for r in json.loads(g.attrs.get("reasons", "[]")) if r != "operator_accepted"]
+        reasons.append("operator_accepted" if verdict else "operator_rejected")
+        g.attrs["accepted"], g.attrs["reasons"] = verdict, json.dumps(reasons)
+        self.e.writer.h5.flush()
+        verb = "accepted" if verdict else "rejected"
+        self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator")
+        if verdict:
+            self.e.impacts_done += 1
+            return accepted + 1, rejected - 1
+        self.e.impacts_done -= 1
+        return accepted - 1, rejected + 1
 
     def _store(self, step: int, attempt: int, record, index: int, pos: ev.Position) -> bool:  # noqa: ANN001
         force = np.asarray(record.force_n, dtype=np.float32).astype(float)
