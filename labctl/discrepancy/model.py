@@ -151,9 +151,9 @@ def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarr
     return np.where(np.isfinite(r), r, BAD_RESIDUAL)
 
 
-def _starts(spec: ModelSpec, warm: Fit | None) -> list[np.ndarray]:
+def _starts(spec: ModelSpec, warm: Fit | None, guess: dict[str, dict[str, float]]) -> list[np.ndarray]:
     depth = warm.depth_m if warm is not None and warm.depth_m else DEFAULT_DEPTH_M
-    known = warm.effect_parameters() if warm is not None else {}
+    known = {**(warm.effect_parameters() if warm is not None else {}), **guess}
     fresh = [n for n in spec.effects if n not in known]
     out = []
     for combo in itertools.product(*(STARTS[n] for n in fresh)):
@@ -162,8 +162,10 @@ def _starts(spec: ModelSpec, warm: Fit | None) -> list[np.ndarray]:
     return out
 
 
-def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None) -> Fit:
-    """Noise-weighted least squares on ln k, from the warm fit's values and each effect's start grid.
+def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None,
+              guess: dict[str, dict[str, float]] | None = None) -> Fit:
+    """Noise-weighted least squares on ln k, started from the warm fit's values, any guessed effect
+    parameters, and each remaining effect's start grid.
 
     ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same.
     """
@@ -171,7 +173,7 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
     sig = np.ones(measured.size) if sigma is None else np.asarray(sigma, dtype=float)
     lo, hi = spec.bounds()
     best: tuple[float, np.ndarray] | None = None
-    for x0 in _starts(spec, warm):
+    for x0 in _starts(spec, warm, guess or {}):
         if x0.size == 0:
             best = (0.0, x0)
             break

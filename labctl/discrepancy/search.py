@@ -74,8 +74,9 @@ class Step:
     evidence: dict[str, Any]
 
 
-def _candidate(data: Dataset, current: Fit, added: tuple[str, ...]) -> Candidate:
-    fit = fit_model(data, current.spec.with_effects(*added), warm=current, sigma=current.sigma)
+def _candidate(data: Dataset, current: Fit, added: tuple[str, ...],
+               guess: dict[str, dict[str, float]] | None = None) -> Candidate:
+    fit = fit_model(data, current.spec.with_effects(*added), warm=current, sigma=current.sigma, guess=guess)
     return Candidate(added, fit, current.bic - fit.bic, beyond(current, fit))
 
 
@@ -89,7 +90,8 @@ def rank_candidates(data: Dataset, current: Fit, noise: NoiseFloor) -> list[Cand
     singles = sorted((_candidate(data, current, (n,)) for n in remaining), key=lambda c: -c.delta_bic)
     if singles and noise.consistent(singles[0].fit.z, singles[0].fit.spec.n_params()):
         return singles
-    pairs = [_candidate(data, current, p) for p in itertools.combinations(remaining, 2)]
+    alone = {c.added[0]: c.fit.effect_parameters()[c.added[0]] for c in singles}
+    pairs = [_candidate(data, current, p, {n: alone[n] for n in p}) for p in itertools.combinations(remaining, 2)]
     return sorted(singles + pairs, key=lambda c: -c.delta_bic)
 
 
