@@ -65,7 +65,6 @@ class ImpactCheck:
     second_hit_delay_s: float | None = None  # its delay after the main pulse (negative: before it)
     overloaded: tuple[str, ...] = ()
     force_noise_n: float = 0.0
-    coherence: float | None = None  # at the modes, set by the impact-set check
     polarity: float = 1.0  # -1 when the force channel reads blows as negative
     notes: tuple[str, ...] = field(default=())
 
@@ -125,7 +124,7 @@ def locate_pulse(force_n: ArrayLike, fs_hz: float) -> Pulse:
     right = np.flatnonzero(after < half)
     t0 = _crossing(g, i0 + int(left[-1]), i0 + int(left[-1]) + 1, half) if len(left) else float(start)
     t1 = _crossing(g, peak + int(right[0]) - 1, peak + int(right[0]), half) if len(right) else float(end)
-    width = 1.5 * max(t1 - t0, 0.0) / fs_hz
+    width = 1.5 * max(float(t1 - t0), 0.0) / fs_hz
     return Pulse(g, peak, start, end, p, width, noise, polarity)
 
 

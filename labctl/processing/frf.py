@@ -1,7 +1,8 @@
 """Windowed spectra of an impact set and the FRF estimates H1, H2 and coherence averaged over impacts.
 
-Windows: the force keeps only the blow (a rectangle from just before the pulse to a few pulse lengths after
-it, with short cosine tapers), which removes the force channel's noise; force and responses are both
+Windows: the force keeps only the blow — the pulse and whatever stands above the force channel's noise right
+around it (anti-alias filter ringing), with short cosine tapers — because every noise sample left in the
+window perturbs the force spectrum the FRF is divided by; force and responses are both
 multiplied by the same exponential window ``exp(-a·t)``. Multiplying both by ``exp(-a·t)`` turns the
 measured FRF into ``H(s)`` evaluated at ``s = iω + a``: every pole appears shifted by ``-a`` (the window's
 "added damping"), which the mode fit undoes exactly by evaluating its model at ``iω + a``.
@@ -24,9 +25,10 @@ class WindowConfig:
     """Exponential window end value (None: no window) and the force window's extent around the blow."""
 
     exponential_end: float | None = 0.01  # the window's value at the end of the record
-    force_pre_s: float = 0.5e-3
-    force_post_s: float = 2.0e-3  # keeps anti-alias filter ringing of the force inside the window
-    taper_s: float = 0.25e-3
+    force_pre_s: float = 0.5e-3  # the force window reaches at most this far before the pulse ...
+    force_post_s: float = 2.0e-3  # ... and after it, where the force still stands above its noise (ringing)
+    force_noise_sigmas: float = 4.0
+    taper_s: float = 0.1e-3
     max_frequency_hz: float | None = 5000.0  # spectra are kept up to here (None: Nyquist)
 
     def decay_rate_per_s(self, n_samples: int, fs_hz: float) -> float:
@@ -60,11 +62,20 @@ class FrfEstimate:
     used: tuple[int, ...]
 
 
-def force_window(n: int, fs_hz: float, start: int, end: int, cfg: WindowConfig) -> tuple[int, np.ndarray]:
-    """The force window's support: (first sample, values) — 1 over the widened blow, cosine tapers outside."""
+def force_window(force_n: np.ndarray, fs_hz: float, start: int, end: int, noise_n: float,
+                 cfg: WindowConfig) -> tuple[int, np.ndarray]:
+    """The force window's support: (first sample, values) — 1 over the pulse and the samples around it that
+    stand above ``force_noise_sigmas`` × the noise (within pre/post), cosine tapers outside."""
+    n = len(force_n)
     taper = max(1, int(round(cfg.taper_s * fs_hz)))
-    a = max(0, start - int(round(cfg.force_pre_s * fs_hz)))
-    b = min(n, end + 1 + int(round(cfg.force_post_s * fs_hz)))
+    level = cfg.force_noise_sigmas * noise_n
+    lo_max = max(0, start - int(round(cfg.force_pre_s * fs_hz)))
+    hi_max = min(n, end + 1 + int(round(cfg.force_post_s * fs_hz)))
+    above_pre = np.flatnonzero(np.abs(force_n[lo_max:start]) > level)
+    above_post = np.flatnonzero(np.abs(force_n[end + 1:hi_max]) > level)
+    a = lo_max + int(above_pre[0]) if len(above_pre) else start
+    b = end + 2 + int(above_post[-1]) if len(above_post) else end + 1
+    a, b = max(0, a - 1), min(n, b + 1)
     lo, hi = max(0, a - taper), min(n, b + taper)
     ramp = 0.5 - 0.5 * np.cos(np.pi * (np.arange(taper) + 0.5) / taper)
     w = np.ones(hi - lo)
@@ -77,10 +88,11 @@ def impact_spectra(
     force_n: np.ndarray,
     accel_m_per_s2: np.ndarray,
     fs_hz: float,
-    pulses: list[tuple[int, int]],
+    pulses: list[tuple[int, int, float]],
     cfg: WindowConfig = WindowConfig(),  # noqa: B008 - frozen
 ) -> Spectra:
-    """Window and transform every impact; sensor offsets (the record before each blow) are removed."""
+    """Window and transform every impact; ``pulses`` holds (first sample, last sample, force noise N) of each
+    blow. Sensor offsets (the record before each blow) are removed."""
     n_imp, n_ch, n = accel_m_per_s2.shape
     rate = cfg.decay_rate_per_s(n, fs_hz)
     expw = np.exp(-rate * np.arange(n) / fs_hz)
@@ -89,7 +101,7 @@ def impact_spectra(
         n_f = min(n_f, int(math.floor(cfg.max_frequency_hz * n / fs_hz)) + 1)
     buf = np.zeros((n_imp, n_ch + 1, n), dtype=np.float32)  # row 0: force, rows 1..: responses
     expw32 = expw.astype(np.float32)
-    for i, (start, end) in enumerate(pulses):
+    for i, (start, end, noise) in enumerate(pulses):
         np.multiply(accel_m_per_s2[i], expw, out=buf[i, 1:], casting="same_kind")
         if start >= 16:
             pre = accel_m_per_s2[i, :, :start]
@@ -98,13 +110,13 @@ def impact_spectra(
             for c in np.flatnonzero(significant):
                 buf[i, 1 + c] -= np.float32(offset[c]) * expw32
         f_off = float(np.median(force_n[i, :start])) if start >= 16 else 0.0
-        lo, w = force_window(n, fs_hz, start, end, cfg)
+        lo, w = force_window(force_n[i] - f_off, fs_hz, start, end, noise, cfg)
         buf[i, 0, lo:lo + len(w)] = (force_n[i, lo:lo + len(w)] - f_off) * expw[lo:lo + len(w)] * w
     spec = sfft.rfft(buf, axis=-1, workers=WORKERS)[..., :n_f]
     big_f = np.ascontiguousarray(spec[:, 0])
     big_x = np.ascontiguousarray(spec[:, 1:])
     freqs = np.arange(n_f) * fs_hz / n
-    w_at_blow = float(np.mean([expw[min(max(s, 0), n - 1)] for s, _ in pulses])) if pulses else 1.0
+    w_at_blow = float(np.mean([expw[min(max(s, 0), n - 1)] for s, _, _ in pulses])) if pulses else 1.0
     inflation = n * w_at_blow**2 / float(np.sum(expw**2))
     return Spectra(freqs, big_f, big_x, rate, inflation)
 

@@ -234,7 +234,7 @@ def identify(
         summary = "; ".join(f"impact {c.index}: {', '.join(c.reasons)}" for c in checks)
         raise ProcessingError(f"all {len(checks)} impacts rejected ({summary})")
     pred = predicted_shapes(rig, names)
-    pulses = [(checks[i].pulse_start, checks[i].pulse_end) for i in accepted]
+    pulses = [(checks[i].pulse_start, checks[i].pulse_end, checks[i].force_noise_n) for i in accepted]
     spectra = impact_spectra(force[accepted], accel[accepted], fs_hz, pulses, cfg.window)
     live = _live_channels(spectra)
     noise = _channel_noise(accel, accepted)

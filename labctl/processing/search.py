@@ -11,6 +11,7 @@ the data as well, the pair is reported as degenerate.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -24,6 +25,9 @@ from labctl.processing.shapes import Classification, PredictedShapes, classify
 N_CONTACT_MODES = 3
 MAX_DAMPING = 0.3
 MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is taken for model residue
+PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond the rig's ratio is residue
+SHARPNESS = 0.1  # a real mode's frequency is known to better than this share of its half-power width
+SPLITS = (0.05, 0.15, 0.4)  # tilt-pair start separations, in half-power widths of the single tilt
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,30 @@ def _channel_weights(noise: np.ndarray) -> np.ndarray:
     return w / float(np.median(w))
 
 
+def _widen(fit: ModalFit, live: np.ndarray, n_channels: int) -> ModalFit:
+    """The fit with its constants spread back over all channels (dead ones 0)."""
+    constants = np.zeros((len(fit.frequencies_hz), n_channels))
+    constants[:, live] = fit.constants
+    return replace(fit, constants=constants)
+
+
+def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
+    """Every pole inside the band, well determined, plausibly damped (a few times the rig's modal damping),
+    of visible strength and worth its parameters (BIC)."""
+    if not _valid(fit) or np.any(fit.damping_ratios > max(0.1, PLAUSIBLE_DAMPING * zeta)):
+        return False
+    sharp = fit.frequency_std_hz < SHARPNESS * 2.0 * fit.damping_ratios * fit.frequencies_hz
+    strength = np.sqrt(np.sum(fit.constants**2, axis=1)) / fit.damping_ratios  # peak response per mode
+    strong = strength >= MIN_RELATIVE_STRENGTH * float(strength.max())
+    return bool(np.all(sharp & strong & (fit.significance > penalty)))
+
+
+def _apart(fit: ModalFit, tilt: Sequence[int]) -> bool:
+    a, b = tilt
+    gap = abs(fit.frequencies_hz[a] - fit.frequencies_hz[b])
+    return bool(gap > 3.0 * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
+
+
 def fit_contact_modes(
     freqs_hz: np.ndarray,
     h: np.ndarray,
@@ -111,7 +139,8 @@ def fit_contact_modes(
     band_widths: float = 4.0,
     channel_noise: np.ndarray | None = None,
 ) -> ContactModes:
-    """Band, start poles, 3-mode fit (and 2-mode fallback for an unresolved tilt pair), classification."""
+    """Band, start poles, 3-mode fit; if the tilt pair is not clearly resolved, a 2-mode fit and split
+    starts around its tilt, the best 3-mode fit kept only when the BIC prefers it."""
     hl = h[live]
     band = fit_band(freqs_hz, hl, search_hz[0], search_hz[1], zeta, band_widths)
     f, hb = freqs_hz[band], hl[:, band]
@@ -119,33 +148,34 @@ def fit_contact_modes(
         raise ProcessingError(f"the fit band {f[0]:.0f}-{f[-1]:.0f} Hz holds too few frequency lines")
     weights = np.ones(hb.shape[0]) if channel_noise is None else _channel_weights(channel_noise[live])
     kw = {"decay_rate_per_s": decay_rate_per_s, "noise_inflation": noise_inflation, "channel_weights": weights}
-    fit = fit_modes(f, hb, _start_poles(f, hb, decay_rate_per_s, zeta), **kw)
-    constants = np.zeros((len(fit.frequencies_hz), h.shape[0]))
-    constants[:, live] = fit.constants
-    fit = _with_constants(fit, constants)
-    classes = classify(fit.constants, fit.frequencies_hz, pred, live)
-    t = list(classes.tilt)
+    n_ch = h.shape[0]
+    fit = _widen(fit_modes(f, hb, _start_poles(f, hb, decay_rate_per_s, zeta), **kw), live, n_ch)
     penalty = (int(live.sum()) + 2) * math.log(fit.n_data)
-    sharp = fit.frequency_std_hz < 0.25 * 2.0 * fit.damping_ratios * fit.frequencies_hz
-    apart = abs(fit.frequencies_hz[t[0]] - fit.frequencies_hz[t[1]]) > 3.0 * math.hypot(
-        fit.frequency_std_hz[t[0]], fit.frequency_std_hz[t[1]])
-    strength = np.sqrt(np.sum(fit.constants**2, axis=1)) / fit.damping_ratios  # peak response per mode
-    strong = strength >= MIN_RELATIVE_STRENGTH * float(strength.max())
-    trusted = _valid(fit) and bool(np.all(sharp & strong & (fit.significance > penalty)))
-    if trusted and apart:
+    classes = classify(fit.constants, fit.frequencies_hz, pred, live)
+    if _trusted(fit, penalty, zeta) and _apart(fit, classes.tilt):
         return ContactModes(fit, classes, True, band)
     if _valid(fit):
         keep = sorted(np.argsort(fit.significance)[1:])
         start2 = [(float(fit.frequencies_hz[i]), float(fit.damping_ratios[i])) for i in keep]
     else:
         start2 = _two_starts(f, hb, decay_rate_per_s, zeta, pred)
-    fit2 = fit_modes(f, hb, start2, **kw)
-    if trusted and (fit2.cost - fit.cost) / max(fit.sigma2, 1e-300) > penalty:
-        return ContactModes(fit, classes, True, band)
-    constants2 = np.zeros((2, h.shape[0]))
-    constants2[:, live] = fit2.constants
-    fit2 = _with_constants(fit2, constants2)
-    return ContactModes(fit2, classify(fit2.constants, fit2.frequencies_hz, pred, live), False, band)
+    fit2 = _widen(fit_modes(f, hb, start2, **kw), live, n_ch)
+    classes2 = classify(fit2.constants, fit2.frequencies_hz, pred, live)
+    candidates = [(fit, classes)] if _trusted(fit, penalty, zeta) else []
+    if _valid(fit2):
+        ft, zt = float(fit2.frequencies_hz[classes2.tilt[0]]), float(fit2.damping_ratios[classes2.tilt[0]])
+        fb, zb = float(fit2.frequencies_hz[classes2.bounce]), float(fit2.damping_ratios[classes2.bounce])
+        for split in SPLITS:
+            d = split * 2.0 * zt * ft
+            cand = _widen(fit_modes(f, hb, [(ft - d / 2, zt), (ft + d / 2, zt), (fb, zb)], **kw), live, n_ch)
+            if _trusted(cand, penalty, zeta):
+                candidates.append((cand, classify(cand.constants, cand.frequencies_hz, pred, live)))
+    if candidates:
+        best, best_classes = min(candidates, key=lambda c: c[0].cost)
+        gain = (fit2.cost - best.cost) / max(best.sigma2, 1e-300)
+        if _apart(best, best_classes.tilt) and gain > penalty:
+            return ContactModes(best, best_classes, True, band)
+    return ContactModes(fit2, classes2, False, band)
 
 
 def _two_starts(f: np.ndarray, h: np.ndarray, rate: float, zeta: float,
@@ -160,5 +190,4 @@ def _two_starts(f: np.ndarray, h: np.ndarray, rate: float, zeta: float,
     return [(float(f[k]), zeta), (float(f[k]) * ratio if ratio < 1 else float(f[k]) / ratio, zeta)]
 
 
-def _with_constants(fit: ModalFit, constants: np.ndarray) -> ModalFit:
-    return replace(fit, constants=constants)
+

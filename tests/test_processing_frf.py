@@ -1,0 +1,103 @@
+"""H1/H2/coherence against an analytic single-mode system, the windows, and the window's damping removed."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from labctl.processing.checks import locate_pulse
+from labctl.processing.frf import WindowConfig, estimate_frf, force_window, impact_spectra
+from labctl.processing.modes import fit_modes
+from tests.synth_impacts import SynthMode, accelerance, synth_impacts
+
+F0, ZETA = 745.0, 0.02
+RESIDUE = np.array([0.04, -0.01])
+SINGLE = [SynthMode("bounce", F0, ZETA, RESIDUE)]
+CHANNELS = ("A1Z", "A4Z")
+
+
+def spectra_of(s, window: WindowConfig):
+    pulses = [(p.start, p.end, p.noise_n) for p in (locate_pulse(f, s.fs_hz) for f in s.force_n)]
+    return impact_spectra(s.force_n, s.accel_m_per_s2, s.fs_hz, pulses, window)
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return synth_impacts(SINGLE, CHANNELS, n_samples=32768, snr_db=200.0, seed=1)
+
+
+def test_h1_equals_the_analytic_accelerance_without_window(clean):
+    sp = spectra_of(clean, WindowConfig(exponential_end=None))
+    frf = estimate_frf(sp, [0, 1, 2])
+    band = (frf.frequencies_hz > 100) & (frf.frequencies_hz < 3000)
+    exact = accelerance(SINGLE, frf.frequencies_hz[band])
+    err = np.abs(frf.h1[:, band] - exact) / np.abs(exact).max(axis=1, keepdims=True)
+    assert err.max() < 2e-4
+    assert np.abs(frf.h2[:, band] - exact).max() / np.abs(exact).max() < 2e-4
+    assert frf.coherence[:, band].min() > 0.9999
+
+
+def test_the_exponential_window_shifts_the_pole_by_its_rate(clean):
+    cfg = WindowConfig(exponential_end=0.01)
+    sp = spectra_of(clean, cfg)
+    a = cfg.decay_rate_per_s(32768, clean.fs_hz)
+    assert sp.decay_rate_per_s == pytest.approx(a)
+    assert a == pytest.approx(math.log(100.0) * clean.fs_hz / 32767)
+    frf = estimate_frf(sp, [0, 1, 2])
+    band = (frf.frequencies_hz > 400) & (frf.frequencies_hz < 1100)
+    s = 2j * np.pi * frf.frequencies_hz[band] + a  # H(iω + a): the windowed FRF
+    w = 2 * np.pi * F0
+    shifted = np.outer(RESIDUE, s**2 / (s**2 + 2 * ZETA * w * s + w**2))
+    assert np.abs(frf.h1[:, band] - shifted).max() / np.abs(shifted).max() < 1e-3
+
+
+def test_the_fit_removes_the_windows_added_damping_exactly(clean):
+    cfg = WindowConfig(exponential_end=0.001)  # a strong window: about +5 % damping if left in
+    sp = spectra_of(clean, cfg)
+    frf = estimate_frf(sp, [0, 1, 2])
+    band = (frf.frequencies_hz > 600) & (frf.frequencies_hz < 900)
+    f, h = frf.frequencies_hz[band], frf.h1[:, band]
+    corrected = fit_modes(f, h, [(740.0, 0.03)], decay_rate_per_s=sp.decay_rate_per_s)
+    naive = fit_modes(f, h, [(740.0, 0.03)], decay_rate_per_s=0.0)
+    assert corrected.frequencies_hz[0] == pytest.approx(F0, abs=1e-3)
+    assert corrected.damping_ratios[0] == pytest.approx(ZETA, rel=1e-4)
+    added = sp.decay_rate_per_s / (2 * np.pi * F0)
+    assert naive.damping_ratios[0] == pytest.approx(ZETA + added, rel=2e-3)
+    assert added / ZETA > 0.04
+
+
+def test_noise_lowers_coherence_and_h2_overestimates():
+    s = synth_impacts(SINGLE, CHANNELS, n_samples=32768, snr_db=0.0, seed=2, n_impacts=4)
+    frf = estimate_frf(spectra_of(s, WindowConfig()), [0, 1, 2, 3])
+    far = (frf.frequencies_hz > 3000) & (frf.frequencies_hz < 4000)
+    near = np.abs(frf.frequencies_hz - F0) < 3
+    assert frf.coherence[0, near].min() > 0.98
+    assert frf.coherence[0, far].mean() < 0.9
+    assert np.mean(np.abs(frf.h2[0, far])) > np.mean(np.abs(frf.h1[0, far]))
+
+
+def test_force_window_keeps_the_blow_and_what_stands_above_the_noise():
+    cfg = WindowConfig(force_pre_s=0.5e-3, force_post_s=2e-3, taper_s=0.25e-3, force_noise_sigmas=4.0)
+    rng = np.random.default_rng(3)
+    f = rng.normal(0.0, 0.01, 4096)
+    f[300:307] += 100.0 * np.sin(np.pi * np.arange(1, 8) / 8)
+    lo, w = force_window(f, 20480.0, 300, 306, 0.01, cfg)
+    taper = round(0.25e-3 * 20480)
+    assert lo == 299 - taper and len(w) == 2 * taper + 9  # the pulse and one sample either side
+    assert np.all(w[taper:-taper] == 1.0)
+    assert np.all(np.diff(w[:taper]) > 0) and np.all(np.diff(w[-taper:]) < 0)
+    ringing = f.copy()
+    ringing[307:327] += 2.0 * np.cos(np.pi * 0.9 * np.arange(20)) * np.exp(-np.arange(20) / 6)
+    lo2, w2 = force_window(ringing, 20480.0, 300, 306, 0.01, cfg)
+    assert lo2 == lo and lo2 + len(w2) > lo + len(w) + 10  # the window follows the ringing
+    far = f.copy()
+    far[306 + 200] = 5.0  # beyond force_post_s: not part of the blow's window
+    assert len(force_window(far, 20480.0, 300, 306, 0.01, cfg)[1]) == len(w)
+
+
+def test_spectra_stop_at_the_configured_frequency(clean):
+    sp = spectra_of(clean, WindowConfig(max_frequency_hz=2000.0))
+    assert sp.frequencies_hz[-1] <= 2000.0 < sp.frequencies_hz[-1] + clean.fs_hz / 32768 * 1.01
+    assert sp.response.shape == (3, 2, len(sp.frequencies_hz))
