@@ -88,9 +88,10 @@ def _start_poles(f: np.ndarray, h: np.ndarray, rate: float, zeta: float) -> list
     return good
 
 
-def _valid(fit: ModalFit) -> bool:
+def _valid(fit: ModalFit, require_convergence: bool = True) -> bool:
     lo, hi = fit.band_hz
-    return bool(fit.converged and np.all((fit.frequencies_hz > lo) & (fit.frequencies_hz < hi))
+    return bool((fit.converged or not require_convergence)
+                and np.all((fit.frequencies_hz > lo) & (fit.frequencies_hz < hi))
                 and np.all((fit.damping_ratios > 1e-5) & (fit.damping_ratios < MAX_DAMPING))
                 and np.all(np.isfinite(fit.frequency_std_hz)))
 
@@ -175,6 +176,9 @@ def fit_contact_modes(
         gain = (fit2.cost - best.cost) / max(best.sigma2, 1e-300)
         if _apart(best, best_classes.tilt) and gain > penalty:
             return ContactModes(best, best_classes, True, band)
+    if not _valid(fit2, require_convergence=False):
+        raise ProcessingError(f"no contact modes could be fitted between {f[0]:.0f} and {f[-1]:.0f} Hz "
+                              "(poles left the band or came out undamped)")
     return ContactModes(fit2, classes2, False, band)
 
 
