@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -183,29 +183,24 @@ def _coherence_check(spectra: Spectra, frf: FrfEstimate, used: list[int], modes:
 
 def _channel_noise(accel: np.ndarray, used: list[int]) -> np.ndarray:
     """Each channel's noise floor: its spread over the record's last part, where the response has died out."""
-    tail = accel[used, :, -min(accel.shape[-1] // 4, 4096):]
+    tail = accel[used, :, -min(accel.shape[-1] // 4, 2048):]
     return np.sqrt(np.mean(np.var(tail, axis=-1), axis=0))
 
 
-def _live_channels(spectra: Spectra) -> np.ndarray:
+def _live_channels(frf: FrfEstimate) -> np.ndarray:
     """Channels with signal: a flat (dead) sensor leaves a response spectrum of round-off only."""
-    x = spectra.response[..., 1:]
-    power = np.sum(x.real**2 + x.imag**2, axis=(0, 2))
-    if not (np.isfinite(power).all() and np.isfinite(spectra.force).all()):
-        raise InputError("force or accel holds non-finite values (NaN or infinity)")
+    power = frf.response_power
     live = power > 1e-12 * float(power.max(initial=0.0))
     if not live.any():
         raise ProcessingError("every response channel is flat: no sensor signal")
     return live
 
 
-def _fit(spectra: Spectra, used: list[int], pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
-         zeta: float, cfg: IdentifyConfig, noise: np.ndarray) -> tuple[FrfEstimate, ContactModes]:
-    frf = estimate_frf(spectra, used)
-    modes = fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
-                              decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
-                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise)
-    return frf, modes
+def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
+         zeta: float, cfg: IdentifyConfig, noise: np.ndarray) -> ContactModes:
+    return fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
+                             decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
+                             zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise)
 
 
 def identify(
@@ -235,13 +230,17 @@ def identify(
         raise ProcessingError(f"all {len(checks)} impacts rejected ({summary})")
     pred = predicted_shapes(rig, names)
     pulses = [(checks[i].pulse_start, checks[i].pulse_end, checks[i].force_noise_n) for i in accepted]
-    spectra = impact_spectra(force[accepted], accel[accepted], fs_hz, pulses, cfg.window)
-    live = _live_channels(spectra)
+    window = cfg.window
+    if window.max_frequency_hz is not None and window.max_frequency_hz < 1.25 * pred.max_bounce_hz:
+        window = replace(window, max_frequency_hz=1.25 * pred.max_bounce_hz)  # a stiff rig's modes stay in view
+    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted)
+    used = list(range(len(accepted)))
+    frf = estimate_frf(spectra, used)
+    live = _live_channels(frf)
     noise = _channel_noise(accel, accepted)
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
-    used = list(range(len(accepted)))
-    frf, modes = _fit(spectra, used, pred, live, search, zeta, cfg, noise)
+    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
     warnings: list[str] = []
     drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence)
     if drop is not None:
@@ -249,7 +248,8 @@ def identify(
         checks[i] = checks[i].rejected_for(LOW_COHERENCE, "coherence at the bounce rises above "
                                            f"{cfg.checks.min_coherence:g} without this impact")
         used.remove(drop)
-        frf, modes = _fit(spectra, used, pred, live, search, zeta, cfg, noise)
+        frf = estimate_frf(spectra, used)
+        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
     return _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings)
 
 

@@ -51,18 +51,23 @@ def _stack(z: np.ndarray) -> np.ndarray:
 class _Problem:
     """Variable-projection residual and Gauss–Newton terms for M modes on one band, all channels at once.
 
-    With the Kaufman Jacobian J_k = -vec(P⊥ ∂B/∂θ_k ⊗ c_r), JᵀJ and Jᵀr reduce to small products, so
-    the (n_bins·n_channels × 2M) Jacobian is never formed.
+    The residual terms do not depend on the poles, so they are projected out of the data once; each step
+    then only handles the M mode columns. With the Kaufman Jacobian J_k = -vec(P⊥ ∂B/∂θ_k ⊗ c_r), JᵀJ
+    and Jᵀr reduce to small products: the (n_lines·n_channels × 2M) Jacobian is never formed.
     """
 
     def __init__(self, freqs_hz: np.ndarray, h: np.ndarray, decay_rate: float, weights: np.ndarray) -> None:
         self.s = TWO_PI * 1j * freqs_hz + decay_rate
-        s_ref = TWO_PI * float(np.mean(freqs_hz))
-        sn = self.s / s_ref
+        sn = self.s / (TWO_PI * float(np.mean(freqs_hz)))
         terms = [sn**p for p in RESIDUAL_POWERS]
-        self.residual_basis = _stack(np.stack([t * z for t in terms for z in (1.0, 1j)], axis=1))
-        self.y = _stack(h.T) * weights[None, :]
+        self.rb = _stack(np.stack([t * z for t in terms for z in (1.0, 1j)], axis=1))
+        self.rb_pinv = _cho_solve(_gram_factor(self.rb), self.rb.T)
+        self.y = self._perp_residual(_stack(h.T) * weights[None, :])
         self.weights = weights
+        self.n_fixed = self.rb.shape[1]
+
+    def _perp_residual(self, v: np.ndarray) -> np.ndarray:
+        return v - self.rb @ (self.rb_pinv @ v)
 
     def solve(self, x: np.ndarray) -> float:
         """Project out the linear constants at poles ``x``; return the cost."""
@@ -70,16 +75,22 @@ class _Problem:
         zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
         s = self.s[:, None]
         d = s**2 + 2.0 * zeta * omega * s + omega**2
-        basis = np.concatenate([_stack(s**2 / d), self.residual_basis], axis=1)
-        self.basis, self.gram = basis, _gram_factor(basis)
-        self.coef = _cho_solve(self.gram, basis.T @ self.y)
-        self.resid = self.y - basis @ self.coef
+        self.g = self._perp_residual(_stack(s**2 / d))
+        self.gram = _gram_factor(self.g)
+        self.coef = _cho_solve(self.gram, self.g.T @ self.y)
+        self.resid = self.y - self.g @ self.coef
         self.d, self.zeta, self.omega = d, zeta, omega
         return float(np.sum(self.resid**2))
 
     def project_out(self, v: np.ndarray) -> np.ndarray:
-        """The part of ``v`` orthogonal to the basis."""
-        return v - self.basis @ _cho_solve(self.gram, self.basis.T @ v)
+        """The part of ``v`` orthogonal to the residual terms and the mode columns."""
+        vr = self._perp_residual(v)
+        return vr - self.g @ _cho_solve(self.gram, self.g.T @ vr)
+
+    def inverse_gram_diagonal(self) -> np.ndarray:
+        """Diagonal of the mode block of (BᵀB)⁻¹: how well each mode's constants are determined."""
+        low, scale = self.gram
+        return np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0) * scale**2
 
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
         """JᵀJ and Jᵀr at the last solved point."""
@@ -88,7 +99,7 @@ class _Problem:
         deriv[:, 0::2] = _stack(-(s**2) * (2.0 * self.zeta * s + 2.0 * self.omega) / d**2 * TWO_PI)
         deriv[:, 1::2] = _stack(-(s**2) * (2.0 * self.omega * s) * self.zeta / d**2)
         pdb = self.project_out(deriv)
-        c = np.repeat(self.coef[: d.shape[1]], 2, axis=0)  # mode r's constants for both its parameters
+        c = np.repeat(self.coef, 2, axis=0)  # mode r's constants for both its parameters
         jtj = (pdb.T @ pdb) * (c @ c.T)
         jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
         return jtj, jtr
@@ -160,7 +171,7 @@ def fit_modes(
     cost = prob.solve(x)
     m = len(start)
     n_data = prob.resid.size
-    dof = max(n_data - prob.coef.size - len(x), 1)
+    dof = max(n_data - (m + prob.n_fixed) * h.shape[0] - len(x), 1)
     sigma2 = cost / dof
     jtj, _ = prob.normal_equations()
     try:
@@ -168,15 +179,13 @@ def fit_modes(
     except np.linalg.LinAlgError:
         std = np.full(len(x), np.inf)
     zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
-    low, scale = prob.gram
-    inv_diag = np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0)[:m] * scale[:m] ** 2
-    significance = np.sum(prob.coef[:m] ** 2, axis=1) / inv_diag / max(sigma2, 1e-300)
+    significance = np.sum(prob.coef**2, axis=1) / prob.inverse_gram_diagonal() / max(sigma2, 1e-300)
     return ModalFit(
         frequencies_hz=x[0::2].copy(),
         damping_ratios=zeta,
         frequency_std_hz=std[0::2],
         damping_std=zeta * std[1::2],
-        constants=prob.coef[:m] / weights[None, :],
+        constants=prob.coef / weights[None, :],
         cost=cost,
         sigma2=sigma2,
         n_data=n_data,

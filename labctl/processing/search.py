@@ -52,17 +52,21 @@ def fit_band(freqs_hz: np.ndarray, h: np.ndarray, lo_hz: float, hi_hz: float, ze
              band_widths: float) -> slice:
     """Bins spanning the (up to three) most prominent resonances plus ``band_widths`` half-power widths."""
     i0, i1 = np.searchsorted(freqs_hz, [lo_hz, hi_hz])
-    step = max(1, int(zeta * freqs_hz[i0] / (4.0 * (freqs_hz[1] - freqs_hz[0])))) if i0 > 0 else 1
-    hs = h[:, i0:i1:step]  # a few lines per half-power width are enough to see the peaks
+    if i1 - i0 < 8:
+        raise ProcessingError(f"no frequency lines between {lo_hz:.0f} and {hi_hz:.0f} Hz")
+    # a few lines per half-power width are enough to see the peaks: a geometric grid
+    grid = np.geomspace(freqs_hz[i0], freqs_hz[i1 - 1], max(8, int(np.log(hi_hz / lo_hz) / (0.25 * zeta))))
+    lines = np.unique(np.clip(np.searchsorted(freqs_hz, grid), i0, i1 - 1))
+    hs = h[:, lines]
     power = np.sum(hs.real**2 + hs.imag**2, axis=0)
-    if power.size < 8 or not np.any(power > 0):
+    if not np.any(power > 0):
         raise ProcessingError(f"no response between {lo_hz:.0f} and {hi_hz:.0f} Hz")
     peaks, props = find_peaks(power, prominence=0.005 * float(power.max()))
     if not len(peaks):
         peaks = np.array([int(np.argmax(power))])
     else:
         peaks = peaks[np.argsort(props["prominences"])[::-1][: 2 * N_CONTACT_MODES]]
-    f_peaks = freqs_hz[i0 + step * peaks]
+    f_peaks = freqs_hz[lines[peaks]]
     margin = band_widths * 2.0 * zeta
     lo = max(lo_hz, float(f_peaks.min()) * (1.0 - margin))
     hi = min(hi_hz, float(f_peaks.max()) * (1.0 + margin))

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from labctl.physics import RigConfig, rig_modes
+from labctl.physics import RigConfig, bounce_hz, rig_modes
 
 NOMINAL_STIFFNESS_N_PER_M = 5.0e7  # sensor-level shapes of equal rollers barely depend on k
+RIGID_ROLLERS_N_PER_M = 1.0e13
 MIN_SEPARATION = 0.2  # below this the live channels cannot tell bounce from tilt
 
 
@@ -32,6 +33,7 @@ class PredictedShapes:
     bounce_hz: float
     tilt_hz: float
     support_hz: float
+    max_bounce_hz: float  # what the setup stiffness alone allows: no contact mode lies above
 
 
 @dataclass(frozen=True)
@@ -45,8 +47,24 @@ class Classification:
     by_shape: bool  # False: the live channels could not separate the shapes; frequency order was used
 
 
+_CACHE: dict[tuple[int, tuple[str, ...]], tuple[RigConfig, PredictedShapes]] = {}
+
+
 def predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShapes:
-    """Bounce and tilt shapes of the rig model at the given channels."""
+    """Bounce and tilt shapes of the rig model at the given channels (remembered per rig object: a
+    campaign identifies every load step against the same, immutable rig)."""
+    key = (id(rig), tuple(channels))
+    hit = _CACHE.get(key)
+    if hit is not None and hit[0] is rig:
+        return hit[1]
+    if len(_CACHE) > 16:
+        _CACHE.clear()
+    pred = _predicted_shapes(rig, channels)
+    _CACHE[key] = (rig, pred)
+    return pred
+
+
+def _predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShapes:
     modes = rig_modes(rig, NOMINAL_STIFFNESS_N_PER_M)
 
     def at(mode: int) -> np.ndarray:
@@ -60,6 +78,7 @@ def predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShapes
         bounce_hz=modes.bounce_hz,
         tilt_hz=float(np.mean(modes.tilt_hz)),
         support_hz=float(max(modes.frequencies_hz[i] for i in modes.support)),
+        max_bounce_hz=bounce_hz(rig, RIGID_ROLLERS_N_PER_M),
     )
 
 
