@@ -1,0 +1,267 @@
+"""The technician's application: runs the engine in a thread worker and shows its events as they happen.
+
+Engine events cross to the UI thread with ``post_message`` (thread-safe and non-blocking: the engine never
+waits for a redraw); prompts use ``call_from_thread`` because the engine waits for the answer anyway.
+Quitting mid-run asks the engine to stop at its next safe point and waits for it: the file stays resumable.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from textual.app import App
+from textual.binding import Binding
+from textual.message import Message
+from textual.worker import Worker, WorkerState
+
+from labctl import events as ev
+from labctl.engine import Outcome, RunControl
+from labctl.protocol import Protocol
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog
+from labctl.tui.monitor import MonitorScreen
+from labctl.tui.operator import PromptRequest, TuiOperator
+from labctl.tui.state import reason_text
+
+DEFAULT_AUTO_CONFIRM_S = 3.0
+
+
+@dataclass
+class TuiSettings:
+    """What to run and how; ``auto_confirm_s`` None means every prompt waits for the technician."""
+
+    protocol: Protocol | None = None
+    backend: str = "sim"
+    out: Path | None = None
+    resume: bool = False
+    autostart: bool = False
+    auto_confirm_s: float | None = None
+    world: str | None = None
+    seed: int | None = None
+    rig: str | None = None
+    devices: str | None = None
+
+    def out_path(self) -> Path:
+        """The campaign file: as given, or ``<protocol>-<date>-<time>.h5`` in the working directory."""
+        if self.out is None:
+            name = self.protocol.name if self.protocol else "campaign"
+            self.out = Path(f"{name}-{time.strftime('%Y%m%d-%H%M%S')}.h5")
+        return self.out
+
+
+class EngineEvent(Message):
+    """An engine event handed to the UI thread."""
+
+    def __init__(self, event: ev.Event) -> None:
+        super().__init__()
+        self.event = event
+
+
+class OperatorNotice(Message):
+    def __init__(self, text: str) -> None:
+        super().__init__()
+        self.text = text
+
+
+class LabApp(App[Outcome | None]):
+    """``labctl tui``: pick a protocol, run it with live plots and dialogs, browse campaign files."""
+
+    TITLE = "labctl"
+    BINDINGS = [
+        Binding("s", "start", "start"),
+        Binding("p", "pause", "pause/resume"),
+        Binding("a", "abort", "abort"),
+        Binding("r", "verdict(False)", "reject hit"),
+        Binding("y", "verdict(True)", "accept hit"),
+        Binding("t", "auto_confirm", "auto-confirm"),
+        Binding("o", "browse", "open file"),
+        Binding("q", "quit", "quit"),
+    ]
+
+    def __init__(self, settings: TuiSettings, *, open_path: Path | None = None,
+                 subscribers: tuple = ()) -> None:
+        super().__init__()
+        self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
+        self.control = RunControl()
+        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell)
+        self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
+        self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
+            else DEFAULT_AUTO_CONFIRM_S
+        self.worker: Worker[Outcome] | None = None
+        self.outcome: Outcome | None = None
+        self.error: str | None = None
+        self.quit_when_done = False
+        self.rejection = ""  # why the step's latest impact was rejected (titles the next strike prompt)
+        self.monitor = MonitorScreen(settings.protocol)
+
+    # --- screens --------------------------------------------------------------------------------------------
+    def get_default_screen(self) -> MonitorScreen:
+        return self.monitor
+
+    def on_ready(self) -> None:
+        if self.open_path is not None:
+            self.action_browse(self.open_path)
+        elif self.settings.protocol is None:
+            from labctl.tui.setup import SetupScreen
+
+            self.push_screen(SetupScreen(self.settings), self._setup_done)
+        elif self.settings.autostart:
+            self.action_start()
+        else:
+            self.monitor.log_line(f"{self.settings.protocol.name} on {self.settings.backend}: press s to start")
+
+    def _setup_done(self, settings: TuiSettings | None) -> None:
+        if settings is None:
+            self.exit()
+            return
+        self.settings = settings
+        self.monitor.protocol = settings.protocol
+        self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
+        self.action_start()
+
+    # --- engine ---------------------------------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        return self.worker is not None and self.worker.state in (WorkerState.PENDING, WorkerState.RUNNING)
+
+    def action_start(self) -> None:
+        if self.running or self.outcome is not None or self.settings.protocol is None:
+            return
+        self.monitor.set_status("running")
+        self.worker = self.run_worker(self._run_engine, name="engine", thread=True, exit_on_error=False)
+
+    def _run_engine(self) -> Outcome:
+        from labctl.campaign import run_campaign
+
+        s = self.settings
+        assert s.protocol is not None
+        return run_campaign(s.protocol, out=s.out_path(), backend=s.backend, resume=s.resume, world=s.world,
+                            seed=s.seed, rig=s.rig, devices=s.devices, operator=self.operator,
+                            subscribers=(self._forward, *self.extra_subscribers), control=self.control)
+
+    def _forward(self, event: ev.Event) -> None:
+        self.post_message(EngineEvent(event))
+
+    def on_engine_event(self, message: EngineEvent) -> None:
+        e = message.event
+        if isinstance(e, ev.ImpactRejected):
+            self.rejection = reason_text(e.reasons)
+        elif isinstance(e, ev.ImpactAcquired | ev.StepStarted):
+            self.rejection = ""
+        self.monitor.apply(e)
+        if isinstance(e, ev.Resumed) and self.control.stop_status:
+            self.monitor.set_status("stopping")
+
+    def _tell(self, text: str) -> None:
+        self.post_message(OperatorNotice(text))
+
+    def on_operator_notice(self, message: OperatorNotice) -> None:
+        self.monitor.log_line(message.text, "yellow")
+
+    def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
+        if event.worker is not self.worker or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR,
+                                                                  WorkerState.CANCELLED):
+            return
+        if event.state == WorkerState.SUCCESS:
+            self.outcome = event.worker.result
+        else:
+            self.error = str(event.worker.error or "cancelled")
+            self.monitor.set_status("failed")
+            self.monitor.log_line(f"the campaign could not run: {self.error}", "bold red")
+            self.notify(self.error, title="campaign failed", severity="error", timeout=30)
+        self.refresh_bindings()
+        if self.quit_when_done:
+            self.exit(self.outcome)
+
+    # --- prompts --------------------------------------------------------------------------------------------
+    def show_prompt(self, request: PromptRequest) -> None:
+        """Open the dialog for an engine prompt (UI thread)."""
+        hint = self.rejection if request.action == "strike" else ""
+        self.push_screen(PromptDialog(request, hint, self.auto_confirm_after_s))
+        self.bell()
+
+    def auto_confirm_after_s(self) -> float | None:
+        """Seconds after which an open prompt takes its first choice by itself (None: wait for a key)."""
+        return self.auto_confirm_delay_s if self.auto_confirm else None
+
+    def action_auto_confirm(self) -> None:
+        if self.settings.backend != "sim":
+            self.notify("auto-confirm is only for the simulated rig: a person turns the knobs", severity="warning")
+            return
+        self.auto_confirm = not self.auto_confirm
+        if isinstance(self.screen, PromptDialog):
+            self.screen.restart_countdown()
+        state = f"on ({self.auto_confirm_delay_s:g} s)" if self.auto_confirm else "off"
+        self.monitor.log_line(f"auto-confirm of prompts {state}")
+
+    # --- run control ----------------------------------------------------------------------------------------
+    def action_pause(self) -> None:
+        if not self.running or self.control.stop_status:
+            return
+        if self.control.paused:
+            self.control.resume()
+            self.monitor.set_status("running")
+            self.monitor.log_line("resuming")
+        else:
+            self.control.pause()
+            self.monitor.log_line("pause requested: the engine holds at the next safe point")
+
+    def action_verdict(self, accept: bool) -> None:
+        if not self.running:
+            return
+        self.control.override_last_impact(accept)
+        verb = "accept" if accept else "reject"
+        self.monitor.log_line(f"{verb} requested for the step's latest impact (applied at the next safe point)")
+
+    def action_abort(self) -> None:
+        if not self.running:
+            return
+
+        def answered(yes: bool | None) -> None:
+            if yes:
+                self._stop("aborted")
+
+        self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition stops after the current impact. "
+                                       "The file keeps every impact so far and is marked aborted."), answered)
+
+    def _stop(self, status: str) -> None:
+        (self.control.abort if status == "aborted" else self.control.stop)()
+        self.operator.stop(status)
+        self.monitor.set_status("stopping")
+        self.monitor.log_line(f"stopping ({status}) after the current impact…", "bold yellow")
+
+    async def action_quit(self) -> None:
+        """Quit; mid-run the engine is stopped cleanly first (the file stays resumable)."""
+        if not self.running:
+            self.exit(self.outcome)
+            return
+        self.quit_when_done = True
+        self._stop("interrupted")
+
+    def action_browse(self, path: Path | None = None) -> None:
+        from labctl.tui.browser import BrowserScreen
+
+        target = path or (self.outcome.path if self.outcome else None)
+        if target is None:
+            from labctl.tui.setup import OpenFileScreen
+
+            self.push_screen(OpenFileScreen(), lambda p: self.action_browse(Path(p)) if p else None)
+            return
+        try:
+            screen = BrowserScreen(Path(target))
+        except Exception as exc:  # a bad file is reported, never fatal
+            self.notify(str(exc), title="cannot open", severity="error", timeout=15)
+            return
+        self.push_screen(screen)
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Footer shows only the keys that do something now."""
+        if action == "start":
+            return self.settings.protocol is not None and not self.running and self.outcome is None \
+                and self.error is None
+        if action in ("pause", "abort", "verdict"):
+            return self.running
+        if action == "auto_confirm":
+            return self.settings.backend == "sim"
+        return True

@@ -1,0 +1,157 @@
+"""Browse a campaign file: series, runs, steps and impacts in a tree; the selection's curve, FRF or traces."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Footer, Static, Tree
+
+from labctl.errors import LabctlError
+from labctl.protocol import parse_protocol
+from labctl.storage import CampaignReader, StepInfo
+from labctl.tui import plotdata as pd
+from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
+from labctl.tui.state import reason_text
+
+BROWSER_CSS = """
+BrowserScreen #title { height: 1; background: $primary-background; padding: 0 1; }
+BrowserScreen #tree { width: 48; border: round $primary; }
+BrowserScreen #detail { height: auto; max-height: 8; padding: 0 1; }
+BrowserScreen .row { height: 1fr; }
+BrowserScreen .panel { border: round $primary; width: 1fr; height: 1fr; }
+"""
+
+
+def step_label(step: StepInfo) -> str:
+    """One line per step: load, bounce frequency, stiffness and accepted impacts."""
+    r = step.result or {}
+    bounce, k = r.get("bounce_hz"), r.get("roller_stiffness_n_per_m")
+    text = f"step {step.step}: {step.load_n:.1f} N"
+    if bounce is not None and k is not None:
+        text += f" · {float(bounce):.2f} Hz · k {float(k):.3e} N/m"
+    elif "failed" in r or (step.complete and step.result is None):
+        text += " · not identified"
+    elif not step.complete:
+        text += " · unfinished"
+    return f"{text} · {step.accepted_count}/{len(step.impacts)} impacts"
+
+
+class BrowserScreen(Screen):
+    """A read-only view of a campaign file (opened at construction; a bad file raises InputError)."""
+
+    DEFAULT_CSS = BROWSER_CSS
+    BINDINGS = [Binding("escape,b", "back", "back")]
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.reader = CampaignReader(path)
+        self.protocol = None
+        try:
+            text = self.reader.config_text("protocol.toml")
+            self.protocol = parse_protocol(text, f"{path}:protocol.toml") if text else None
+        except LabctlError:
+            self.protocol = None
+
+    def compose(self) -> ComposeResult:
+        a = self.reader.attrs
+        yield Static(f"{self.reader.path} · {a.get('protocol_name', '?')} on {a.get('backend', '?')} · "
+                     f"status {a.get('status', '?')} {a.get('status_message', '')}", id="title", markup=False)
+        with Horizontal():
+            yield Tree(self.reader.path.name, id="tree")
+            with Vertical():
+                yield Static("select a series, run, step or impact", id="detail", markup=False)
+                with Horizontal(classes="row"):
+                    yield StiffnessPlot(id="b-stiffness")
+                    with Vertical(classes="panel", id="b-frf"):
+                        yield TracePlot("FRF", "f [Hz]", "|H1| [1/kg]", id="b-frf-plot")
+                        yield TracePlot("", "f [Hz]", "coherence", id="b-coh-plot")
+                with Horizontal(classes="row"):
+                    yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")
+                    yield TracePlot("response", "t [ms]", "a [m/s²]", id="b-accel")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.frf = FrfPlots(self.query_one("#b-frf-plot", TracePlot), self.query_one("#b-coh-plot", TracePlot))
+        self.impact = ImpactPlots(self.query_one("#b-force", TracePlot), self.query_one("#b-accel", TracePlot))
+        tree = self.query_one("#tree", Tree)
+        tree.root.expand()
+        for series in self.reader.series_indices():
+            spec = self.reader.specimen(series)
+            node = tree.root.add(f"series {series}: {spec.get('label', '?')} "
+                                 f"(rails Ra {float(spec.get('rail_ra_m', math.nan)) * 1e6:g} µm)",
+                                 data=("series", series), expand=True)
+            for run in self.reader.runs(series):
+                rnode = node.add(f"run {run.run} · {'complete' if run.complete else 'unfinished'} · "
+                                 f"{len(run.steps)} steps", data=("run", series, run.run), expand=True)
+                for step in run.steps:
+                    snode = rnode.add(step_label(step), data=("step", series, run.run, step.step))
+                    for imp in step.impacts:
+                        verdict = "ok" if imp.accepted else f"rejected: {reason_text(imp.reasons)}"
+                        snode.add_leaf(f"impact {imp.attempt}: {float(imp.attrs.get('peak_force_n', math.nan)):.0f} N"
+                                       f" · {verdict}", data=("impact", series, run.run, step.step, imp.attempt))
+        tree.focus()
+        if self.reader.series_indices():
+            self.show_series(self.reader.series_indices()[0])
+
+    def on_unmount(self) -> None:
+        self.reader.close()
+
+    def action_back(self) -> None:
+        self.app.pop_screen()
+
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        data = event.node.data
+        if not data:
+            return
+        kind, series, *rest = data
+        self.show_series(series)
+        if kind == "step" or kind == "impact":
+            self.show_step(series, rest[0], rest[1], rest[2] if kind == "impact" else None)
+
+    # --- views ----------------------------------------------------------------------------------------------
+    def show_series(self, series: int) -> None:
+        plot = self.query_one("#b-stiffness", StiffnessPlot)
+        runs = {}
+        for run in self.reader.runs(series):
+            curve = self.reader.curve(series, run.run)
+            if curve is None:  # unfinished run: its identified steps so far
+                pts = [(s.load_n, float(s.result["roller_stiffness_n_per_m"])) for s in run.steps
+                       if s.result and "roller_stiffness_n_per_m" in s.result]
+                curve = {"load_n": np.array([p[0] for p in pts]), "stiffness_n_per_m": np.array([p[1] for p in pts])}
+            runs[f"run {run.run}"] = (curve["load_n"], curve["stiffness_n_per_m"])
+        plot.set_runs(runs)
+        if self.protocol is not None and series <= len(self.protocol.specimens):
+            spec = self.protocol.specimens[series - 1]
+            plot.set_models(pd.model_curves(spec.case(), spec.kind, max(spec.max_load_n / 20, 1.0),
+                                            spec.max_load_n * 1.05))
+
+    def show_step(self, series: int, run: int, step: int, attempt: int | None) -> None:
+        info = next(s for r in self.reader.runs(series) if r.run == run for s in r.steps if s.step == step)
+        r = info.result or {}
+        lines = [step_label(info)]
+        if r:
+            tilt = " / ".join(f"{float(t):.1f}" for t in r.get("tilt_hz", []) if math.isfinite(float(t)))
+            lines.append(f"bounce {float(r.get('bounce_hz', math.nan)):.2f} Hz · tilt {tilt or '--'} Hz · "
+                         f"damping {float(r.get('bounce_damping_ratio', math.nan)):.4f} · "
+                         f"coherence {float(r.get('coherence_at_bounce', math.nan)):.3f}")
+            if r.get("warnings"):
+                lines.append("warnings: " + "; ".join(map(str, r["warnings"])))
+        self.query_one("#detail", Static).update("\n".join(lines))
+        frf = self.reader.step_frf(series, run, step)
+        if frf is not None:
+            channels = tuple(r.get("channels", ()))
+            self.frf.show(frf[0], np.abs(frf[1]), frf[2], channels, float(r.get("bounce_hz", math.nan)),
+                          [float(t) for t in r.get("tilt_hz", [])], f"step {step} FRF")
+        data = self.reader.impact_arrays(series, run, step)
+        if not data.attempts:
+            return
+        i = data.attempts.index(attempt) if attempt in data.attempts else 0
+        verdict = "ok" if data.accepted[i] else "rejected"
+        self.impact.show(data.force_n[i], data.accel_m_per_s2[i], data.channels, data.sample_rate_hz,
+                         f"impact {data.attempts[i]} ({verdict})")

@@ -1,0 +1,229 @@
+"""The live screen at the rig: progress header, latest impact, FRF, modes, stiffness curve and the log.
+
+Every widget here changes only in ``apply``, which the app calls in its own thread for each engine event.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from rich.markup import escape
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, RichLog, Static
+
+from labctl import events as ev
+from labctl.protocol import Protocol
+from labctl.tui import plotdata as pd
+from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
+from labctl.tui.state import CampaignState, reason_text
+
+MONITOR_CSS = """
+#header { height: 2; background: $primary-background; color: $text; padding: 0 1; }
+#header.-paused { background: $warning 40%; }
+#header.-done { background: $success 30%; }
+#header.-failed { background: $error 40%; }
+#top, #bottom { height: 1fr; }
+.panel { border: round $primary; width: 1fr; height: 1fr; }
+.panel.-rejected { border: heavy $error; }
+#impact-panel, #frf-panel { width: 1fr; }
+#modes { height: auto; padding: 0 1; color: $accent; text-style: bold; }
+#steps { height: 1fr; min-height: 3; }
+#log { height: 1fr; min-height: 3; }
+#side { width: 1fr; }
+MonitorScreen.-short #top { height: 2fr; }
+MonitorScreen.-short #bottom { height: 3fr; }
+MonitorScreen.-short #accel-plot, MonitorScreen.-short #coh-plot { display: none; }
+MonitorScreen.-narrow #accel-plot, MonitorScreen.-narrow #coh-plot { display: none; }
+"""
+
+STATUS_WORDS = {"idle": "ready (s to start)", "running": "RUNNING", "paused": "PAUSED (p to resume)",
+                "stopping": "stopping after the current impact…"}
+
+HANDLERS: dict[type[ev.Event], str] = {
+    ev.CampaignStarted: "_started",
+    ev.RunStarted: "_run_started",
+    ev.StepStarted: "_step_started",
+    ev.ImpactAcquired: "_impact",
+    ev.StepProcessed: "_step_processed",
+    ev.StepFailed: "_step_failed",
+    ev.RunProcessed: "_run_processed",
+    ev.OperatorPrompted: "_prompted",
+    ev.Paused: "_paused",
+    ev.Resumed: "_resumed",
+    ev.Suspended: "_suspended",
+    ev.Notice: "_notice",
+    ev.CampaignFinished: "_finished",
+    ev.ImpactRejected: "_impact",
+}
+
+
+def run_label(series: int, run: int, series_total: int) -> str:
+    return f"series {series} run {run}" if series_total > 1 else f"run {run}"
+
+
+class MonitorScreen(Screen):
+    """The run being acquired; the app forwards engine events to ``apply``."""
+
+    DEFAULT_CSS = MONITOR_CSS
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
+
+    def __init__(self, protocol: Protocol | None = None) -> None:
+        super().__init__()
+        self.protocol = protocol
+        self.state = CampaignState()
+        self.series_shown = 0
+
+    def compose(self) -> ComposeResult:
+        yield Static("", id="header")
+        with Horizontal(id="top"):
+            with Vertical(id="impact-panel", classes="panel"):
+                yield TracePlot("", "t [ms] from peak", "F [N]", id="force-plot")
+                yield TracePlot("", "t [ms]", "a [m/s²]", id="accel-plot")
+            with Vertical(id="frf-panel", classes="panel"):
+                yield TracePlot("", "f [Hz]", "|H1| [1/kg]", id="frf-plot")
+                yield TracePlot("", "f [Hz]", "coherence", id="coh-plot")
+        with Horizontal(id="bottom"):
+            yield StiffnessPlot(id="stiffness")
+            with Vertical(id="side", classes="panel"):
+                yield Static(self.state.modes_text(), id="modes")
+                yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
+                yield RichLog(id="log", markup=True, wrap=True, min_width=20, max_lines=2000)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#impact-panel").border_title = "last impact: waiting"
+        self.query_one("#frf-panel").border_title = "FRF and coherence: waiting for the first step"
+        self.query_one("#side").border_title = "modes and log"
+        self.query_one("#stiffness").add_class("panel")
+        self.query_one("#stiffness").border_title = "stiffness vs load"
+        table = self.query_one("#steps", DataTable)
+        table.add_columns("run", "step", "load N", "bounce Hz", "tilt Hz", "k N/m", "coh")
+        self.impact = ImpactPlots(self.query_one("#force-plot", TracePlot), self.query_one("#accel-plot", TracePlot))
+        self.frf = FrfPlots(self.query_one("#frf-plot", TracePlot), self.query_one("#coh-plot", TracePlot))
+        self.set_interval(1.0, self.refresh_header)
+        self.refresh_header()
+
+    # --- header and log -------------------------------------------------------------------------------------
+    def refresh_header(self) -> None:
+        s = self.state
+        title = f"labctl · {s.protocol or (self.protocol.name if self.protocol else 'no protocol')}"
+        if s.backend:
+            title += f" · {s.backend} → {s.path}"
+        status = STATUS_WORDS.get(s.status, s.status.upper())
+        header = self.query_one("#header", Static)
+        header.update(f"{escape(title)}   [b]{escape(status)}[/b]\n{escape(s.header_text())}")
+        header.set_class(s.status == "paused", "-paused")
+        header.set_class(s.status == "complete", "-done")
+        header.set_class(s.status in ("failed", "aborted", "interlock"), "-failed")
+
+    def log_line(self, text: str, style: str = "") -> None:
+        stamp = time.strftime("%H:%M:%S")
+        body = escape(text)
+        self.query_one("#log", RichLog).write(f"[dim]{stamp}[/dim] " + (f"[{style}]{body}[/]" if style else body))
+
+    def set_status(self, status: str) -> None:
+        self.state.status = status
+        self.refresh_header()
+
+    # --- events ---------------------------------------------------------------------------------------------
+    def apply(self, event: ev.Event) -> None:
+        """Fold one engine event into the state and update the widgets it concerns."""
+        self.state.apply(event)
+        handler = HANDLERS.get(type(event))
+        if handler is not None:
+            getattr(self, handler)(event)
+        self.refresh_header()
+
+    def _started(self, e: ev.CampaignStarted) -> None:
+        verb = "resuming" if e.resumed else "starting"
+        self.log_line(f"{verb} {e.protocol} on {e.backend or 'sim'} → {e.path}", "bold")
+
+    def _run_started(self, e: ev.RunStarted) -> None:
+        self.log_line(f"{run_label(e.position.series, e.position.run, self.state.series_total)}: {e.specimen}", "bold")
+        if e.position.series != self.series_shown:
+            self.series_shown = e.position.series
+            self._show_models(e.position.series)
+            self._show_runs()
+
+    def _step_started(self, e: ev.StepStarted) -> None:
+        self.log_line(f"step {e.position.step}/{e.steps_total}: knobs at {e.knob_angle_deg:g}°, "
+                      f"expecting about {e.expected_load_n:.0f} N per roller")
+
+    def _impact(self, e: ev.ImpactAcquired) -> None:
+        p, rejected = e.position, isinstance(e, ev.ImpactRejected)
+        head = f"impact {p.impact}/{self.state.impacts_per_step} (attempt {e.attempt})"
+        if rejected:
+            title = f"{head} REJECTED: {reason_text(e.reasons)}"
+            self.log_line(f"{head} rejected ({reason_text(e.reasons)}): hit again", "bold red")
+        else:
+            title = f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms"
+            self.log_line(f"{head}: {e.peak_force_n:.0f} N, pulse {e.pulse_width_s * 1e3:.2f} ms", "green")
+        panel = self.query_one("#impact-panel")
+        panel.set_class(rejected, "-rejected")
+        panel.border_title = title
+        self.impact.show(e.force_n, e.accel_m_per_s2, e.channels, e.sample_rate_hz, "")
+
+    def _step_processed(self, e: ev.StepProcessed) -> None:
+        p = e.position
+        self.query_one("#modes", Static).update(self.state.modes_text())
+        tilt = " / ".join(f"{t:.1f}" for t in e.tilt_hz if math.isfinite(t)) or "--"
+        table = self.query_one("#steps", DataTable)
+        table.add_row(str(p.run), str(p.step), f"{e.load_n:.1f}", f"{e.bounce_hz:.2f}", tilt,
+                      f"{e.roller_stiffness_n_per_m:.3e}", f"{e.coherence_at_bounce:.3f}")
+        table.move_cursor(row=table.row_count - 1)
+        self.log_line(f"step {p.step}: load {e.load_n:.1f} N · bounce {e.bounce_hz:.2f} Hz · "
+                      f"k {e.roller_stiffness_n_per_m:.3e} N/m", "cyan")
+        self.frf.show(e.frequencies_hz, e.h1_magnitude, e.coherence, e.channels, e.bounce_hz, e.tilt_hz, "")
+        self.query_one("#frf-panel").border_title = (f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), "
+                                                     f"tilt {tilt} Hz (orange)")
+        self._show_runs()
+
+    def _step_failed(self, e: ev.StepFailed) -> None:
+        self.log_line(f"step {e.position.step} could not be identified: {e.reason}", "bold red")
+
+    def _run_processed(self, e: ev.RunProcessed) -> None:
+        self.log_line(f"{run_label(e.position.series, e.position.run, self.state.series_total)}: "
+                      f"{len(e.load_n)} points stored", "bold")
+        if not self.query_one("#stiffness", StiffnessPlot).models and e.reference_n_per_m:
+            refs = {pd.MODEL_LABELS.get(k, k): (e.load_n, v) for k, v in e.reference_n_per_m.items()}
+            self.query_one("#stiffness", StiffnessPlot).set_models(refs)
+        self._show_runs()
+
+    def _prompted(self, e: ev.OperatorPrompted) -> None:
+        self.log_line(f"operator: {e.message} → {e.answer}", "yellow")
+
+    def _paused(self, e: ev.Paused) -> None:
+        self.log_line("paused at a safe point (between impacts)", "bold yellow")
+
+    def _resumed(self, e: ev.Resumed) -> None:
+        self.log_line("resumed", "bold")
+
+    def _suspended(self, e: ev.Suspended) -> None:
+        self.log_line(e.reason, "bold yellow")
+
+    def _notice(self, e: ev.Notice) -> None:
+        self.log_line(e.message, {"warning": "yellow", "error": "bold red"}.get(e.level, ""))
+
+    def _finished(self, e: ev.CampaignFinished) -> None:
+        style = "bold green" if e.status == "complete" else "bold red"
+        self.log_line(f"campaign {e.status}: {e.path}" + (f" ({e.message})" if e.message else ""), style)
+        if e.status == "complete":
+            self.log_line("o: browse this file · q: quit")
+
+    # --- stiffness plot -------------------------------------------------------------------------------------
+    def _show_models(self, series: int) -> None:
+        if self.protocol is None or not 1 <= series <= len(self.protocol.specimens):
+            return
+        spec = self.protocol.specimens[series - 1]
+        models = pd.model_curves(spec.case(), spec.kind, max(spec.max_load_n / 20, 1.0), spec.max_load_n * 1.05)
+        self.query_one("#stiffness", StiffnessPlot).set_models(models)
+        self.query_one("#stiffness").border_title = f"stiffness vs load · {spec.label}"
+
+    def _show_runs(self) -> None:
+        runs = {run_label(s, r, self.state.series_total): curve
+                for (s, r), curve in sorted(self.state.curves.items()) if s == self.series_shown}
+        self.query_one("#stiffness", StiffnessPlot).set_runs(runs)

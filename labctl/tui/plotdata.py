@@ -1,0 +1,101 @@
+"""Plot-ready data for the terminal: a few hundred points per trace that keep every peak of the full records.
+
+A terminal plot is at most a few hundred cells wide; drawing 65 536 samples would be slow and show nothing
+more. Traces are reduced to min/max envelopes (a spike is never lost), FRFs to the peak of each bin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from labctl.physics.effects import ContactCase
+from labctl.physics.references import reference_curves
+
+MODEL_LABELS = {"tripp": "Tripp", "fit-ra0.2": "Eq. 5 (Ra 0.2 µm)", "fit-ra0.03": "Eq. 6 (Ra 0.03 µm)",
+                "hertz": "Hertz"}
+N_PER_UM = 1e6  # stiffness is drawn in N/µm (4.65e7 N/m = 46.5 N/µm)
+
+
+def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Min/max per bin, interleaved, so the reduced trace spans the same extremes as the full one."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if y.size <= 2 * bins:
+        return x, y
+    edges = np.linspace(0, y.size, bins + 1).astype(int)
+    xs, ys = [], []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        seg = y[a:b]
+        i, j = sorted((int(np.argmin(seg)), int(np.argmax(seg))))
+        xs += [x[a + i], x[a + j]]
+        ys += [seg[i], seg[j]]
+    return np.array(xs), np.array(ys)
+
+
+def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """The largest value of each bin at its own abscissa (resonance peaks of an FRF stay at their frequency)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if y.size <= bins:
+        return x, y
+    edges = np.linspace(0, y.size, bins + 1).astype(int)
+    idx = np.array([a + int(np.nanargmax(y[a:b])) if np.isfinite(y[a:b]).any() else a
+                    for a, b in zip(edges[:-1], edges[1:], strict=True)])
+    return x[idx], y[idx]
+
+
+def pulse_window(force_n: ArrayLike, sample_rate_hz: float, before_s: float = 1e-3,
+                 after_s: float = 3e-3) -> tuple[np.ndarray, np.ndarray]:
+    """The force record around its peak: time in ms relative to the peak, force in N."""
+    f = np.asarray(force_n, dtype=float)
+    if f.size == 0:
+        return np.empty(0), np.empty(0)
+    peak = int(np.argmax(np.abs(f)))
+    a = max(peak - int(round(before_s * sample_rate_hz)), 0)
+    b = min(peak + int(round(after_s * sample_rate_hz)) + 1, f.size)
+    t_ms = (np.arange(a, b) - peak) / sample_rate_hz * 1e3
+    return t_ms, f[a:b]
+
+
+def response_window(accel: ArrayLike, sample_rate_hz: float, duration_s: float = 0.1,
+                    bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``duration_s`` of one acceleration trace as an envelope: time in ms, m/s²."""
+    a = np.asarray(accel, dtype=float)
+    n = min(a.size, max(int(round(duration_s * sample_rate_hz)), 1))
+    t_ms = np.arange(n) / sample_rate_hz * 1e3
+    return envelope(t_ms, a[:n], bins)
+
+
+def vertical_channels(channels: Sequence[str]) -> list[int]:
+    """Indices of the vertical (Z) accelerometers, which carry the bounce; all channels if none is vertical."""
+    idx = [i for i, c in enumerate(channels) if c.upper().endswith("Z")]
+    return idx or list(range(len(channels)))
+
+
+def frf_band(frequencies_hz: ArrayLike, values: ArrayLike, f_max_hz: float,
+             bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """One FRF (or coherence) curve from 0 to ``f_max_hz``, reduced to the peak of each bin."""
+    f, v = np.asarray(frequencies_hz, dtype=float), np.asarray(values, dtype=float)
+    keep = (f > 0) & (f <= f_max_hz)
+    return bin_peaks(f[keep], v[keep], bins)
+
+
+def frf_limit_hz(bounce_hz: float, floor_hz: float = 1000.0) -> float:
+    """Upper frequency shown: well above the bounce mode, below the discs' flexible modes."""
+    return max(floor_hz, 1.6 * bounce_hz) if np.isfinite(bounce_hz) else floor_hz
+
+
+def finite_pairs(x: ArrayLike, y: ArrayLike) -> tuple[list[float], list[float]]:
+    """Only the points where both coordinates are finite (plotext cannot draw NaN)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    return x[ok].tolist(), y[ok].tolist()
+
+
+def model_curves(case: ContactCase, kind: str, load_min_n: float, load_max_n: float,
+                 points: int = 60) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Reference models (Tripp and Eq. 5/6, or Hertz) on a load grid, as (load N, stiffness N/m) per label."""
+    lo, hi = max(load_min_n, 1e-3), max(load_max_n, load_min_n * 1.01, 1e-2)
+    grid = np.geomspace(lo, hi, points)
+    return {MODEL_LABELS.get(name, name): (grid, k) for name, k in reference_curves(case, kind, grid).items()}

@@ -1,0 +1,173 @@
+"""What the technician's screen shows, folded from engine events: position, load, clock, modes and curves.
+
+Kept free of Textual so the header text and the per-step results can be checked without a terminal.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+from labctl import events as ev
+
+REASON_TEXT = {
+    "double_hit": "double hit",
+    "overload": "overload",
+    "pulse_width": "pulse width out of range",
+    "low_force": "blow too soft",
+    "low_coherence": "low coherence",
+    "operator_rejected": "rejected by the operator",
+    "operator_accepted": "accepted by the operator",
+}
+
+
+def reason_text(reasons: tuple[str, ...] | list[str]) -> str:
+    """Check reasons in the technician's words (``clipped:A1Z`` → ``A1Z clipped``)."""
+    out = []
+    for r in reasons:
+        if r.startswith("clipped:"):
+            out.append(f"{r.partition(':')[2]} clipped")
+        else:
+            out.append(REASON_TEXT.get(r, r.replace("_", " ")))
+    return ", ".join(out) or "no reason given"
+
+
+def clock(seconds: float | None) -> str:
+    """``mm:ss`` (``h:mm:ss`` past an hour); ``--:--`` when unknown."""
+    if seconds is None or not math.isfinite(seconds):
+        return "--:--"
+    m, s = divmod(int(max(seconds, 0.0) + 0.5), 60)
+    return f"{m // 60:d}:{m % 60:02d}:{s:02d}" if m >= 60 else f"{m:02d}:{s:02d}"
+
+
+@dataclass
+class StepRow:
+    """One identified load step as listed on screen."""
+
+    series: int
+    run: int
+    step: int
+    load_n: float
+    bounce_hz: float
+    tilt_hz: tuple[float, float]
+    stiffness_n_per_m: float
+    coherence: float
+
+
+@dataclass
+class CampaignState:
+    """The running campaign as the screen knows it; ``apply`` takes every event in the order it was emitted."""
+
+    protocol: str = ""
+    path: str = ""
+    backend: str = ""
+    status: str = "idle"  # idle | running | paused | stopping | complete | aborted | interrupted | failed | ...
+    series_total: int = 1
+    runs_total: int = 1
+    impacts_per_step: int = 1
+    steps_estimate: tuple[int, ...] = ()
+    position: ev.Position = field(default_factory=lambda: ev.Position(0, 0))
+    steps_total: int = 0
+    load_n: float = math.nan
+    impacts_done: int = 0
+    impacts_total: int = 0
+    eta_s: float | None = None
+    message: str = ""
+    steps: list[StepRow] = field(default_factory=list)
+    curves: dict[tuple[int, int], tuple[tuple[float, ...], tuple[float, ...]]] = field(default_factory=dict)
+    references: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    started_at: float | None = None  # local monotonic time of the campaign's t = 0
+    finished_at: float | None = None
+    eta_at: float | None = None
+    last_impact: ev.ImpactAcquired | None = None
+    last_step: ev.StepProcessed | None = None
+
+    def apply(self, event: ev.Event, now: float | None = None) -> None:
+        """Fold one event into the state."""
+        now = time.monotonic() if now is None else now
+        if isinstance(event, ev.CampaignStarted):
+            self.protocol, self.path, self.backend = event.protocol, event.path, event.backend
+            self.series_total, self.runs_total = event.series_total, event.runs_per_series
+            self.impacts_per_step, self.steps_estimate = event.impacts_per_step, event.steps_estimate
+            self.status, self.started_at, self.finished_at = "running", now - event.time_s, None
+        elif isinstance(event, ev.RunStarted):
+            self.position = event.position
+        elif isinstance(event, ev.StepStarted):
+            self.position, self.steps_total = event.position, event.steps_total
+        elif isinstance(event, ev.LoadMeasured):
+            self.load_n = event.load_n
+        elif isinstance(event, ev.ImpactAcquired):  # ImpactRejected too
+            self.position, self.last_impact = event.position, event
+        elif isinstance(event, ev.Progress):
+            self.position, self.impacts_done = event.position, event.impacts_done
+            self.impacts_total = event.impacts_total
+            self.eta_s, self.eta_at = event.eta_s, now
+        elif isinstance(event, ev.StepProcessed):
+            self._step(event)
+        elif isinstance(event, ev.RunProcessed):
+            key = (event.position.series, event.position.run)
+            self.curves[key] = (tuple(event.load_n), tuple(event.stiffness_n_per_m))
+            self.references = dict(event.reference_n_per_m)
+        elif isinstance(event, ev.Paused):
+            self.status, self.position = "paused", event.position
+        elif isinstance(event, ev.Resumed):
+            self.status = "running"
+        elif isinstance(event, ev.CampaignFinished):
+            self.status, self.message, self.finished_at, self.eta_s = event.status, event.message, now, 0.0
+
+    def _step(self, event: ev.StepProcessed) -> None:
+        p = event.position
+        self.last_step = event
+        self.steps = [r for r in self.steps if (r.series, r.run, r.step) != (p.series, p.run, p.step)]
+        self.steps.append(StepRow(p.series, p.run, p.step, event.load_n, event.bounce_hz,
+                                  (float(event.tilt_hz[0]), float(event.tilt_hz[1])),
+                                  event.roller_stiffness_n_per_m, event.coherence_at_bounce))
+        rows = [r for r in self.steps if (r.series, r.run) == (p.series, p.run)]
+        self.curves[(p.series, p.run)] = (tuple(r.load_n for r in rows), tuple(r.stiffness_n_per_m for r in rows))
+
+    # --- text -----------------------------------------------------------------------------------------------
+    def elapsed_s(self, now: float | None = None) -> float | None:
+        if self.started_at is None:
+            return None
+        end = self.finished_at if self.finished_at is not None else (time.monotonic() if now is None else now)
+        return end - self.started_at
+
+    def eta_now_s(self, now: float | None = None) -> float | None:
+        """The engine's last ETA, counted down since it arrived."""
+        if self.eta_s is None or self.eta_at is None:
+            return None
+        if self.finished_at is not None:
+            return 0.0
+        return max(self.eta_s - ((time.monotonic() if now is None else now) - self.eta_at), 0.0)
+
+    @property
+    def running(self) -> bool:
+        return self.status in ("running", "paused", "stopping")
+
+    def progress_text(self) -> str:
+        """``run r/R · step s/S · impact i/I`` (with the series when the protocol has several)."""
+        p = self.position
+
+        def n(value: int) -> str:
+            return str(value) if value else "-"
+
+        parts = [f"series {n(p.series)}/{self.series_total}"] if self.series_total > 1 else []
+        parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{self.steps_total or '-'}",
+                  f"impact {n(p.impact)}/{self.impacts_per_step}"]
+        return " · ".join(parts)
+
+    def header_text(self, now: float | None = None) -> str:
+        load = "--" if math.isnan(self.load_n) else f"{self.load_n:.1f}"
+        return (f"{self.progress_text()} · load {load} N · elapsed {clock(self.elapsed_s(now))} · "
+                f"ETA {clock(self.eta_now_s(now))}")
+
+    def modes_text(self) -> str:
+        """The latest step's bounce and tilt frequencies, stiffness and coherence."""
+        s = self.last_step
+        if s is None:
+            return "bounce -- Hz · tilt -- Hz · k -- N/m"
+        tilt = " / ".join(f"{t:.1f}" for t in s.tilt_hz if math.isfinite(t)) or "--"
+        return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt} Hz\n"
+                f"k {s.roller_stiffness_n_per_m:.3e} N/m · coherence {s.coherence_at_bounce:.3f} "
+                f"(step {s.position.step})")
