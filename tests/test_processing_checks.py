@@ -104,6 +104,16 @@ def test_overload_without_ranges_is_seen_as_a_clipped_plateau():
     assert clipped.reasons == ("overload",)
 
 
+def test_a_clipped_response_channel_other_than_the_first_is_caught():
+    for seed in range(4):
+        s = synth_impacts(rig_truth_modes(RIG, 4.65e7), RIG.channels, n_samples=8192, seed=30 + seed, n_impacts=1)
+        c = RIG.channels.index("A2Z")
+        level = 0.6 * float(np.abs(s.accel_m_per_s2[0, c]).max())
+        s.accel_m_per_s2[0, c] = np.clip(s.accel_m_per_s2[0, c], -level, level)
+        check = check_impact(s.force_n[0], s.accel_m_per_s2[0], s.fs_hz, channels=RIG.channels)
+        assert check.overloaded == ("A2Z",), (seed, check)
+
+
 def test_a_small_quantised_signal_repeating_its_peak_is_not_an_overload():
     s = one_channel(snr_db=60.0, seed=6)
     x = s.accel_m_per_s2[0, 0]

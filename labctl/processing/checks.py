@@ -171,14 +171,14 @@ def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None
 
 
 def _plateau_clipped(x: np.ndarray) -> bool:
-    """Clipping without a known range: three or more consecutive samples pinned at the record's extreme,
-    far above the data's quantisation step (a small quantised signal may repeat its peak value)."""
+    """Clipping without a known range: the record's extreme value hit three times or more (two of them in a
+    row), far above the data's quantisation step (a small quantised signal may repeat its peak value)."""
     top, bottom = x.max(), x.min()
     if top == bottom:  # a flat (dead) channel is not an overload
         return False
     for value in (top, bottom):
         at = np.flatnonzero(x == value)
-        if len(at) < 3 or not np.any((at[2:] - at[:-2]) == 2):
+        if len(at) < 3 or not np.any(np.diff(at) == 1):
             continue
         steps = np.abs(np.diff(x[: min(len(x), 4096)]))
         quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0

@@ -75,7 +75,7 @@ def fit_band(freqs_hz: np.ndarray, h: np.ndarray, lo_hz: float, hi_hz: float, ze
 
 
 def _start_poles(f: np.ndarray, h: np.ndarray, rate: float, zeta: float) -> list[tuple[float, float]]:
-    step = max(1, len(f) // 300)  # start poles only: a few hundred lines are plenty
+    step = max(1, len(f) // 250)  # start poles only: a few hundred lines are plenty
     poles = lscf_poles(f[::step], h[:, ::step], N_CONTACT_MODES, decay_rate_per_s=rate)
     modes = [pole_to_mode(p) for p in poles if p.imag > 0]
     good = sorted((fr, z) for fr, z in modes if f[0] <= fr <= f[-1] and 0 < z < MAX_DAMPING)

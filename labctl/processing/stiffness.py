@@ -25,8 +25,8 @@ class Stiffness:
 def stiffness_from_bounce(rig: RigConfig, bounce_frequency_hz: float, bounce_std_hz: float = 0.0) -> Stiffness:
     """Per-roller stiffness k (equal rollers) for this bounce frequency, and σ_k from σ_f."""
     k = roller_stiffness_from_bounce(rig, bounce_frequency_hz)
-    dk = 1e-6 * k
-    df_dk = (bounce_hz(rig, k + dk) - bounce_hz(rig, k - dk)) / (2.0 * dk)
+    dk = 1e-5 * k
+    df_dk = (bounce_hz(rig, k + dk) - bounce_frequency_hz) / dk
     std = abs(bounce_std_hz / df_dk) if df_dk > 0 and math.isfinite(bounce_std_hz) else math.inf
     return Stiffness(k, std)
 
