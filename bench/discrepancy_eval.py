@@ -141,7 +141,7 @@ def run_task(task: Task) -> dict[str, Any]:
     }
     step = next((s for s in result.steps if s.name == task.truth), None)
     if step is not None and effect is not None and task.formulation == "twin":
-        fitted = step.fit.effect_parameters()[task.truth]
+        fitted = result.final.effect_parameters()[task.truth]
         out["param_rel_error"] = {k: fitted[k] / v - 1.0 for k, v in effect.parameters().items()}
     if step is not None and step.evidence.get("held_out"):
         out["held_out"] = [step.evidence["held_out"]["gap_without"], step.evidence["held_out"]["gap_with"]]

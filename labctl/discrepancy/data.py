@@ -38,11 +38,16 @@ class CaseData:
         r = self.case.roller
         return {
             "roller_type": r.type_id,
-            "diameter_mm": r.diameter_m * 1e3,
-            "contact_length_mm": r.contact_length_m * 1e3,
+            "diameter_mm": _edge(r.diameter_m * 1e3),
+            "contact_length_mm": _edge(r.contact_length_m * 1e3),
             "material": r.material.name,
-            "rail_ra_um": self.case.rail_ra_m * 1e6,
+            "rail_ra_um": _edge(self.case.rail_ra_m * 1e6),
         }
+
+
+def _edge(value: float) -> float:
+    """A converted value without the last bits of float noise (0.2 µm, not 0.19999999999999998)."""
+    return float(f"{value:.12g}")
 
 
 @dataclass(frozen=True)
