@@ -42,3 +42,21 @@ class Recorder:
 
     def of(self, kind: type) -> list:
         return [e for e in self.events if isinstance(e, kind)]
+
+
+def run_engine(path, protocol, factory, rig_config=None):
+    """Run the engine directly (custom rig factory or rig model) into a new file; returns (outcome, recorder)."""
+    from labctl.engine import Engine
+    from labctl.physics import load_rig
+    from labctl.storage import CampaignWriter
+
+    writer = CampaignWriter.create(path, protocol_name=protocol.name, backend="sim", seed=None,
+                                   config_files={"protocol.toml": protocol.source_text}, description={})
+    rec = Recorder()
+    bus = ev.EventBus()
+    bus.subscribe(rec)
+    try:
+        outcome = Engine(protocol, rig_config or load_rig(), factory, writer, bus).run()
+    finally:
+        writer.close()
+    return outcome, rec

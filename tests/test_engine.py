@@ -14,7 +14,7 @@ from labctl.campaign import run_campaign
 from labctl.engine import RunControl
 from labctl.physics import load_rig
 from labctl.storage import CampaignReader, campaign_stiffness_points
-from tests.engine_util import Recorder, short_protocol
+from tests.engine_util import Recorder, run_engine, short_protocol
 
 
 def test_short_campaign_writes_every_impact_and_curve(tmp_path):
@@ -86,19 +86,11 @@ def test_interlock_unloads_when_the_load_exceeds_the_cap(tmp_path):
     rig = load_rig()
     soft = dataclasses.replace(rig, loading=dataclasses.replace(rig.loading, spring_rate_n_per_m=rig.loading.
                                                                    spring_rate_n_per_m / 4))
-    rec = Recorder()
     from labctl.campaign import rig_factory
-    from labctl.engine import Engine
-    from labctl.storage import CampaignWriter
 
     proto = short_protocol(max_load=100.0, step=360.0, reps=1)
-    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=1,
-                                   config_files={"protocol.toml": proto.source_text}, description={})
-    bus = ev.EventBus()
-    bus.subscribe(rec)
     # the engine believes the springs are 4x softer than they are, so a step overshoots the cap
-    outcome = Engine(proto, soft, rig_factory("sim", rig, seed=1), writer, bus).run()
-    writer.close()
+    outcome, rec = run_engine(tmp_path / "c.h5", proto, rig_factory("sim", rig, seed=1), soft)
     assert outcome.status == "interlock" and "exceeds the cap" in outcome.message
     assert [e.action for e in rec.of(ev.OperatorPrompted)][-1] == "unload"
 
@@ -117,17 +109,8 @@ def test_rejected_impacts_are_kept_and_rehit(tmp_path):
         made.append(twin)
         return rig
 
-    from labctl.engine import Engine
-    from labctl.storage import CampaignWriter
-
-    proto = short_protocol(reps=1, max_load=60.0)
-    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=2,
-                                   config_files={}, description={})
-    rec = Recorder()
-    bus = ev.EventBus()
-    bus.subscribe(rec)
-    assert Engine(proto, load_rig(), factory, writer, bus).run().status == "complete"
-    writer.close()
+    outcome, rec = run_engine(tmp_path / "c.h5", short_protocol(reps=1, max_load=60.0), factory)
+    assert outcome.status == "complete"
     rejected = rec.of(ev.ImpactRejected)
     assert len(rejected) == 1 and "double_hit" in rejected[0].reasons
     with h5py.File(tmp_path / "c.h5") as f:
@@ -143,9 +126,6 @@ def test_load_drift_suspends_the_step_and_asks_the_operator(tmp_path):
     from drivers.operators import ScriptedOperator
     from drivers.sim import twin_of
     from labctl.campaign import rig_factory
-    from labctl.engine import Engine
-    from labctl.storage import CampaignWriter
-
     operator = ScriptedOperator()
     base = rig_factory("sim", load_rig(), seed=3, operator=operator)
 
@@ -161,14 +141,7 @@ def test_load_drift_suspends_the_step_and_asks_the_operator(tmp_path):
         operator.on("confirm", lambda message, choices: twin.set_creep(0.0) or "continue")  # re-tightened
         return rig
 
-    proto = short_protocol(reps=1, max_load=120.0)
-    writer = CampaignWriter.create(tmp_path / "c.h5", protocol_name="short", backend="sim", seed=3,
-                                   config_files={}, description={})
-    rec = Recorder()
-    bus = ev.EventBus()
-    bus.subscribe(rec)
-    outcome = Engine(proto, load_rig(), factory, writer, bus).run()
-    writer.close()
+    outcome, rec = run_engine(tmp_path / "c.h5", short_protocol(reps=1, max_load=120.0), factory)
     assert outcome.status == "complete"
     suspended = rec.of(ev.Suspended)
     assert suspended and "drifted" in suspended[0].reason
