@@ -51,7 +51,11 @@ class PromptDialog(ModalScreen[str]):
     """
 
     DEFAULT_CSS = DIALOG_CSS
-    BINDINGS = [Binding(str(n), f"choose({n})", show=False) for n in range(1, 10)]
+    BINDINGS = [Binding(str(n), f"choose({n})", show=False) for n in range(1, 10)] + [
+        # the run stays under control while the engine waits for an answer (a modal screen hides app keys)
+        Binding(key, f"app.{action}", show=False) for key, action in (
+            ("p", "pause"), ("a", "abort"), ("r", "verdict(False)"), ("y", "verdict(True)"), ("t", "auto_confirm"),
+            ("q", "quit"))]
 
     def __init__(self, request: PromptRequest, hint: str = "",
                  auto_delay_s: Callable[[], float | None] = lambda: None) -> None:

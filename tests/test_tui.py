@@ -1,0 +1,200 @@
+"""The technician's TUI driven with Textual's Pilot on the simulated rig: progress, pause/resume, dialogs,
+the technician's verdict on an impact, a clean quit mid-run, and the committed SVG snapshot of the run screen.
+"""
+
+from __future__ import annotations
+
+import html
+import os
+import re
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from labctl import events as ev
+from labctl.campaign import run_campaign
+from labctl.protocol import load_protocol
+from labctl.storage import CampaignReader
+from labctl.tui import LabApp, TuiSettings
+from labctl.tui.dialogs import PromptDialog
+from labctl.tui.plots import StiffnessPlot
+from tests.engine_util import Recorder, short_protocol
+
+SNAPSHOT = Path(__file__).parent / "snapshots" / "tui_running.svg"
+SIZE = (160, 48)
+
+
+async def wait_for(pilot, condition: Callable[[], object], timeout_s: float = 30.0, what: str = "") -> object:
+    """Let the app run until ``condition()`` is truthy (the engine works in its own thread meanwhile)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        await pilot.pause(0.05)
+    raise AssertionError(f"timed out waiting for {what or condition}")
+
+
+def svg_lines(svg: str) -> list[str]:
+    """The text rows of a Textual SVG screenshot, top to bottom."""
+    rows: dict[float, list[tuple[float, str]]] = {}
+    for x, y, text in re.findall(r'<text[^>]*?x="([\d.]+)" y="([\d.]+)"[^>]*>([^<]*)</text>', svg):
+        rows.setdefault(float(y), []).append((float(x), html.unescape(text).replace("\xa0", " ")))
+    return ["".join(t for _, t in sorted(parts)) for _, parts in sorted(rows.items())]
+
+
+def panel_titles(lines: list[str]) -> list[str]:
+    return sorted({t for line in lines for t in re.findall(r"╭─ ([a-zA-Z ]+?)\b", line)})
+
+
+def quick_settings(tmp_path: Path, **kw) -> TuiSettings:
+    return TuiSettings(protocol=load_protocol("quick_check"), out=tmp_path / "qc.h5", seed=1, **kw)
+
+
+async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
+    progress = Recorder()
+    app = LabApp(quick_settings(tmp_path, autostart=True), subscribers=(progress,))
+    async with app.run_test(size=SIZE) as pilot:
+        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen, what="mount")
+        assert dialog.request.action == "mount_specimen" and "roller type 1" in dialog.request.message
+        await pilot.press("p")  # pause asked for while the technician still has the dialog open
+        await pilot.press("enter")  # the focused first choice: "ok"
+        await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="paused")
+        held = app.monitor.state.impacts_done
+        await pilot.pause(0.6)
+        assert app.monitor.state.impacts_done == held == 0
+        assert "PAUSED" in str(app.monitor.query_one("#header").render())
+        await pilot.press("p")
+        await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
+        await pilot.pause(0.2)
+        state = app.monitor.state
+        assert app.outcome.status == "complete" and state.status == "complete"
+        done = [e.impacts_done for e in progress.of(ev.Progress)]
+        assert done == list(range(1, 7))  # 3 steps × 2 impacts, one at a time
+        assert state.impacts_done == 6 and state.progress_text() == "run 1/1 · step 3/3 · impact 2/2"
+        plot = app.monitor.query_one("#stiffness", StiffnessPlot)
+        assert plot.point_count() == 3
+        assert {"Tripp", "Eq. 5 (Ra 0.2 µm)"} <= set(plot.models)
+        loads, ks = plot.runs["run 1"]
+        with CampaignReader(tmp_path / "qc.h5") as r:
+            curve = r.curve(1, 1)
+        assert loads == pytest.approx(list(curve["load_n"]))
+        assert ks == pytest.approx(list(curve["stiffness_n_per_m"] / 1e6))  # drawn in N/µm
+        prompts = [e for e in progress.of(ev.OperatorPrompted)]
+        assert [(p.action, p.answer) for p in prompts] == [("mount_specimen", "ok")]
+        assert app.monitor.query_one("#steps").row_count == 3
+
+
+async def test_running_screen_snapshot_shows_progress_modes_and_curve(tmp_path, monkeypatch):
+    """Holds the engine after step 2 to take the SVG snapshot of a campaign in progress."""
+    monkeypatch.chdir(tmp_path)
+    hold, release = threading.Event(), threading.Event()
+
+    def hold_after_step_2(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 2:
+            hold.set()
+            release.wait(30)
+
+    settings = quick_settings(tmp_path, autostart=True, auto_confirm_s=0.2)
+    settings.out = Path("quick_check.h5")
+    app = LabApp(settings, subscribers=(hold_after_step_2,))
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: hold.is_set() and app.monitor.query_one("#steps").row_count == 2)
+        await pilot.pause(0.3)
+        svg = app.export_screenshot(title="labctl tui: quick_check on the simulated rig")
+        release.set()
+        await wait_for(pilot, lambda: app.outcome)
+    lines = svg_lines(svg)
+    text = "\n".join(lines)
+    assert "run 1/1 · step 2/3 · impact 2/2" in text and "RUNNING" in text
+    assert re.search(r"bounce \d+\.\d\d Hz", text)
+    assert "stiffness vs load" in text and "FRF step 2" in text
+    if os.environ.get("LABCTL_UPDATE_SNAPSHOTS"):
+        SNAPSHOT.parent.mkdir(exist_ok=True)
+        SNAPSHOT.write_text(svg, encoding="utf-8")
+    committed = svg_lines(SNAPSHOT.read_text(encoding="utf-8"))
+    assert panel_titles(committed) == panel_titles(lines), "layout changed: LABCTL_UPDATE_SNAPSHOTS=1 pytest ..."
+
+
+async def test_rotate_rollers_dialog_between_repetitions_and_operator_verdict(tmp_path):
+    """Two repetitions: the rotate-rollers dialog is answered by key; a reject issued while paused after the
+    first impact makes the engine hit again and keeps the rejected impact in the file with the reason."""
+    paused_once = threading.Event()
+    settings = TuiSettings(protocol=short_protocol(max_load=80.0, reps=2), out=tmp_path / "s.h5", seed=2,
+                           autostart=True)
+    app = LabApp(settings)
+
+    def pause_after_first_impact(event: ev.Event) -> None:
+        if isinstance(event, ev.ImpactAcquired) and not paused_once.is_set():
+            paused_once.set()
+            app.control.pause()
+
+    app.extra_subscribers = (pause_after_first_impact,)
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog))
+        await pilot.press("1")
+        await wait_for(pilot, lambda: app.monitor.state.status == "paused")
+        await pilot.press("r")
+        await pilot.press("p")
+        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
+        assert dialog.request.action == "rotate_rollers" and "rotate the rollers" in dialog.request.message
+        assert "Rotate the rollers" in str(dialog.query_one(".title").render())
+        await pilot.click("#choice-0")
+        await wait_for(pilot, lambda: app.outcome)
+        log = "\n".join(str(line.text) for line in app.monitor.query_one("#log").lines)
+    assert app.outcome.status == "complete"
+    assert "rejected by the operator" in log
+    with CampaignReader(tmp_path / "s.h5") as r:
+        impacts = r.runs(1)[0].steps[0].impacts
+    assert len(impacts) == 3 and [i.accepted for i in impacts].count(True) == 2
+    assert sum("operator_rejected" in i.reasons for i in impacts) == 1
+
+
+async def test_quit_mid_run_stops_cleanly_and_the_file_resumes(tmp_path):
+    app = LabApp(quick_settings(tmp_path, autostart=True))
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog))
+        await pilot.press("q")  # with the mount dialog open: the prompt is withdrawn, the engine stops
+        await wait_for(pilot, lambda: not app.is_running or app.outcome, what="exit")
+    assert app.outcome is not None and app.outcome.status == "interrupted"
+    with CampaignReader(tmp_path / "qc.h5") as r:
+        assert r.attrs["status"] == "interrupted"
+    again = run_campaign("quick_check", out=tmp_path / "qc.h5", resume=True)
+    assert again.status == "complete" and len(again.curves[0]["load_n"]) == 3
+
+
+async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
+    """A rejected impact turns the impact panel red with its reason; a manual strike prompt then says why."""
+    import numpy as np
+
+    app = LabApp(TuiSettings(protocol=load_protocol("quick_check"), backend="hw"))
+    async with app.run_test(size=SIZE) as pilot:
+        force = np.zeros(2048)
+        force[300:306] = [50, 200, 250, 200, 50, 0]
+        force[900:904] = [40, 90, 40, 0]
+        rejected = ev.ImpactRejected(1.0, ev.Position(1, 1, 1, 1), 1, False, ("double_hit",), 250.0, 4e-4, 20480.0,
+                                     force, np.zeros((12, 2048)), tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"))
+        app.post_message(app_event(rejected))
+        await pilot.pause(0.2)
+        panel = app.monitor.query_one("#impact-panel")
+        assert panel.has_class("-rejected") and "REJECTED: double hit" in str(panel.border_title)
+        answers: list[str] = []
+        ask = threading.Thread(target=lambda: answers.append(app.operator.prompt(
+            "Strike the upper disc once", ("done", "cancel"), "strike")))
+        ask.start()
+        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
+        assert str(dialog.query_one(".title").render()) == "Hit again: double hit"
+        await pilot.pause(0.3)
+        assert not answers  # the real rig: no auto-confirm, the engine waits for the technician
+        await pilot.press("2")
+        ask.join(5)
+    assert answers == ["cancel"]
+
+
+def app_event(event: ev.Event):
+    from labctl.tui.app import EngineEvent
+
+    return EngineEvent(event)

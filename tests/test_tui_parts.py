@@ -1,0 +1,150 @@
+"""TUI pieces without a screen: the state folded from events, plot data reduction, reference curves, the
+operator's hand-over between threads, and ``labctl tui`` argument errors (one line, exit 2)."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+from labctl import events as ev
+from labctl.cli import main
+from labctl.engine import StopRequested
+from labctl.physics import roller
+from labctl.protocol import load_protocol
+from labctl.tui import plotdata as pd
+from labctl.tui.operator import TuiOperator
+from labctl.tui.state import CampaignState, clock, reason_text
+from tests.cli_util import assert_one_line_error, labctl
+
+
+def step_processed(step: int, load: float, bounce: float, k: float) -> ev.StepProcessed:
+    f = np.linspace(0, 2000, 11)
+    return ev.StepProcessed(1.0, ev.Position(1, 1, step), load, bounce, (bounce * 0.8, bounce * 0.81), k, 0.999,
+                            f, np.ones((1, 11)), np.ones((1, 11)), ("A1Z",))
+
+
+def test_state_header_follows_the_events():
+    s = CampaignState()
+    assert s.progress_text() == "run -/1 · step -/- · impact -/1"
+    s.apply(ev.CampaignStarted(0.0, "quick_check", "qc.h5", "sim", 1, 3, (3,), 2), now=100.0)
+    s.apply(ev.RunStarted(0.1, ev.Position(1, 2), "roller type 1"), now=100.1)
+    s.apply(ev.StepStarted(0.2, ev.Position(1, 2, 1), 3, 0.0, 38.0), now=100.2)
+    s.apply(ev.LoadMeasured(0.3, ev.Position(1, 2, 1), 37.9, True), now=100.3)
+    s.apply(ev.Progress(0.4, ev.Position(1, 2, 1, 2), 8, 18, 65.0), now=110.0)
+    assert s.header_text(now=115.0) == "run 2/3 · step 1/3 · impact 2/2 · load 37.9 N · elapsed 00:15 · ETA 01:00"
+    s.apply(step_processed(1, 37.9, 532.48, 2.26e7), now=111.0)
+    s.apply(step_processed(2, 116.1, 638.97, 3.33e7), now=112.0)
+    assert s.curves[(1, 1)] == ((37.9, 116.1), (2.26e7, 3.33e7))
+    assert "bounce 638.97 Hz" in s.modes_text() and "k 3.330e+07 N/m" in s.modes_text()
+    s.apply(ev.Paused(1.0, ev.Position(1, 2, 2, 1)), now=113.0)
+    assert s.status == "paused" and s.running
+    s.apply(ev.CampaignFinished(2.0, "interrupted", "qc.h5", "stopped"), now=120.0)
+    assert s.status == "interrupted" and not s.running
+    assert s.elapsed_s(now=500.0) == pytest.approx(20.0)  # the clock stops at the end
+
+
+def test_clock_and_reason_text():
+    assert clock(None) == "--:--" and clock(math.nan) == "--:--"
+    assert clock(59.6) == "01:00" and clock(3725) == "1:02:05"
+    assert reason_text(("double_hit", "clipped:A2Z")) == "double hit, A2Z clipped"
+
+
+def test_envelope_keeps_every_extreme_of_a_long_trace():
+    rng = np.random.default_rng(3)
+    y = rng.normal(size=65536)
+    y[40000] = 25.0  # a spike a decimation by striding would miss
+    x = np.arange(y.size) / 20480.0
+    xs, ys = pd.envelope(x, y, bins=200)
+    assert ys.size == 400 and ys.max() == 25.0 and ys.min() == y.min()
+    assert xs[np.argmax(ys)] == pytest.approx(40000 / 20480.0)
+    assert np.all(np.diff(xs) >= 0)
+
+
+def test_frf_band_keeps_the_resonance_at_its_frequency():
+    f = np.linspace(0, 2500, 8001)
+    zeta, fn = 0.018, 638.97
+    mag = 1 / np.abs(fn**2 - f**2 + 2j * zeta * fn * f)
+    xs, ys = pd.frf_band(f, mag, pd.frf_limit_hz(fn), bins=150)
+    assert xs.max() <= 1.6 * fn and ys.size == 150
+    assert xs[np.argmax(ys)] == pytest.approx(f[np.argmax(mag)])
+
+
+def test_pulse_window_is_centred_on_the_peak():
+    fs = 20480.0
+    force = np.zeros(4096)
+    force[1000:1008] = np.sin(np.linspace(0, np.pi, 8)) * 250
+    t, v = pd.pulse_window(force, fs)
+    assert t[np.argmax(v)] == 0.0 and v.max() == force.max()
+    assert t[0] == pytest.approx(-1.0, abs=0.05) and t[-1] == pytest.approx(3.0, abs=0.05)
+
+
+def test_model_curves_are_the_papers_fit_and_tripp():
+    spec = load_protocol("quick_check").specimens[0]
+    curves = pd.model_curves(spec.case(), spec.kind, 10.0, 200.0, points=5)
+    assert set(curves) == {"Tripp", "Eq. 5 (Ra 0.2 µm)"}
+    load, k = curves["Eq. 5 (Ra 0.2 µm)"]
+    length = roller(1).contact_length_m
+    expected = 5.151e9 * np.log(load / length / 1.800e3) * length  # Eq. 5, written out independently
+    assert k == pytest.approx(expected, rel=1e-9)
+    load_t, k_t = curves["Tripp"]
+    assert np.all(np.diff(k_t) > 0) and load_t[0] == pytest.approx(10.0)
+
+
+def test_operator_blocks_the_engine_thread_until_answered_and_can_be_withdrawn():
+    shown = []
+    op = TuiOperator(lambda fn, *a: fn(*a), shown.append, lambda text: None)
+    answers: list[object] = []
+
+    def engine() -> None:
+        try:
+            answers.append(op.prompt("load drifted", ("continue", "abort"), "confirm"))
+            answers.append(op.prompt("rotate", ("ok",), "rotate_rollers"))
+        except StopRequested as stop:
+            answers.append(stop.status)
+
+    t = threading.Thread(target=engine)
+    t.start()
+    while not shown:
+        threading.Event().wait(0.01)
+    assert t.is_alive() and op.pending is shown[0]
+    with pytest.raises(ValueError, match="not one of"):
+        shown[0].reply("maybe")
+    shown[0].reply("abort")
+    while len(shown) < 2:
+        threading.Event().wait(0.01)
+    op.stop("interrupted")  # the technician quits while the second prompt is open
+    t.join(5)
+    assert answers == ["abort", "interrupted"] and not t.is_alive()
+    with pytest.raises(StopRequested):
+        op.prompt("again?")
+
+
+def in_process(capsys, *args: str) -> subprocess.CompletedProcess[str]:
+    """``labctl`` called in this interpreter (fast), seen as a finished process."""
+    capsys.readouterr()
+    code = main(list(args))
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out.out, out.err)
+
+
+def test_cli_refuses_bad_arguments_with_one_line(tmp_path, capsys):
+    assert_one_line_error(in_process(capsys, "tui", str(tmp_path / "nope.toml")), "nope.toml", "not found")
+    existing = tmp_path / "old.h5"
+    existing.write_bytes(b"x")
+    assert_one_line_error(in_process(capsys, "tui", "quick_check", "--out", str(existing)), "already exists",
+                          "--resume")
+    assert_one_line_error(in_process(capsys, "tui", "quick_check", "--resume"), "--resume needs")
+    assert_one_line_error(in_process(capsys, "tui", "quick_check", "--backend", "hw", "--auto-confirm", "2"),
+                          "--auto-confirm")
+    assert_one_line_error(in_process(capsys, "tui", "--open", str(existing)), "old.h5")
+
+
+def test_cli_without_a_terminal_says_so(tmp_path):
+    """CI and pipes have no terminal: one line pointing to ``labctl run`` instead of a hung screen."""
+    proc = labctl("tui", "quick_check", "--out", str(tmp_path / "n.h5"))
+    assert_one_line_error(proc, "terminal", "labctl run")
+    assert not (tmp_path / "n.h5").exists()
