@@ -1,0 +1,116 @@
+"""Opening campaign files in the TUI (runs, steps, impacts, curve against the models) and choosing a protocol."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import time
+
+import pytest
+
+from labctl.campaign import run_campaign
+from labctl.storage import CampaignReader
+from labctl.tui import LabApp, TuiSettings
+from labctl.tui.browser import BrowserScreen
+from labctl.tui.dialogs import PromptDialog
+from labctl.tui.plots import StiffnessPlot, TracePlot
+from labctl.tui.setup import SetupScreen
+from tests.test_tui import SIZE, wait_for
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    path = tmp_path_factory.mktemp("browse") / "qc.h5"
+    assert run_campaign("quick_check", out=path, seed=4).status == "complete"
+    return path
+
+
+def tree_nodes(node) -> list:
+    out = [node]
+    for child in node.children:
+        out += tree_nodes(child)
+    return out
+
+
+async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign):
+    app = LabApp(TuiSettings(), open_path=campaign)
+    with CampaignReader(campaign) as r:
+        steps = r.runs(1)[0].steps
+        curve = r.curve(1, 1)
+    async with app.run_test(size=SIZE) as pilot:
+        screen = await wait_for(pilot, lambda: isinstance(app.screen, BrowserScreen) and app.screen)
+        await pilot.pause(0.1)
+        tree = screen.query_one("#tree")
+        nodes = tree_nodes(tree.root)
+        labels = [str(n.label) for n in nodes]
+        step_lines = [t for t in labels if t.startswith("step ")]
+        assert len(step_lines) == 3
+        for line, step in zip(step_lines, steps, strict=True):
+            assert f"{step.result['bounce_hz']:.2f} Hz" in line and f"{step.load_n:.1f} N" in line
+        assert sum(t.startswith("impact ") for t in labels) == sum(len(s.impacts) for s in steps)
+        plot = screen.query_one("#b-stiffness", StiffnessPlot)
+        assert plot.point_count() == 3 and plot.runs["run 1"][0] == pytest.approx(list(curve["load_n"]))
+        assert "Tripp" in plot.models
+        step_node = next(n for n in nodes if n.data == ("step", 1, 1, 1))
+        tree.move_cursor(step_node)
+        await pilot.pause(0.2)
+        detail = str(screen.query_one("#detail").render())
+        assert f"bounce {steps[0].result['bounce_hz']:.2f} Hz" in detail and detail.startswith("step 1:")
+        assert screen.query_one("#b-frf-plot", TracePlot).point_count() > 0
+        last = steps[0].impacts[-1]
+        step_node.expand()
+        await pilot.pause(0.1)
+        tree.move_cursor(next(n for n in nodes if n.data == ("impact", 1, 1, 1, last.attempt)))
+        await pilot.pause(0.2)
+        force = screen.query_one("#b-force", TracePlot)
+        x, f = force.lines["force"]
+        assert max(f) == pytest.approx(last.attrs["peak_force_n"], rel=0.05)
+        assert force.title_text == f"impact {last.attempt} (ok)"
+        await pilot.press("escape")
+        assert not isinstance(app.screen, BrowserScreen)
+
+
+async def test_setup_screen_runs_the_chosen_shipped_protocol(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    app = LabApp(TuiSettings(seed=1))
+    async with app.run_test(size=SIZE) as pilot:
+        screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
+        options = screen.query_one("#protocols")
+        assert {"quick_check", "roller_stiffness", "ball_verification"} <= {
+            options.get_option_at_index(i).id for i in range(options.option_count)}
+        await pilot.press("enter")  # quick_check is highlighted first
+        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
+        assert app.settings.protocol.name == "quick_check" and app.settings.backend == "sim"
+        await pilot.press("enter")
+        await wait_for(pilot, lambda: app.outcome)
+        assert dialog.request.answer == "ok"
+    assert app.outcome.status == "complete"
+    written = list(tmp_path.glob("quick_check-*.h5"))
+    assert len(written) == 1 and str(written[0].name) in app.outcome.path
+
+
+@pytest.mark.skipif(not (shutil.which("tmux") and shutil.which("labctl")), reason="needs tmux and the labctl script")
+def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
+    """Issue 6's check as the technician would run it, in a real (80×24) terminal."""
+    session = f"labctl-tui-{os.getpid()}"
+    cmd = "labctl tui protocols/quick_check.toml --backend sim --autostart"
+    subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
+    try:
+        pane, deadline = "", time.monotonic() + 60
+        while time.monotonic() < deadline:
+            pane = subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True,
+                                  text=True).stdout
+            if "COMPLETE" in pane:
+                break
+            time.sleep(0.5)
+        assert "run 1/1 · step 3/3 · impact 2/2" in pane, pane
+        assert re.search(r"bounce \d+\.\d\d Hz", pane), pane
+        subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
+        time.sleep(1.0)
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
+    (written,) = tmp_path.glob("quick_check-*.h5")
+    with CampaignReader(written) as r:
+        assert r.attrs["status"] == "complete"
