@@ -16,7 +16,8 @@ MM = 1e-3
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="identify the rig's modes and the roller stiffness from an impacts NPZ")
-    p.add_argument("file", metavar="FILE.npz", help="impacts NPZ (fs, force, accel, channels; DESIGN.md §4)")
+    p.add_argument("file", metavar="FILE.npz", help="impacts NPZ (fs, force, accel, channels) or UFF58 time records "
+                                                    "(.uff/.unv); DESIGN.md §4")
     p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
     p.add_argument("--accel-range", type=float, metavar="A",
                    help="accelerometer full scale, m/s² (default: overload seen as a clipped plateau)")
@@ -57,7 +58,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--{name.replace('_', '-')} {value!r}: expected a positive full scale")
     contact = _contact(args)
     rig = load_rig(args.rig)
-    data = load_impacts_npz(args.file)
+    if str(args.file).lower().endswith((".uff", ".unv")):  # UFF58 time records (DESIGN.md §4)
+        from labctl.uff import load_impacts_uff
+
+        data = load_impacts_uff(args.file)
+    else:
+        data = load_impacts_npz(args.file)
     window = WindowConfig(exponential_end=None if args.exp_window_end == 1 else args.exp_window_end)
     config = IdentifyConfig(checks=CheckConfig(min_coherence=args.min_coherence), window=window)
     result = identify(data.force_n, data.accel_m_per_s2, data.fs_hz, data.channels, rig,
