@@ -153,7 +153,7 @@ async def test_rotate_rollers_dialog_between_repetitions_and_operator_verdict(tm
     assert sum("operator_rejected" in i.reasons for i in impacts) == 1
 
 
-async def test_quit_mid_run_stops_cleanly_and_the_file_resumes(tmp_path):
+async def test_quit_with_a_prompt_open_stops_cleanly_and_the_file_resumes(tmp_path):
     app = LabApp(quick_settings(tmp_path, autostart=True))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog))
@@ -164,6 +164,36 @@ async def test_quit_mid_run_stops_cleanly_and_the_file_resumes(tmp_path):
         assert r.attrs["status"] == "interrupted"
     again = run_campaign("quick_check", out=tmp_path / "qc.h5", resume=True)
     assert again.status == "complete" and len(again.curves[0]["load_n"]) == 3
+
+
+async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_path):
+    hold, release = threading.Event(), threading.Event()
+
+    def hold_after_step_1(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 1:
+            hold.set()
+            release.wait(30)
+
+    app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, hold.is_set)
+        await pilot.press("q")
+        assert app.monitor.state.status == "stopping" and app.is_running  # waits for the engine's safe point
+        release.set()
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert app.outcome.status == "interrupted"
+    with CampaignReader(tmp_path / "qc.h5") as r:
+        assert [s.step for s in r.runs(1)[0].steps if s.result] == [1]
+
+    settings = quick_settings(tmp_path, autostart=True, resume=True)
+    resumed = LabApp(settings)
+    async with resumed.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: resumed.outcome, what="the resumed campaign")
+        await pilot.pause(0.2)
+        steps = [(row.run, row.step) for row in resumed.monitor.state.steps]
+        plot = resumed.monitor.query_one("#stiffness", StiffnessPlot)
+        assert resumed.outcome.status == "complete" and steps == [(1, 1), (1, 2), (1, 3)]
+        assert plot.point_count() == 3 and resumed.monitor.query_one("#steps").row_count == 3
 
 
 async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):

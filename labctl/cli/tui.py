@@ -48,9 +48,14 @@ def settings_from(args: argparse.Namespace):  # noqa: ANN201 - TuiSettings, impo
     if out is not None and not args.resume and out.exists():
         raise InputError(f"{out}: already exists; use --resume to continue it or choose another --out")
     protocol = load_protocol(args.protocol) if args.protocol else None
+    devices = args.devices
+    if args.backend == "hw":
+        from labctl.hardware import find_devices_file
+
+        devices = str(find_devices_file(devices))
     return TuiSettings(protocol=protocol, backend=args.backend, out=out, resume=args.resume,
                        autostart=args.autostart and protocol is not None, auto_confirm_s=auto, world=args.world,
-                       seed=args.seed, rig=args.rig, devices=args.devices)
+                       seed=args.seed, rig=args.rig, devices=devices)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
         CampaignReader(open_path).close()  # a missing or foreign file fails here, as one line
     if not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise InputError("needs an interactive terminal; for unattended runs use 'labctl run'")
-    outcome = LabApp(settings, open_path=open_path).run()
+    app = LabApp(settings, open_path=open_path)
+    outcome = app.run()
+    if app.error is not None:
+        sys.stderr.write(f"labctl tui: error: {app.error}\n")
+        return 1
     if outcome is None:
         return 0
     sys.stdout.write(f"campaign {outcome.status}: {outcome.path}" + (f" ({outcome.message})" if outcome.message

@@ -129,6 +129,9 @@ class LabApp(App[Outcome | None]):
         if self.running or self.outcome is not None or self.settings.protocol is None:
             return
         self.monitor.set_status("running")
+        if self.settings.resume and self.settings.out is not None:
+            self.monitor.preload(str(self.settings.out))
+        self.refresh_bindings()
         self.worker = self.run_worker(self._run_engine, name="engine", thread=True, exit_on_error=False)
 
     def _run_engine(self) -> Outcome:

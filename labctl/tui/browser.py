@@ -17,7 +17,7 @@ from labctl.protocol import parse_protocol
 from labctl.storage import CampaignReader, StepInfo
 from labctl.tui import plotdata as pd
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
-from labctl.tui.state import reason_text
+from labctl.tui.state import reason_text, tilt_text
 
 BROWSER_CSS = """
 BrowserScreen #title { height: 1; background: $primary-background; padding: 0 1; }
@@ -136,8 +136,8 @@ class BrowserScreen(Screen):
         r = info.result or {}
         lines = [step_label(info)]
         if r:
-            tilt = " / ".join(f"{float(t):.1f}" for t in r.get("tilt_hz", []) if math.isfinite(float(t)))
-            lines.append(f"bounce {float(r.get('bounce_hz', math.nan)):.2f} Hz · tilt {tilt or '--'} Hz · "
+            lines.append(f"bounce {float(r.get('bounce_hz', math.nan)):.2f} Hz · "
+                         f"tilt {tilt_text(r.get('tilt_hz', []))} Hz · "
                          f"damping {float(r.get('bounce_damping_ratio', math.nan)):.4f} · "
                          f"coherence {float(r.get('coherence_at_bounce', math.nan)):.3f}")
             if r.get("warnings"):

@@ -18,7 +18,7 @@ from labctl import events as ev
 from labctl.protocol import Protocol
 from labctl.tui import plotdata as pd
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
-from labctl.tui.state import CampaignState, reason_text
+from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
 MONITOR_CSS = """
 #header { height: 2; background: $primary-background; color: $text; padding: 0 1; }
@@ -170,10 +170,9 @@ class MonitorScreen(Screen):
     def _step_processed(self, e: ev.StepProcessed) -> None:
         p = e.position
         self.query_one("#modes", Static).update(self.state.modes_text())
-        tilt = " / ".join(f"{t:.1f}" for t in e.tilt_hz if math.isfinite(t)) or "--"
+        tilt = tilt_text(e.tilt_hz)
         table = self.query_one("#steps", DataTable)
-        table.add_row(str(p.run), str(p.step), f"{e.load_n:.1f}", f"{e.bounce_hz:.2f}", tilt,
-                      f"{e.roller_stiffness_n_per_m:.3e}", f"{e.coherence_at_bounce:.3f}")
+        table.add_row(*row_cells(self.state.steps[-1]))
         table.move_cursor(row=table.row_count - 1)
         self.log_line(f"step {p.step}: load {e.load_n:.1f} N · bounce {e.bounce_hz:.2f} Hz · "
                       f"k {e.roller_stiffness_n_per_m:.3e} N/m", "cyan")
@@ -213,6 +212,25 @@ class MonitorScreen(Screen):
         self.log_line(f"campaign {e.status}: {e.path}" + (f" ({e.message})" if e.message else ""), style)
         if e.status == "complete":
             self.log_line("o: browse this file · q: quit")
+
+    def preload(self, path: str) -> None:
+        """Show what an interrupted campaign already holds before the engine continues it."""
+        from labctl.storage import CampaignReader
+
+        with CampaignReader(path) as reader:
+            for series in reader.series_indices():
+                for run in reader.runs(series):
+                    for step in run.steps:
+                        r = step.result or {}
+                        if "bounce_hz" not in r:
+                            continue
+                        tilt = tuple(float(t) for t in r.get("tilt_hz", [math.nan, math.nan]))[:2]
+                        row = StepRow(series, run.run, step.step, step.load_n, float(r["bounce_hz"]),
+                                      (tilt + (math.nan, math.nan))[:2], float(r["roller_stiffness_n_per_m"]),
+                                      float(r.get("coherence_at_bounce", math.nan)))
+                        self.state.add_row(row)
+                        self.query_one("#steps", DataTable).add_row(*row_cells(row))
+        self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file")
 
     # --- stiffness plot -------------------------------------------------------------------------------------
     def _show_models(self, series: int) -> None:

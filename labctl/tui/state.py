@@ -33,6 +33,17 @@ def reason_text(reasons: tuple[str, ...] | list[str]) -> str:
     return ", ".join(out) or "no reason given"
 
 
+def tilt_text(tilt_hz: tuple[float, ...] | list[float]) -> str:
+    """The tilt pair as ``500.5 / 501.4`` (only the frequencies that were found)."""
+    return " / ".join(f"{float(t):.1f}" for t in tilt_hz if math.isfinite(float(t))) or "--"
+
+
+def row_cells(row: StepRow) -> tuple[str, ...]:
+    """A step's cells in the on-screen table (run, step, load, bounce, tilt, stiffness, coherence)."""
+    return (str(row.run), str(row.step), f"{row.load_n:.1f}", f"{row.bounce_hz:.2f}", tilt_text(row.tilt_hz),
+            f"{row.stiffness_n_per_m:.3e}", f"{row.coherence:.3f}")
+
+
 def clock(seconds: float | None) -> str:
     """``mm:ss`` (``h:mm:ss`` past an hour); ``--:--`` when unknown."""
     if seconds is None or not math.isfinite(seconds):
@@ -119,12 +130,17 @@ class CampaignState:
     def _step(self, event: ev.StepProcessed) -> None:
         p = event.position
         self.last_step = event
-        self.steps = [r for r in self.steps if (r.series, r.run, r.step) != (p.series, p.run, p.step)]
-        self.steps.append(StepRow(p.series, p.run, p.step, event.load_n, event.bounce_hz,
-                                  (float(event.tilt_hz[0]), float(event.tilt_hz[1])),
-                                  event.roller_stiffness_n_per_m, event.coherence_at_bounce))
-        rows = [r for r in self.steps if (r.series, r.run) == (p.series, p.run)]
-        self.curves[(p.series, p.run)] = (tuple(r.load_n for r in rows), tuple(r.stiffness_n_per_m for r in rows))
+        self.add_row(StepRow(p.series, p.run, p.step, event.load_n, event.bounce_hz,
+                             (float(event.tilt_hz[0]), float(event.tilt_hz[1])),
+                             event.roller_stiffness_n_per_m, event.coherence_at_bounce))
+
+    def add_row(self, row: StepRow) -> None:
+        """Add (or replace) an identified step and extend its run's stiffness curve."""
+        key = (row.series, row.run, row.step)
+        self.steps = [r for r in self.steps if (r.series, r.run, r.step) != key]
+        self.steps.append(row)
+        rows = sorted((r for r in self.steps if (r.series, r.run) == key[:2]), key=lambda r: r.step)
+        self.curves[key[:2]] = (tuple(r.load_n for r in rows), tuple(r.stiffness_n_per_m for r in rows))
 
     # --- text -----------------------------------------------------------------------------------------------
     def elapsed_s(self, now: float | None = None) -> float | None:
@@ -167,7 +183,6 @@ class CampaignState:
         s = self.last_step
         if s is None:
             return "bounce -- Hz · tilt -- Hz · k -- N/m"
-        tilt = " / ".join(f"{t:.1f}" for t in s.tilt_hz if math.isfinite(t)) or "--"
-        return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt} Hz\n"
+        return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt_text(s.tilt_hz)} Hz\n"
                 f"k {s.roller_stiffness_n_per_m:.3e} N/m · coherence {s.coherence_at_bounce:.3f} "
                 f"(step {s.position.step})")
