@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen, Screen
 from textual.widgets import Button, Checkbox, Footer, Input, Label, OptionList, RadioButton, RadioSet, Static
 from textual.widgets.option_list import Option
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 SETUP_CSS = """
 SetupScreen { align: center middle; }
-SetupScreen > Vertical { width: 90; max-width: 100%; height: auto; max-height: 100%; border: round $primary;
+SetupScreen > VerticalScroll { width: 90; max-width: 100%; height: auto; max-height: 100%; border: round $primary;
                          padding: 0 1; }
 SetupScreen OptionList { height: auto; max-height: 10; }
 SetupScreen Horizontal { height: auto; }
@@ -53,7 +53,7 @@ class SetupScreen(Screen):
         self.shipped = shipped_protocols()
 
     def compose(self) -> ComposeResult:
-        with Vertical():
+        with VerticalScroll():
             yield Label("[b]labctl[/b] · choose a protocol")
             yield OptionList(*[Option(f"{name}  [dim]{_description(p)}[/dim]", id=name)
                                for name, p in sorted(self.shipped.items())], id="protocols")
