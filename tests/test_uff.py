@@ -11,7 +11,7 @@ import pytest
 
 from labctl.uff import DEFAULT_NODES, NodeMap, parse_node_map, read_uff_impacts, sample_rate_hz
 from labctl.uff.manifest import format_load_cases, parse_load_cases
-from tests.cli_util import assert_one_line_error, labctl, labctl_json
+from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json, labctl_json
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -74,10 +74,10 @@ def campaign(tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("binary", [False, True])
-def test_uff_written_by_pyuff_identifies_like_the_npz(impacts_npz, tmp_path, binary):
+def test_uff_written_by_pyuff_identifies_like_the_npz(impacts_npz, tmp_path, binary, capsys):
     uff = write_foreign_uff(impacts_npz, tmp_path / "x.uff", binary=binary)
-    from_npz = labctl_json("identify", str(impacts_npz))
-    from_uff = labctl_json("identify", str(uff))
+    from_npz = labctl_here_json(capsys, "identify", str(impacts_npz))
+    from_uff = labctl_here_json(capsys, "identify", str(uff))
     assert from_uff["fs_hz"] == 20480.0  # recovered from the 6-digit interval 4.88281e-05 s
     assert from_uff["bounce_hz"] == pytest.approx(from_npz["bounce_hz"], abs=0.01)
     assert from_uff["roller_stiffness_n_per_m"] == pytest.approx(from_npz["roller_stiffness_n_per_m"], rel=1e-4)
@@ -109,12 +109,12 @@ def _read_all(path: Path) -> list[dict]:
 
 
 @pytest.mark.parametrize("binary", [False, True])
-def test_export_reads_back_through_pyuff_exactly(campaign, tmp_path, binary):
+def test_export_reads_back_through_pyuff_exactly(campaign, tmp_path, binary, capsys):
     from labctl.storage import CampaignReader
 
     out = tmp_path / "e.uff"
     args = ["export", str(campaign), "--uff", str(out), "--run", "2", "--step", "2"] + (["--binary"] * binary)
-    res = labctl_json(*args)
+    res = labctl_here_json(capsys, *args)
     assert res["impacts"] == 2 and res["frfs"] == 12 and res["format"] == ("58b" if binary else "58")
     sets = _read_all(out)
     assert len(sets) == res["sets"]
@@ -150,10 +150,11 @@ def _rel(got: np.ndarray, want: np.ndarray) -> float:
     return float(np.max(np.abs(got[nz] - want[nz]) / np.abs(want[nz]))) if nz.any() else 0.0
 
 
-def test_export_reads_back_through_sdypy_ema(campaign, tmp_path):
+def test_export_reads_back_through_sdypy_ema(campaign, tmp_path, capsys):
     ema = pytest.importorskip("sdypy.EMA")
     out = tmp_path / "frf.uff"
-    labctl_json("export", str(campaign), "--uff", str(out), "--run", "1", "--step", "2", "--no-time", "--binary")
+    labctl_here_json(capsys, "export", str(campaign), "--uff", str(out), "--run", "1", "--step", "2", "--no-time",
+                     "--binary")
     model = ema.Model(lower=50, upper=2000, pol_order_high=10)
     model.read_uff(str(out))
     from labctl.storage import CampaignReader
@@ -165,16 +166,17 @@ def test_export_reads_back_through_sdypy_ema(campaign, tmp_path):
     np.testing.assert_allclose(model.frf, h1[:, keep], rtol=1e-6)
 
 
-def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tmp_path):
+def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tmp_path, capsys):
     uff, manifest, back = tmp_path / "all.uff", tmp_path / "m.csv", tmp_path / "back.h5"
-    labctl_json("export", str(campaign), "--uff", str(uff), "--binary", "--manifest", str(manifest), "--no-frf")
+    labctl_here_json(capsys, "export", str(campaign), "--uff", str(uff), "--binary", "--manifest", str(manifest),
+                     "--no-frf")
     with manifest.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert {r["repetition"] for r in rows} == {"1", "2"} and rows[0]["load_cases"] == "1-2"
     res = labctl_json("import", str(uff), "--manifest", str(manifest), "--out", str(back))
     assert res["identified"] == len(rows)
-    original = labctl_json("process", str(campaign))["steps"]
-    imported = labctl_json("process", str(back))["steps"]
+    original = labctl_here_json(capsys, "process", str(campaign))["steps"]
+    imported = labctl_here_json(capsys, "process", str(back))["steps"]
     assert [(s["run"], s["step"]) for s in imported] == [(s["run"], s["step"]) for s in original]
     for a, b in zip(original, imported, strict=True):
         assert b["load_n"] == pytest.approx(a["load_n"], rel=1e-9)
@@ -188,14 +190,14 @@ def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tm
     assert curve is not None and len(curve["load_n"]) == sum(1 for s in original if s["run"] == 2)
 
 
-def test_import_of_a_foreign_file_with_a_hand_written_manifest(impacts_npz, tmp_path):
+def test_import_of_a_foreign_file_with_a_hand_written_manifest(impacts_npz, tmp_path, capsys):
     uff = write_foreign_uff(impacts_npz, tmp_path / "pak.uff", binary=True)
     manifest = tmp_path / "m.csv"
     manifest.write_text("load_cases,load_n,repetition\n1-2,440,1\n3,440,2\n", encoding="utf-8")
-    res = labctl_json("import", str(uff), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
-                      "--roller-type", "1")
+    res = labctl_here_json(capsys, "import", str(uff), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
+                           "--roller-type", "1")
     assert [(s["run"], s["impacts"]) for s in res["steps"]] == [(1, 2), (2, 1)]
-    npz = labctl_json("identify", str(impacts_npz))
+    npz = labctl_here_json(capsys, "identify", str(impacts_npz))
     assert res["steps"][0]["bounce_hz"] == pytest.approx(npz["bounce_hz"], abs=0.05)
 
 
@@ -231,7 +233,7 @@ def test_manifest_and_option_errors_name_the_row_and_column(short_npz, tmp_path)
     assert_one_line_error(proc, "node map entry")
 
 
-def test_corrupt_and_truncated_uff_files_are_refused(short_npz, tmp_path):
+def test_corrupt_and_truncated_uff_files_are_refused(short_npz, tmp_path, capsys):
     from labctl.errors import InputError
     from labctl.uff import load_impacts_uff
 
@@ -258,20 +260,23 @@ def test_corrupt_and_truncated_uff_files_are_refused(short_npz, tmp_path):
     assert_one_line_error(labctl("identify", str(truncated)), "cut.uff", "truncated")
     manifest = tmp_path / "m.csv"
     manifest.write_text("load_n,repetition\n440,1\n", encoding="utf-8")
-    proc = labctl("import", str(garbled), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
-                  "--roller-type", "1")
+    proc = labctl_here(capsys, "import", str(garbled), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
+                       "--roller-type", "1")
     assert_one_line_error(proc, "garbled.uff")
     assert not (tmp_path / "c.h5").exists()
 
 
-def test_export_of_corrupt_or_truncated_campaigns_fails_with_one_line(campaign, tmp_path):
+def test_export_of_corrupt_or_truncated_campaigns_fails_with_one_line(campaign, tmp_path, capsys):
     cut = tmp_path / "cut.h5"
     cut.write_bytes(campaign.read_bytes()[:5000])
-    for path in (cut, tmp_path / "missing.h5"):
-        assert_one_line_error(labctl("export", str(path), "--uff", str(tmp_path / "o.uff")), path.name)
+    assert_one_line_error(labctl("export", str(cut), "--uff", str(tmp_path / "o.uff")), "cut.h5")
+    assert_one_line_error(labctl_here(capsys, "export", str(tmp_path / "missing.h5"), "--uff",
+                                      str(tmp_path / "o.uff")), "missing.h5", "not found")
     assert not (tmp_path / "o.uff").exists()
-    assert_one_line_error(labctl("export", str(campaign), "--uff", str(tmp_path / "o.uff"), "--run", "9"),
+    assert_one_line_error(labctl_here(capsys, "export", str(campaign), "--uff", str(tmp_path / "o.uff"), "--run", "9"),
                           "no stored step matches run 9")
+    assert_one_line_error(labctl_here(capsys, "export", str(campaign), "--uff", str(tmp_path / "o.uff"), "--no-time",
+                                      "--no-frf"), "nothing to export")
 
 
 def test_sample_rate_recovered_from_six_digit_intervals():

@@ -1,0 +1,49 @@
+"""``labctl report FILE.h5 --out DIR``: the paper's figures as PNG and SVG and a self-contained HTML page."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from typing import Any
+
+from labctl.cli.common import add_json, emit
+from labctl.errors import InputError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("report", help="figures (Figs. 7, 8, 12/13, frequency vs load) and an HTML report")
+    p.add_argument("file", metavar="FILE.h5", help="campaign file")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for report.html, the figures and the CSV")
+    p.add_argument("--frf-step", metavar="S:R:N",
+                   help="the step whose FRF is shown, as series:run:step (default: series 1, first repetition, "
+                        "highest load)")
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def _step(text: str | None) -> tuple[int, int, int] | None:
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+):(\d+):(\d+)\s*", text)
+    if not m:
+        raise InputError(f"--frf-step {text!r}: expected series:run:step, e.g. 1:2:11")
+    s, r, n = (int(g) for g in m.groups())
+    return s, r, n
+
+
+def run(args: argparse.Namespace) -> int:
+    from labctl.report import build_report
+
+    result = build_report(args.file, args.out, _step(args.frf_step)).to_dict()
+    emit(result, args.json, _text)
+    return 0
+
+
+def _text(r: dict[str, Any]) -> str:
+    imp = r["impacts"]
+    lines = [f"report → {r['html']}", f"impacts: {imp['accepted']} accepted, {imp['rejected']} rejected"
+             + (" (" + ", ".join(f"{k} {v}" for k, v in imp["by_reason"].items()) + ")" if imp["by_reason"] else "")]
+    lines += [f"  {f['name']}: {f['title']}" for f in r["figures"]]
+    if r["csv"]:
+        lines.append(f"stiffness table → {r['csv']}")
+    return "\n".join(lines)

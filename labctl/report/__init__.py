@@ -1,0 +1,52 @@
+"""Campaign reports: the paper's figures (PNG and SVG) and a self-contained HTML page."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from labctl.errors import InputError
+
+
+@dataclass
+class ReportResult:
+    html: str
+    csv: str | None
+    figures: list[dict[str, str]] = field(default_factory=list)
+    impacts: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"html": self.html, "csv": self.csv, "figures": self.figures, "impacts": self.impacts}
+
+
+def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, int] | None = None) -> ReportResult:
+    """Write the figures, the stiffness CSV and ``report.html`` for a campaign file into the folder ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a window
+    from labctl.report.data import load_report_data
+    from labctl.report.figures import make_figures, save
+    from labctl.report.html import write_html
+    from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage import campaign_stiffness_points
+
+    data = load_report_data(path, frf_step)
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise InputError(f"--out {folder}: exists and is not a folder") from None
+    written = []
+    for plot in make_figures(data):
+        png, svg = save(plot, folder)
+        written.append((plot.name, plot.title, png, svg))
+    points = campaign_stiffness_points(path)
+    csv = folder / "stiffness.csv" if points else None
+    if csv is not None:
+        write_stiffness_table(csv, points)
+    page = write_html(data, written, folder, csv.name if csv else None)
+    st = data.impacts
+    return ReportResult(str(page), str(csv) if csv else None,
+                        [{"name": n, "title": t, "png": str(p), "svg": str(s)} for n, t, p, s in written],
+                        {"accepted": st.accepted, "rejected": st.rejected, "by_reason": st.by_reason})

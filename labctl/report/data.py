@@ -1,0 +1,221 @@
+"""What a campaign report shows, gathered from a campaign file: curves, statistics, one step's FRF, the setup.
+
+Everything comes from the stored step results (``labctl process`` recomputes them from the raw impacts);
+model curves come from ``labctl.physics``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl.errors import InputError, ModelDomainError
+from labctl.physics import ContactCase, RigConfig, baseline_model, material
+from labctl.reprocess import rig_of
+from labctl.storage import CampaignReader
+from labctl.storage.table import specimen_point
+
+
+@dataclass
+class RunCurve:
+    """One repetition's identified steps, in step order."""
+
+    run: int
+    steps: np.ndarray
+    load_n: np.ndarray
+    stiffness_n_per_m: np.ndarray
+    bounce_hz: np.ndarray
+    tilt_hz: np.ndarray  # (n, 2)
+
+
+@dataclass
+class StepStat:
+    """One load step over the repetitions: mean load and stiffness, their extremes and spread."""
+
+    step: int
+    load_n: float
+    stiffness_n_per_m: float
+    k_min: float
+    k_max: float
+    repetitions: int
+
+    @property
+    def spread(self) -> float:
+        return (self.k_max - self.k_min) / self.stiffness_n_per_m
+
+
+@dataclass
+class SeriesData:
+    index: int
+    label: str
+    kind: str
+    specimen: dict[str, Any]
+    case: ContactCase
+    runs: list[RunCurve]
+
+    def step_stats(self) -> list[StepStat]:
+        """Statistics per step number over the repetitions that identified it."""
+        by_step: dict[int, list[tuple[float, float]]] = {}
+        for r in self.runs:
+            for s, f, k in zip(r.steps, r.load_n, r.stiffness_n_per_m, strict=True):
+                by_step.setdefault(int(s), []).append((float(f), float(k)))
+        out = []
+        for s in sorted(by_step):
+            f, k = np.array(by_step[s]).T
+            out.append(StepStat(s, float(f.mean()), float(k.mean()), float(k.min()), float(k.max()), len(k)))
+        return out
+
+    @property
+    def all_loads(self) -> np.ndarray:
+        return np.concatenate([r.load_n for r in self.runs]) if self.runs else np.empty(0)
+
+
+@dataclass
+class ImpactRow:
+    series: int
+    run: int
+    step: int
+    load_n: float
+    accepted: int
+    rejected: int
+    reasons: list[str]
+
+
+@dataclass
+class ImpactStats:
+    """Accepted and rejected impacts, and why: the checks at the blow plus the identification's (coherence)."""
+
+    rows: list[ImpactRow] = field(default_factory=list)
+
+    @property
+    def accepted(self) -> int:
+        return sum(r.accepted for r in self.rows)
+
+    @property
+    def rejected(self) -> int:
+        return sum(r.rejected for r in self.rows)
+
+    @property
+    def by_reason(self) -> dict[str, int]:
+        return dict(Counter(reason for r in self.rows for reason in r.reasons).most_common())
+
+
+@dataclass
+class FrfStep:
+    """One step's FRF and coherence with the modes identified in it."""
+
+    series: int
+    run: int
+    step: int
+    load_n: float
+    frequencies_hz: np.ndarray
+    h1: np.ndarray
+    coherence: np.ndarray
+    channels: list[str]
+    modes: list[tuple[str, float]]  # (kind, frequency)
+
+
+@dataclass
+class ReportData:
+    path: Path
+    attrs: dict[str, Any]
+    series: list[SeriesData]
+    impacts: ImpactStats
+    frf: FrfStep | None
+    config: dict[str, str]
+    rig: RigConfig
+    failed_steps: list[tuple[int, int, int, str]]
+
+
+def specimen_case(specimen: dict[str, Any]) -> ContactCase:
+    """The contact case of a stored specimen (the stiffness table's reading of it, with the stored rails)."""
+    case = specimen_point(specimen, 1, 1.0, 1.0).case()
+    rail = specimen.get("rail_material")
+    return replace(case, rail=material(rail)) if rail else case
+
+
+def model_curve(name: str, case: ContactCase, load_n: np.ndarray) -> np.ndarray:
+    """A baseline model's stiffness at the loads; NaN where it is not defined (Eq. 5 at very low load)."""
+    model = baseline_model(name, case)
+    out = np.full(load_n.shape, np.nan)
+    for i, f in enumerate(load_n):
+        with contextlib.suppress(ModelDomainError):
+            out[i] = float(model.stiffness_n_per_m(f))
+    return out
+
+
+def _verdicts(step: Any) -> tuple[int, int, list[str]]:
+    """(accepted, rejected, rejection reasons) of a step's impacts, the identification's verdict included."""
+    late = {int(i.get("attempt", -1)): i for i in (step.result or {}).get("impacts", []) if isinstance(i, dict)}
+    accepted, rejected, reasons = 0, 0, []
+    for imp in step.impacts:
+        why = list(imp.reasons)
+        ident = late.get(imp.attempt)
+        if ident is not None and not ident.get("accepted", True):
+            why += [r for r in ident.get("reasons", []) if r not in why]
+        if imp.accepted and (ident is None or ident.get("accepted", True)):
+            accepted += 1
+        else:
+            rejected += 1
+            reasons += why or ["unspecified"]
+    return accepted, rejected, reasons
+
+
+def _run_curve(run: Any) -> RunCurve | None:
+    rows = [(s.step, s.load_n, s.result["roller_stiffness_n_per_m"], s.result.get("bounce_hz", np.nan),
+             *(list(s.result.get("tilt_hz") or [np.nan, np.nan]) + [np.nan, np.nan])[:2])
+            for s in run.steps if s.result and np.isfinite(s.result.get("roller_stiffness_n_per_m", np.nan))]
+    if not rows:
+        return None
+    a = np.array(rows, dtype=float)
+    return RunCurve(run.run, a[:, 0].astype(int), a[:, 1], a[:, 2], a[:, 3], a[:, 4:6])
+
+
+def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int, int] | None) -> FrfStep | None:
+    if want is None:
+        candidates = [(s.index, r.run, int(r.steps[np.argmax(r.load_n)])) for s in series for r in s.runs]
+        if not candidates:
+            return None
+        want = candidates[0]
+    s, r, n = want
+    try:
+        frf = reader.step_frf(s, r, n)
+        info = next(st for run in reader.runs(s) if run.run == r for st in run.steps if st.step == n)
+    except (KeyError, StopIteration):
+        raise InputError(f"{reader.path}: no step series {s} run {r} step {n} (--frf-step)") from None
+    if frf is None or not info.result:
+        raise InputError(f"{reader.path}: step series {s} run {r} step {n} has no stored FRF (not identified)")
+    modes = [(m["kind"], float(m["frequency_hz"])) for m in info.result.get("modes", []) if isinstance(m, dict)]
+    if not modes:
+        modes = [("bounce", float(info.result["bounce_hz"]))]
+    channels = list(info.result.get("channels") or [f"ch{i + 1}" for i in range(frf[1].shape[0])])
+    return FrfStep(s, r, n, info.load_n, frf[0], frf[1], frf[2], channels, modes)
+
+
+def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = None) -> ReportData:
+    """Read everything the report shows; ``frf_step`` = (series, run, step) for Fig. 7 (default: the first
+    repetition's highest load)."""
+    with CampaignReader(path) as reader:
+        series: list[SeriesData] = []
+        stats = ImpactStats()
+        failed: list[tuple[int, int, int, str]] = []
+        for s in reader.series_indices():
+            spec = reader.specimen(s)
+            runs = reader.runs(s)
+            for run in runs:
+                for st in run.steps:
+                    stats.rows.append(ImpactRow(s, run.run, st.step, st.load_n, *_verdicts(st)))
+                    if "failed" in st.attrs:
+                        failed.append((s, run.run, st.step, str(st.attrs["failed"])))
+            curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
+            series.append(SeriesData(s, str(spec.get("label", f"series {s}")), str(spec.get("kind", "roller")),
+                                     spec, specimen_case(spec), curves))
+        config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
+                  if (text := reader.config_text(name))}
+        return ReportData(Path(path), reader.attrs, series, stats, _frf(reader, series, frf_step), config,
+                          rig_of(reader), failed)

@@ -1,0 +1,144 @@
+"""The campaign report as one self-contained HTML page: figures embedded (and linked to their PNG/SVG files),
+the stiffness table, impact statistics, and the protocol, rig and world the campaign ran with."""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from labctl import __version__
+from labctl.physics.references import fit_for_rail
+from labctl.physics.world import world_path
+from labctl.report.data import ReportData, SeriesData, model_curve
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.5em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 2em; }
+table { border-collapse: collapse; margin: .5em 0 1em; font-size: .9em; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: right; } th { background: #f3f3f3; }
+td.l, th.l { text-align: left; }
+figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+figcaption { font-size: .9em; color: #444; }
+pre { background: #f7f7f7; border: 1px solid #ddd; padding: .8em; overflow-x: auto; font-size: .85em; }
+.bad { color: #a00; }
+"""
+
+
+def _e(value: Any) -> str:
+    return html.escape(str(value))
+
+
+def _table(head: list[str], rows: list[list[Any]], left: int = 0) -> str:
+    def cell(tag: str, i: int, v: Any) -> str:
+        return f"<{tag}{' class=l' if i < left else ''}>{_e(v)}</{tag}>"
+
+    out = ["<table><tr>" + "".join(cell("th", i, h) for i, h in enumerate(head)) + "</tr>"]
+    out += ["<tr>" + "".join(cell("td", i, v) for i, v in enumerate(r)) + "</tr>" for r in rows]
+    return "\n".join(out) + "</table>"
+
+
+def _figure(name: str, title: str, png: Path, svg: Path) -> str:
+    data = base64.b64encode(png.read_bytes()).decode("ascii")
+    return (f'<figure id="{_e(name)}"><a href="{_e(svg.name)}"><img alt="{_e(title)}" '
+            f'src="data:image/png;base64,{data}"></a><figcaption>{_e(title)} — '
+            f'<a href="{_e(png.name)}">{_e(png.name)}</a> · <a href="{_e(svg.name)}">{_e(svg.name)}</a>'
+            "</figcaption></figure>")
+
+
+def _stiffness_table(s: SeriesData) -> str:
+    stats = s.step_stats()
+    loads = np.array([st.load_n for st in stats])
+    ref = "hertz" if s.kind == "ball" else fit_for_rail(s.case.rail_ra_m)
+    ref_k = model_curve(ref, s.case, loads)
+    tripp = model_curve("tripp", s.case, loads) if s.kind != "ball" else np.full(len(loads), np.nan)
+    ref_name = {"hertz": "Hertz", "fit-ra0.2": "Eq. 5", "fit-ra0.03": "Eq. 6"}[ref]
+    rows = []
+    for st, k_ref, k_t in zip(stats, ref_k, tripp, strict=True):
+        rows.append([st.step, f"{st.load_n:.1f}", f"{st.stiffness_n_per_m:.4e}", f"{st.spread:.2%}",
+                     st.repetitions, "–" if not np.isfinite(k_t) else f"{k_t:.4e}",
+                     "–" if not np.isfinite(k_ref) else f"{k_ref:.4e}",
+                     "–" if not np.isfinite(k_ref) else f"{st.stiffness_n_per_m / k_ref - 1:+.2%}"])
+    head = ["step", "load [N]", "k mean [N/m]", "spread", "repetitions", "Tripp [N/m]", f"{ref_name} [N/m]",
+            f"k/{ref_name} − 1"]
+    return f"<h3>{_e(s.label)}</h3>" + _table(head, rows)
+
+
+def _impacts(data: ReportData) -> str:
+    st = data.impacts
+    parts = [f"<p>{st.accepted} impacts accepted, {st.rejected} rejected.</p>"]
+    if st.by_reason:
+        parts.append(_table(["reason", "impacts"], [[k, v] for k, v in st.by_reason.items()], left=1))
+    rejected = [[r.series, r.run, r.step, f"{r.load_n:.1f}", r.accepted, r.rejected, ", ".join(r.reasons)]
+                for r in st.rows if r.rejected]
+    if rejected:
+        parts.append("<p>Steps with rejected impacts:</p>")
+        parts.append(_table(["series", "run", "step", "load [N]", "accepted", "rejected", "reasons"], rejected))
+    if data.failed_steps:
+        parts.append("<p class=bad>Steps that could not be identified:</p>")
+        parts.append(_table(["series", "run", "step", "why"], [list(f) for f in data.failed_steps]))
+    return "\n".join(parts)
+
+
+def _world(data: ReportData) -> str:
+    if "world.toml" in data.config:
+        return f"<pre>{_e(data.config['world.toml'])}</pre>"
+    if data.attrs.get("backend") != "sim":
+        return f"<p>No simulated world: the data come from backend '{_e(data.attrs.get('backend', '?'))}'.</p>"
+    shipped = "balls" if data.series and all(s.kind == "ball" for s in data.series) else None
+    path = world_path(shipped)
+    return (f"<p>Not stored in the campaign: the simulator's shipped world <code>{_e(path.name)}</code> "
+            f"(as shipped with labctl {_e(__version__)}):</p><pre>{_e(path.read_text(encoding='utf-8'))}</pre>")
+
+
+def _specimens(data: ReportData) -> str:
+    rows = []
+    for s in data.series:
+        r = s.case.roller
+        rows.append([s.index, s.label, s.kind, f"{r.diameter_m * 1e3:.3g}", f"{r.contact_length_m * 1e3:.4g}",
+                     r.material.name, f"{s.case.rail_ra_m * 1e6:.3g}", len(s.runs)])
+    return _table(["series", "specimen", "kind", "D [mm]", "L_we [mm]", "material", "rail Ra [µm]",
+                   "repetitions identified"], rows, left=3)
+
+
+def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out: Path, csv_name: str | None
+               ) -> Path:
+    """Write ``report.html`` into ``out``; ``figures`` are (name, title, png, svg) of files already written."""
+    a = data.attrs
+    summary = [["campaign file", str(data.path)], ["protocol", a.get("protocol_name", "")],
+               ["status", f"{a.get('status', '')} {a.get('status_message', '')}".strip()],
+               ["backend", a.get("backend", "")], ["created", a.get("created_utc", "")],
+               ["written by", f"labctl {a.get('software_version', '?')}"],
+               ["seed", a.get("seed", "")]]
+    description = a.get("backend_description")
+    if description:
+        summary.append(["backend details", json.dumps(description) if isinstance(description, dict)
+                        else description])
+    body = [f"<h1>Campaign report: {_e(a.get('protocol_name', data.path.name))}</h1>",
+            _table(["", ""], summary, left=2), "<h2>Specimens</h2>", _specimens(data),
+            "<h2>Figures</h2>", *([_figure(*f) for f in figures] or ["<p>No identified step to plot.</p>"]),
+            "<h2>Stiffness</h2>", *(_stiffness_table(s) for s in data.series if s.runs)]
+    if csv_name:
+        body.append(f'<p>Every point: <a href="{_e(csv_name)}">{_e(csv_name)}</a> (stiffness-table CSV).</p>')
+    body += ["<h2>Impacts</h2>", _impacts(data), "<h2>Protocol</h2>",
+             f"<pre>{_e(data.config['protocol.toml'])}</pre>" if "protocol.toml" in data.config
+             else "<p>No protocol stored (imported data).</p>"]
+    if "manifest.csv" in data.config:
+        body += ["<h2>Import manifest</h2>", f"<pre>{_e(data.config['manifest.csv'])}</pre>"]
+    body += ["<h2>Rig</h2>", f"<pre>{_e(data.config.get('rig.toml', 'not stored: the shipped paper rig'))}</pre>",
+             "<h2>World</h2>", _world(data)]
+    if "devices.toml" in data.config:
+        body += ["<h2>Devices</h2>", f"<pre>{_e(data.config['devices.toml'])}</pre>"]
+    now = datetime.now(UTC).isoformat(timespec="seconds")
+    body.append(f"<p><small>Report made {now} by labctl {_e(__version__)}.</small></p>")
+    page = ("<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
+            f"<title>labctl report: {_e(data.path.name)}</title><style>{STYLE}</style></head><body>\n"
+            + "\n".join(body) + "\n</body></html>\n")
+    path = out / "report.html"
+    path.write_text(page, encoding="utf-8")
+    return path

@@ -1,0 +1,180 @@
+"""``labctl report``: the paper's figures and the HTML page on the demo campaign; statistics; the CSV export."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from labctl.physics import EQ5, EmpiricalFit, HertzBallContact, material
+from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json, labctl_json
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("demo")
+    summary = labctl_json("demo", "--out", str(out), timeout=300)
+    return out / "campaign.h5", summary
+
+
+@pytest.fixture(scope="module")
+def short_campaign(tmp_path_factory) -> Path:
+    from labctl.campaign import run_campaign
+    from tests.engine_util import short_protocol
+
+    out = tmp_path_factory.mktemp("short") / "c.h5"
+    outcome = run_campaign(short_protocol(max_load=120.0, samples=16384, impacts=2, reps=2), out=out,
+                           backend="sim", seed=7)
+    assert outcome.status == "complete", outcome.message
+    return out
+
+
+def assert_not_blank_png(path: Path) -> None:
+    from matplotlib.image import imread
+
+    img = imread(path)[..., :3]
+    ink = np.any(img < 0.9, axis=-1).mean()  # share of pixels that are not (near) white
+    colours = len(np.unique((img * 255).astype(np.uint8).reshape(-1, 3), axis=0))
+    assert img.shape[0] > 300 and img.shape[1] > 400, (path, img.shape)
+    assert 0.02 < ink < 0.9 and colours > 20, (path, ink, colours)
+
+
+def assert_not_blank_svg(path: Path) -> None:
+    root = ET.parse(path).getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    paths = [p for p in root.iter(f"{ns}path") if len(p.get("d", "")) > 20]
+    assert len(paths) > 20, (path, len(paths))
+
+
+@pytest.mark.slow  # shares the demo campaign (~25 s to make)
+def test_report_on_the_demo_campaign_writes_every_figure_and_the_page(demo, tmp_path):
+    campaign, _ = demo
+    out = tmp_path / "report"
+    res = labctl_json("report", str(campaign), "--out", str(out))
+    names = [f["name"] for f in res["figures"]]
+    assert names == ["fig08_load_stiffness_s01", "fig12_models_ra0.2", "fig07_frf_s01_r01_step011",
+                     "frequency_load_s01"]
+    page = Path(res["html"]).read_text(encoding="utf-8")
+    for f in res["figures"]:
+        png, svg = Path(f["png"]), Path(f["svg"])
+        assert png.stat().st_size > 10_000 and svg.stat().st_size > 10_000
+        assert_not_blank_png(png)
+        assert_not_blank_svg(svg)
+        assert f'href="{png.name}"' in page and f'href="{svg.name}"' in page
+    assert page.count("data:image/png;base64,") == len(names)  # readable without the folder
+    for section in ("Protocol", "Rig", "World", "Impacts", "roller_stiffness", "99 impacts accepted, 0 rejected"):
+        assert section in page
+    assert res["impacts"] == {"accepted": 99, "rejected": 0, "by_reason": {}}
+    assert Path(res["csv"]).name == "stiffness.csv" and 'href="stiffness.csv"' in page
+
+
+@pytest.mark.slow  # shares the demo campaign (~25 s to make)
+def test_report_statistics_agree_with_the_demo_summary(demo):
+    from labctl.report.data import load_report_data
+
+    campaign, summary = demo
+    stats = load_report_data(campaign).series[0].step_stats()
+    assert len(stats) == len(summary["steps"])
+    for got, want in zip(stats, summary["steps"], strict=True):
+        assert got.load_n == pytest.approx(want["load_n"], rel=1e-9)
+        assert got.stiffness_n_per_m == pytest.approx(want["stiffness_n_per_m"], rel=1e-9)
+        assert got.spread == pytest.approx(want["spread"], rel=1e-9)
+
+
+@pytest.mark.slow  # shares the demo campaign (~25 s to make)
+def test_models_figure_draws_eq5_and_the_measured_means_per_contact_length(demo):
+    from labctl.report.data import load_report_data
+    from labctl.report.figures import models
+
+    series = load_report_data(demo[0]).series[0]
+    length = series.case.roller.contact_length_m
+    ax = models([series], "fit-ra0.2").axes[0]
+    fit = next(line for line in ax.get_lines() if line.get_label() == "Eq. 5 fit")
+    p = np.asarray(fit.get_xdata()) * 1e3  # N/mm → N/m
+    want = EmpiricalFit(EQ5, length).stiffness_n_per_m(p * length) / length * 1e-3
+    np.testing.assert_allclose(fit.get_ydata(), want, rtol=1e-12)
+    means = ax.containers[0].lines[0]  # the error-bar markers: mean stiffness per step
+    stats = series.step_stats()
+    np.testing.assert_allclose(means.get_ydata(), [s.stiffness_n_per_m / length * 1e-3 for s in stats])
+
+
+@pytest.mark.slow  # shares the demo campaign (~25 s to make)
+def test_stiffness_csv_opens_cleanly_in_a_spreadsheet(demo):
+    table = Path(demo[1]["csv"])  # written like `labctl process --csv`: reprocessed points, the table writer
+    raw = table.read_bytes()
+    assert not raw.startswith(b"\xef\xbb\xbf") and b"\r\n" in raw  # RFC 4180 rows, no byte-order mark
+    with table.open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    assert header[0] == "diameter_mm" and all(h.isascii() and h.strip() == h and h for h in header)
+    units = ("_mm", "_um", "_n", "_n_per_m", "_gpa")
+    unitless = {"roller_type", "material", "poisson_ratio", "hardness_hrc", "repetition"}
+    assert all(h.endswith(units) or h in unitless for h in header), header
+    assert len(body) == 33 and all(len(r) == len(header) for r in body)
+    for r in body:
+        for h, cell in zip(header, r, strict=True):
+            if h != "material":
+                float(cell)  # every numeric cell is a plain number, no index or unit text
+
+
+def test_rejected_impacts_and_reasons_in_the_statistics_and_page(short_campaign, tmp_path, capsys):
+    import json
+
+    campaign = tmp_path / "c.h5"
+    shutil.copy(short_campaign, campaign)
+    with h5py.File(campaign, "r+") as f:
+        step = f["series_01/run_02/step_001"]
+        imp = step["impact_002"]
+        imp.attrs["accepted"], imp.attrs["reasons"] = False, json.dumps(["double_hit"])
+        result = step["result"]
+        late = json.loads(result.attrs["impacts"])
+        late[0]["accepted"], late[0]["reasons"] = False, ["low_coherence"]
+        result.attrs["impacts"] = json.dumps(late)
+    res = labctl_here_json(capsys, "report", str(campaign), "--out", str(tmp_path / "r"), "--frf-step", "1:2:1")
+    assert res["impacts"]["rejected"] == 2 and res["impacts"]["by_reason"] == {"double_hit": 1, "low_coherence": 1}
+    page = Path(res["html"]).read_text(encoding="utf-8")
+    assert "double_hit" in page and "low_coherence" in page
+    assert "fig07_frf_s01_r02_step001" in [f["name"] for f in res["figures"]]
+
+
+def test_ball_campaigns_are_shown_against_hertz(tmp_path):
+    from labctl.physics.effects import ContactCase
+    from labctl.physics.rig_config import load_rig
+    from labctl.report.data import ImpactStats, ReportData, RunCurve, SeriesData
+    from labctl.report.figures import make_figures
+
+    steel = material("1.3505")
+    case = ContactCase(__import__("labctl.physics", fromlist=["Roller"]).Roller(6e-3, 6e-3, 6e-3, steel), steel,
+                       0.2e-6)
+    f = np.linspace(40, 400, 8)
+    k = HertzBallContact(6e-3, steel, steel).stiffness_n_per_m(f)
+    run = RunCurve(1, np.arange(1, 9), f, k, np.full(8, 600.0), np.full((8, 2), 450.0))
+    series = SeriesData(1, "ball 6 mm", "ball", {}, case, [run])
+    data = ReportData(tmp_path / "x.h5", {}, [series], ImpactStats(), None, {}, load_rig(), [])
+    plots = {p.name: p for p in make_figures(data)}
+    assert set(plots) == {"fig08_load_stiffness_s01", "verification_hertz", "frequency_load_s01"}
+    hertz = plots["verification_hertz"].figure.axes[0].get_lines()[1]
+    want = HertzBallContact(6e-3, steel, steel).stiffness_n_per_m(hertz.get_xdata())
+    np.testing.assert_allclose(hertz.get_ydata(), want, rtol=1e-12)
+
+
+def test_report_errors_are_one_line(short_campaign, tmp_path, capsys):
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(short_campaign.read_bytes()[:4096])
+    assert_one_line_error(labctl("report", str(cut), "--out", str(tmp_path / "r")), "cut.h5")
+    junk = tmp_path / "junk.h5"
+    junk.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)
+    out = str(tmp_path / "r")
+    assert_one_line_error(labctl_here(capsys, "report", str(junk), "--out", out), "junk.h5")
+    assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", out, "--frf-step", "x"),
+                          "--frf-step")
+    assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", out, "--frf-step", "1:9:1"),
+                          "run 9")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", str(blocker)), "not a folder")
