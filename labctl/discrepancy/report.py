@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -73,43 +74,48 @@ def _grid(n: int) -> tuple[int, int]:
     return math.ceil(n / cols), cols
 
 
-def _plot_stiffness(result: DiscrepancyResult, path: Path) -> None:
+def _case_panels(result: DiscrepancyResult, path: Path, ylabel: str, height: float,
+                 draw: Callable[[Any, int], None], sharey: bool = False) -> None:
+    """One panel per roller case (load on a log axis), drawn by ``draw(ax, case index)``."""
     rows, cols = _grid(len(result.data.cases))
-    fig = Figure(figsize=(4.2 * cols, 3.2 * rows), layout="constrained")
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    for i, (ax, c) in enumerate(zip(axes, result.data.cases, strict=False)):
+    fig = Figure(figsize=(4.2 * cols, height * rows), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False, sharey=sharey).ravel()
+    for i, ax in enumerate(axes[: len(result.data.cases)]):
+        draw(ax, i)
+        ax.set_title(result.data.cases[i].label, fontsize=8)
+        _log_load_axis(ax)
+        ax.set_ylabel(ylabel)
+    for ax in axes[len(result.data.cases):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.savefig(path, dpi=110)
+
+
+def _plot_stiffness(result: DiscrepancyResult, path: Path) -> None:
+    def draw(ax: Any, i: int) -> None:
+        c = result.data.cases[i]
         ax.loglog(c.load_n, np.exp(c.ln_stiffness), "k.", ms=4, label="measured")
         ax.loglog(*_curve(result.baseline.law, result, i), "C0--", label=f"{result.baseline.spec.baseline} (fitted)")
         if result.steps:
             ax.loglog(*_curve(result.final.law, result, i), "C3-", label="+ " + ", ".join(s.name for s in result.steps))
-        ax.set_title(c.label, fontsize=8)
-        _log_load_axis(ax)
-        ax.set_ylabel("stiffness [N/m]")
-    for ax in axes[len(result.data.cases):]:
-        ax.set_visible(False)
-    axes[0].legend(fontsize=7)
-    fig.savefig(path, dpi=110)
+
+    _case_panels(result, path, "stiffness [N/m]", 3.2, draw)
 
 
 def _plot_residuals(result: DiscrepancyResult, path: Path) -> None:
-    rows, cols = _grid(len(result.data.cases))
-    fig = Figure(figsize=(4.2 * cols, 2.8 * rows), layout="constrained")
-    axes = fig.subplots(rows, cols, squeeze=False, sharey=True).ravel()
-    sigma = result.baseline.sigma
-    for ax, c, sl in zip(axes, result.data.cases, result.data.case_slices(), strict=False):
+    slices = result.data.case_slices()
+
+    def draw(ax: Any, i: int) -> None:
+        c, sl = result.data.cases[i], slices[i]
         order = np.argsort(c.load_n)
-        ax.fill_between(c.load_n[order], -2 * sigma[sl][order], 2 * sigma[sl][order], color="0.85", label="±2σ noise")
-        ax.semilogx(c.load_n, result.baseline.residuals[sl], "C0o", ms=3, label="baseline")
+        band = 2 * result.baseline.sigma[sl][order]
+        ax.fill_between(c.load_n[order], -band, band, color="0.85", label="±2σ noise")
+        ax.plot(c.load_n, result.baseline.residuals[sl], "C0o", ms=3, label="baseline")
         if result.steps:
-            ax.semilogx(c.load_n, result.final.residuals[sl], "C3.", ms=4, label="final model")
+            ax.plot(c.load_n, result.final.residuals[sl], "C3.", ms=4, label="final model")
         ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_title(c.label, fontsize=8)
-        _log_load_axis(ax)
-        ax.set_ylabel("ln(k_model / k_measured)")
-    for ax in axes[len(result.data.cases):]:
-        ax.set_visible(False)
-    axes[0].legend(fontsize=7)
-    fig.savefig(path, dpi=110)
+
+    _case_panels(result, path, "ln(k_model / k_measured)", 2.8, draw, sharey=True)
 
 
 def _plot_gap(result: DiscrepancyResult, path: Path) -> None:
