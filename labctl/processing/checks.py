@@ -195,11 +195,15 @@ def overloaded_channels(
     force_range_n: float | None,
     fraction: float,
     names: Sequence[str],
+    extremes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[str, ...]:
-    """Channels that reached ``fraction`` of their range, or that show a clipped plateau when no range is known."""
+    """Channels that reached ``fraction`` of their range, or that show a clipped plateau when no range is
+    known. ``extremes`` (per-channel max and min) spare a pass over the data when the caller has them."""
     out: list[str] = []
-    peaks = np.maximum(accel_m_per_s2.max(axis=-1), -accel_m_per_s2.min(axis=-1))
     ranges = _ranges(accel_ranges, accel_m_per_s2.shape[0])
+    if ranges is not None:
+        top, bottom = extremes if extremes is not None else (accel_m_per_s2.max(axis=-1), accel_m_per_s2.min(axis=-1))
+        peaks = np.maximum(top, -bottom)
     for c, name in enumerate(names):
         if ranges is not None and np.isfinite(ranges[c]):
             if peaks[c] >= fraction * ranges[c]:
@@ -223,11 +227,13 @@ def check_impact(
     force_range_n: float | None = None,
     config: CheckConfig = CheckConfig(),  # noqa: B008 - frozen, shared default is safe
     channels: Sequence[str] | None = None,
+    extremes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> ImpactCheck:
     """Check one impact: ``double_hit``, ``overload``, ``pulse_width``, ``low_force`` (each a named reason).
 
     ``accel_ranges`` (one value or one per channel, m/s²) and ``force_range_n`` are the channels' full
-    scales; without them an overload is recognised by a clipped plateau.
+    scales; without them an overload is recognised by a clipped plateau. ``extremes`` are the response
+    channels' (max, min) when the caller already has them.
     """
     f = np.asarray(force_n, dtype=float)
     a = np.asarray(accel_m_per_s2, dtype=float)
@@ -245,7 +251,7 @@ def check_impact(
         reasons.append(DOUBLE_HIT)
         notes.append(f"second pulse {ratio:.0%} of the first at {1e3 * (delay or 0.0):+.1f} ms")
     over = overloaded_channels(f, a, accel_ranges=accel_ranges, force_range_n=force_range_n,
-                               fraction=config.overload_fraction, names=names)
+                               fraction=config.overload_fraction, names=names, extremes=extremes)
     if over:
         reasons.append(OVERLOAD)
         notes.append(f"near full scale: {', '.join(over)}")

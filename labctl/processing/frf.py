@@ -88,6 +88,18 @@ def force_window(force_n: np.ndarray, fs_hz: float, start: int, end: int, noise_
     return lo, w
 
 
+def response_buffer(accel_m_per_s2: np.ndarray) -> np.ndarray:
+    """Single-precision work array (n_impacts, 1 + n_channels, n): row 0 for the force, then the responses.
+
+    ``impact_spectra`` windows and transforms it in place; made once, it also gives the channels' extremes.
+    """
+    n_imp, n_ch, n = accel_m_per_s2.shape
+    buf = np.empty((n_imp, n_ch + 1, n), dtype=np.float32)
+    buf[:, 0] = 0.0
+    np.copyto(buf[:, 1:], accel_m_per_s2, casting="same_kind")
+    return buf
+
+
 def impact_spectra(
     force_n: np.ndarray,
     accel_m_per_s2: np.ndarray,
@@ -95,20 +107,26 @@ def impact_spectra(
     pulses: list[tuple[int, int, float]],
     cfg: WindowConfig = WindowConfig(),  # noqa: B008 - frozen
     use: list[int] | None = None,
+    buffer: np.ndarray | None = None,
 ) -> Spectra:
     """Window and transform the impacts ``use`` (default all); ``pulses`` holds (first sample, last sample,
-    force noise N) of each of them. Sensor offsets (the record before each blow) are removed."""
-    use = list(range(accel_m_per_s2.shape[0])) if use is None else list(use)
-    n_imp, n_ch, n = len(use), accel_m_per_s2.shape[1], accel_m_per_s2.shape[2]
+    force noise N) of each of them. Sensor offsets (the record before each blow) are removed. A
+    ``response_buffer`` of the same data may be passed: it is overwritten."""
+    everything = list(range(accel_m_per_s2.shape[0]))
+    use = everything if use is None else list(use)
+    n = accel_m_per_s2.shape[2]
     rate = cfg.decay_rate_per_s(n, fs_hz)
     expw = np.exp(-rate * np.arange(n) / fs_hz)
     n_f = n // 2 + 1
     if cfg.max_frequency_hz is not None:
         n_f = min(n_f, int(math.floor(cfg.max_frequency_hz * n / fs_hz)) + 1)
-    buf = np.zeros((n_imp, n_ch + 1, n), dtype=np.float32)  # row 0: force, rows 1..: responses
+    if buffer is None:
+        buf = response_buffer(accel_m_per_s2[use] if use != everything else accel_m_per_s2)
+    else:
+        buf = buffer if use == everything else buffer[use]
     expw32 = expw.astype(np.float32)
+    buf[:, 1:] *= expw32
     for i, (j, (start, end, noise)) in enumerate(zip(use, pulses, strict=True)):
-        np.multiply(accel_m_per_s2[j], expw, out=buf[i, 1:], casting="same_kind")
         if start >= 16:
             pre = accel_m_per_s2[j, :, :start]
             offset = pre.mean(axis=-1)
@@ -118,7 +136,7 @@ def impact_spectra(
         f_off = float(np.median(force_n[j, :start])) if start >= 16 else 0.0
         lo, w = force_window(force_n[j] - f_off, fs_hz, start, end, noise, cfg)
         buf[i, 0, lo:lo + len(w)] = (force_n[j, lo:lo + len(w)] - f_off) * expw[lo:lo + len(w)] * w
-    spec = sfft.rfft(buf, axis=-1, workers=WORKERS)[..., :n_f]
+    spec = sfft.rfft(buf, axis=-1, workers=WORKERS, overwrite_x=True)[..., :n_f]
     big_f = spec[:, 0]
     big_x = spec[:, 1:]
     freqs = np.arange(n_f) * fs_hz / n
@@ -137,20 +155,19 @@ def estimate_frf(spectra: Spectra, used: tuple[int, ...] | list[int]) -> FrfEsti
     sxx = np.zeros(spectra.response.shape[1:], dtype=np.float32)
     for i in idx:
         f, x = spectra.force[i], spectra.response[i]
-        sff += f.real**2 + f.imag**2
+        sff += np.abs(f) ** 2
         sxf += x * f.conj()
         sxx += np.abs(x) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        h1 = sxf / sff
-        h2 = sxx / sxf.conj()
-        coh = (np.abs(sxf) ** 2) / (sff * sxx)
-    h1[~np.isfinite(h1)] = 0.0
+    with np.errstate(all="ignore"):  # lines without signal (a dead channel) give 0, not NaN
+        h1 = np.divide(sxf, sff, out=np.zeros_like(sxf), where=sff > 0)
+        h2 = np.divide(sxx, sxf.conj(), out=np.zeros_like(sxf), where=sxf != 0)
+        den = sff * sxx
+        coh = np.divide(np.abs(sxf) ** 2, den, out=np.zeros_like(sxx), where=den > 0)
     h2[~np.isfinite(h2)] = 0.0
-    coh[~np.isfinite(coh)] = 0.0
     power = sxx[:, 1:].sum(axis=1, dtype=np.float64)
     if not (np.isfinite(power).all() and np.isfinite(sff).all()):
         raise InputError("force or accel holds non-finite values (NaN or infinity)")
-    return FrfEstimate(spectra.frequencies_hz, h1, h2, np.clip(coh, 0.0, 1.0), tuple(idx), power)
+    return FrfEstimate(spectra.frequencies_hz, h1, h2, np.minimum(coh, 1.0, out=coh), tuple(idx), power)
 
 
 def coherence_at(spectra: Spectra, used: list[int] | tuple[int, ...], bins: np.ndarray, weights: np.ndarray) -> float:

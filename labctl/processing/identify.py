@@ -18,7 +18,15 @@ from labctl.errors import InputError
 from labctl.physics import RigConfig, TrippContact
 from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
 from labctl.processing.errors import ProcessingError
-from labctl.processing.frf import FrfEstimate, Spectra, WindowConfig, coherence_at, estimate_frf, impact_spectra
+from labctl.processing.frf import (
+    FrfEstimate,
+    Spectra,
+    WindowConfig,
+    coherence_at,
+    estimate_frf,
+    impact_spectra,
+    response_buffer,
+)
 from labctl.processing.search import ContactModes, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
 from labctl.processing.stiffness import Stiffness, roller_only, stiffness_from_bounce
@@ -222,8 +230,11 @@ def identify(
     """
     cfg = config if isinstance(config, IdentifyConfig) else IdentifyConfig(checks=config or CheckConfig())
     force, accel, names = _inputs(force_n, accel_m_per_s2, fs_hz, channels, rig)
+    buf = response_buffer(accel)
+    top, bottom = buf[:, 1:].max(axis=-1), buf[:, 1:].min(axis=-1)
     checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
-                           config=cfg.checks, channels=names) for i in range(force.shape[0])]
+                           config=cfg.checks, channels=names, extremes=(top[i], bottom[i]))
+              for i in range(force.shape[0])]
     accepted = [c.index for c in checks if c.accepted]
     if not accepted:
         summary = "; ".join(f"impact {c.index}: {', '.join(c.reasons)}" for c in checks)
@@ -233,7 +244,7 @@ def identify(
     window = cfg.window
     if window.max_frequency_hz is not None and window.max_frequency_hz < 1.25 * pred.max_bounce_hz:
         window = replace(window, max_frequency_hz=1.25 * pred.max_bounce_hz)  # a stiff rig's modes stay in view
-    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted)
+    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted, buffer=buf)
     used = list(range(len(accepted)))
     frf = estimate_frf(spectra, used)
     live = _live_channels(frf)
