@@ -158,12 +158,13 @@ def estimate_frf(spectra: Spectra, used: tuple[int, ...] | list[int]) -> FrfEsti
         sff += np.abs(f) ** 2
         sxf += x * f.conj()
         sxx += np.abs(x) ** 2
+    cross = np.abs(sxf) ** 2
     with np.errstate(all="ignore"):  # lines without signal (a dead channel) give 0, not NaN
-        h1 = np.divide(sxf, sff, out=np.zeros_like(sxf), where=sff > 0)
-        h2 = np.divide(sxx, sxf.conj(), out=np.zeros_like(sxf), where=sxf != 0)
-        den = sff * sxx
-        coh = np.divide(np.abs(sxf) ** 2, den, out=np.zeros_like(sxx), where=den > 0)
-    h2[~np.isfinite(h2)] = 0.0
+        inv_ff = np.where(sff > 0, 1.0 / sff, 0.0).astype(np.float32)
+        ratio = np.where(cross > 0, sxx / cross, 0.0).astype(np.float32)
+        coh = np.where(sxx > 0, cross * inv_ff / sxx, 0.0).astype(np.float32)
+    h1 = sxf * inv_ff
+    h2 = sxf * ratio  # Σ|X|² / (Σ F X*) = Σ X F* · Σ|X|² / |Σ X F*|²
     power = sxx[:, 1:].sum(axis=1, dtype=np.float64)
     if not (np.isfinite(power).all() and np.isfinite(sff).all()):
         raise InputError("force or accel holds non-finite values (NaN or infinity)")

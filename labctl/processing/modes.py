@@ -59,8 +59,8 @@ class _Problem:
     def __init__(self, freqs_hz: np.ndarray, h: np.ndarray, decay_rate: float, weights: np.ndarray) -> None:
         self.s = TWO_PI * 1j * freqs_hz + decay_rate
         sn = self.s / (TWO_PI * float(np.mean(freqs_hz)))
-        terms = [sn**p for p in RESIDUAL_POWERS]
-        self.rb = _stack(np.stack([t * z for t in terms for z in (1.0, 1j)], axis=1))
+        terms = np.stack([sn ** float(p) for p in RESIDUAL_POWERS], axis=1)
+        self.rb = _stack(np.concatenate([terms, 1j * terms], axis=1))
         self.rb_pinv = _cho_solve(_gram_factor(self.rb), self.rb.T)
         self.y = self._perp_residual(_stack(h.T) * weights[None, :])
         self.weights = weights

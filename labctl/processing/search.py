@@ -75,8 +75,12 @@ def fit_band(freqs_hz: np.ndarray, h: np.ndarray, lo_hz: float, hi_hz: float, ze
 
 
 def _start_poles(f: np.ndarray, h: np.ndarray, rate: float, zeta: float) -> list[tuple[float, float]]:
-    step = max(1, len(f) // 250)  # start poles only: a few hundred lines are plenty
-    poles = lscf_poles(f[::step], h[:, ::step], N_CONTACT_MODES, decay_rate_per_s=rate)
+    step = max(1, len(f) // 250)  # start poles only: a few hundred lines are plenty ...
+    hs = h[:, ::step]
+    if hs.shape[0] > N_CONTACT_MODES + 1:  # ... and the channels' dominant subspace holds every pole
+        _, sv, vh = np.linalg.svd(hs, full_matrices=False)
+        hs = sv[: N_CONTACT_MODES + 1, None] * vh[: N_CONTACT_MODES + 1]
+    poles = lscf_poles(f[::step], hs, N_CONTACT_MODES, decay_rate_per_s=rate)
     modes = [pole_to_mode(p) for p in poles if p.imag > 0]
     good = sorted((fr, z) for fr, z in modes if f[0] <= fr <= f[-1] and 0 < z < MAX_DAMPING)
     power = np.sum(np.abs(h) ** 2, axis=0)
