@@ -12,6 +12,7 @@ Spectra are computed in single precision (the FFT's round-off stays > 100 dB bel
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,7 @@ import scipy.fft as sfft
 from labctl.errors import InputError
 
 WORKERS = 2
+_WORK = threading.local()
 
 
 @dataclass(frozen=True)
@@ -92,9 +94,13 @@ def response_buffer(accel_m_per_s2: np.ndarray) -> np.ndarray:
     """Single-precision work array (n_impacts, 1 + n_channels, n): row 0 for the force, then the responses.
 
     ``impact_spectra`` windows and transforms it in place; made once, it also gives the channels' extremes.
+    The array is the calling thread's scratch space: the next call overwrites it.
     """
     n_imp, n_ch, n = accel_m_per_s2.shape
-    buf = np.empty((n_imp, n_ch + 1, n), dtype=np.float32)
+    shape = (n_imp, n_ch + 1, n)
+    buf = getattr(_WORK, "buffer", None)
+    if buf is None or buf.shape != shape:  # one per thread, reused: a fresh 10 MB array costs page faults
+        buf = _WORK.buffer = np.empty(shape, dtype=np.float32)
     buf[:, 0] = 0.0
     np.copyto(buf[:, 1:], accel_m_per_s2, casting="same_kind")
     return buf
