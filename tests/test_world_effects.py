@@ -120,7 +120,7 @@ def test_balls_follow_hertz_with_a_third_power_law():
     assert np.log(k[1] / k[0]) / np.log(10) == pytest.approx(1 / 3)
     rng = np.random.default_rng(1)
     seated = [world.specimen(case).seat(rng).stiffness_n_per_m(100.0) for _ in range(40)]
-    assert 0.003 < np.std(seated) / np.mean(seated) < 0.03  # the paper: σ below 3 %
+    assert 0.001 < np.std(seated) / np.mean(seated) < 0.03  # reseating scatters, and stays below the paper's 3 %
 
 
 def test_null_worlds_are_plain_tripp():

@@ -10,6 +10,7 @@ from drivers.errors import DeviceError, DeviceTimeout
 from labctl.errors import LabctlError
 
 T = TypeVar("T")
+_DEFAULT = object()
 
 
 class HardwareFailure(LabctlError):
@@ -23,9 +24,10 @@ class GuardedCaller:
         self.timeout_s, self.retries, self.on_retry = timeout_s, retries, on_retry
         self._pool = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="labctl-hw")
 
-    def __call__(self, what: str, fn: Callable[..., T], *args: Any, timeout_s: float | None = None,
+    def __call__(self, what: str, fn: Callable[..., T], *args: Any, timeout_s: float | None | object = _DEFAULT,
                  retries: int | None = None) -> T:
-        limit = self.timeout_s if timeout_s is None else timeout_s
+        """Call ``fn(*args)`` within ``timeout_s`` (the default deadline; None = wait as long as it takes)."""
+        limit = self.timeout_s if timeout_s is _DEFAULT else timeout_s
         attempts = 1 + (self.retries if retries is None else retries)
         last: Exception | None = None
         for attempt in range(1, attempts + 1):
@@ -36,7 +38,7 @@ class GuardedCaller:
                 # the stuck call keeps its thread; use a fresh worker for the next attempt
                 self._pool.shutdown(wait=False, cancel_futures=True)
                 self._pool = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="labctl-hw")
-                last = DeviceTimeout(what, "call", f"no answer within {limit:g} s")
+                last = DeviceTimeout(what, "call", f"no answer within {limit} s")
             except DeviceError as exc:
                 last = exc
             if attempt < attempts and self.on_retry:

@@ -20,16 +20,17 @@ class RunControl:
         self._running = threading.Event()
         self._running.set()
         self._status: str | None = None
-        self._override: bool | None = None
+        self._override: tuple[bool, int | None] | None = None
         self._lock = threading.Lock()
 
-    def override_last_impact(self, accept: bool) -> None:
+    def override_last_impact(self, accept: bool, attempt: int | None = None) -> None:
         """The technician's verdict on the step's latest impact: reject an accepted one (it is hit again) or
-        accept a rejected one. Applied at the next safe point while the step is still acquiring."""
+        accept a rejected one. Applied at the next safe point while the step is still acquiring; with
+        ``attempt`` given it applies only if that impact is still the latest (not to a newer blow)."""
         with self._lock:
-            self._override = bool(accept)
+            self._override = (bool(accept), attempt)
 
-    def take_override(self) -> bool | None:
+    def take_override(self) -> tuple[bool, int | None] | None:
         with self._lock:
             verdict, self._override = self._override, None
         return verdict

@@ -172,7 +172,7 @@ class Engine:
     def _unload(self, rig: Rig) -> None:
         angle = rig.actuator.knob_angle_deg
         if angle:
-            self.call("actuator", rig.actuator.turn_knobs, -angle)
+            self.call("actuator", rig.actuator.turn_knobs, -angle, timeout_s=None, retries=0)
 
     def _run(self, rig: Rig, series: int, run: int, spec: SpecimenSpec, plan: StepPlan) -> dict:
         steps = StepRunner(self, rig, series, run, spec)

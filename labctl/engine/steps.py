@@ -77,8 +77,8 @@ class StepRunner:
         delta = angle_deg - self.rig.actuator.knob_angle_deg
         expected = e.rig_config.preload_per_roller_n + angle_deg * _per_degree(e)
         e.emit(ev.StepStarted(e.now(), pos, plan.steps_estimate, angle_deg, expected))
-        if abs(delta) > 1e-9:  # a manual actuator asks the operator to turn the knobs itself
-            e.call("actuator", self.rig.actuator.turn_knobs, delta)
+        if abs(delta) > 1e-9:  # a manual actuator asks the technician, who may take as long as needed
+            e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
         self._interlock(load, plan, pos)
         if existing is None or "load_n" not in existing.attrs:
@@ -101,7 +101,8 @@ class StepRunner:
             msg = f"load {load:.1f} N per roller exceeds the cap {plan.cap_n:.1f} N (+tolerance): unload now"
             self.e.emit(ev.Suspended(self.e.now(), pos, msg))
             self.e.prompt(self.rig, msg, "unload")
-            self.e.call("actuator", self.rig.actuator.turn_knobs, -self.rig.actuator.knob_angle_deg)
+            self.e.call("actuator", self.rig.actuator.turn_knobs, -self.rig.actuator.knob_angle_deg, timeout_s=None,
+                        retries=0)
             raise Interlock(msg)
 
     def _check_drift(self, step: int, before: float, after: float, pos: ev.Position) -> None:
@@ -126,7 +127,8 @@ class StepRunner:
         rejected = len(attempts) - accepted
         attempt = attempts[-1] if attempts else 0
         while True:
-            accepted, rejected = self._apply_override(step, attempt, accepted, rejected)
+            e.checkpoint(ev.Position(self.series, self.run, step, accepted + 1))  # a verdict given while paused
+            accepted, rejected = self._apply_override(step, attempt, accepted, rejected)  # applies here
             if accepted >= acq.impacts_per_step:
                 break
             if rejected > acq.max_rehits:
@@ -134,7 +136,6 @@ class StepRunner:
                          "going on with the accepted ones")
                 break
             ipos = ev.Position(self.series, self.run, step, accepted + 1)
-            e.checkpoint(ipos)
             record = e.acquire(self.rig, ipos)
             attempt += 1
             ok = self._store(step, attempt, record, accepted, ipos)
@@ -146,9 +147,15 @@ class StepRunner:
 
     def _apply_override(self, step: int, attempt: int, accepted: int, rejected: int) -> tuple[int, int]:
         """Apply a pending operator verdict to the latest impact of this step (kept in the file with the reason)."""
-        verdict = self.e.control.take_override()
+        override = self.e.control.take_override()
+        if override is None:
+            return accepted, rejected
+        verdict, target = override
+        if target is not None and target != attempt:
+            self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since")
+            return accepted, rejected
         g = self._group(step).get(schema.impact_name(attempt)) if attempt else None
-        if verdict is None or g is None or bool(g.attrs["accepted"]) == verdict:
+        if g is None or bool(g.attrs["accepted"]) == verdict:
             return accepted, rejected
         reasons = [r for r in json.loads(g.attrs.get("reasons", "[]")) if r != "operator_accepted"]
         reasons.append("operator_accepted" if verdict else "operator_rejected")

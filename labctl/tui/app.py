@@ -213,7 +213,8 @@ class LabApp(App[Outcome | None]):
     def action_verdict(self, accept: bool) -> None:
         if not self.running:
             return
-        self.control.override_last_impact(accept)
+        shown = self.monitor.state.last_impact
+        self.control.override_last_impact(accept, attempt=shown.attempt if shown else None)
         verb = "accept" if accept else "reject"
         self.monitor.log_line(f"{verb} requested for the step's latest impact (applied at the next safe point)")
 
