@@ -60,3 +60,13 @@ def run_engine(path, protocol, factory, rig_config=None):
     finally:
         writer.close()
     return outcome, rec
+
+
+def short_campaign_file(out, seed: int = 5, reps: int = 2):  # noqa: ANN001, ANN201 - path in, path out
+    """A complete small campaign on the simulated rig (16 384-sample records, 2 impacts per step)."""
+    from labctl.campaign import run_campaign
+
+    outcome = run_campaign(short_protocol(max_load=120.0, samples=16384, impacts=2, reps=reps), out=out,
+                           backend="sim", seed=seed)
+    assert outcome.status == "complete", outcome.message
+    return out

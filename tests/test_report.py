@@ -13,6 +13,7 @@ import pytest
 
 from labctl.physics import EQ5, EmpiricalFit, HertzBallContact, material
 from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json, labctl_json
+from tests.engine_util import short_campaign_file
 
 
 @pytest.fixture(scope="module")
@@ -24,14 +25,7 @@ def demo(tmp_path_factory) -> tuple[Path, dict]:
 
 @pytest.fixture(scope="module")
 def short_campaign(tmp_path_factory) -> Path:
-    from labctl.campaign import run_campaign
-    from tests.engine_util import short_protocol
-
-    out = tmp_path_factory.mktemp("short") / "c.h5"
-    outcome = run_campaign(short_protocol(max_load=120.0, samples=16384, impacts=2, reps=2), out=out,
-                           backend="sim", seed=7)
-    assert outcome.status == "complete", outcome.message
-    return out
+    return short_campaign_file(tmp_path_factory.mktemp("short") / "c.h5", seed=7)
 
 
 def assert_not_blank_png(path: Path) -> None:

@@ -12,6 +12,7 @@ import pytest
 from labctl.uff import DEFAULT_NODES, NodeMap, parse_node_map, read_uff_impacts, sample_rate_hz
 from labctl.uff.manifest import format_load_cases, parse_load_cases
 from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json, labctl_json
+from tests.engine_util import short_campaign_file
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -63,14 +64,7 @@ def short_npz(impacts_npz, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory) -> Path:
-    from labctl.campaign import run_campaign
-    from tests.engine_util import short_protocol
-
-    out = tmp_path_factory.mktemp("campaign") / "c.h5"
-    outcome = run_campaign(short_protocol(max_load=120.0, samples=16384, impacts=2, reps=2), out=out,
-                           backend="sim", seed=5)
-    assert outcome.status == "complete", outcome.message
-    return out
+    return short_campaign_file(tmp_path_factory.mktemp("campaign") / "c.h5", seed=5)
 
 
 @pytest.mark.parametrize("binary", [False, True])

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from labctl.physics import FITS, EmpiricalFit, rig_modes
@@ -35,6 +36,16 @@ def _load_grid(series: SeriesData) -> np.ndarray:
     return np.geomspace(0.8 * f.min(), 1.1 * f.max(), CURVE_POINTS)
 
 
+def _finish(ax: Axes, xlabel: str, ylabel: str, title: str, legend_size: int = 8, sci_y: bool = True) -> None:
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    if sci_y:
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=legend_size)
+
+
 def load_stiffness(series: SeriesData) -> Figure:
     """Fig. 8: stiffness vs load per repetition, with the mean and the spread over the repetitions."""
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
@@ -47,12 +58,8 @@ def load_stiffness(series: SeriesData) -> Figure:
     k = np.array([s.stiffness_n_per_m for s in stats])
     ax.fill_between(f, [s.k_min for s in stats], [s.k_max for s in stats], color="0.8", label="spread (min–max)")
     ax.plot(f, k, "k-", lw=1.2, label="mean")
-    ax.set_xlabel("load per roller F [N]")
-    ax.set_ylabel("roller stiffness k [N/m]")
-    ax.set_title(f"{series.label}, rail Ra {series.case.rail_ra_m * 1e6:.3g} µm", fontsize=10)
-    ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    _finish(ax, "load per roller F [N]", "roller stiffness k [N/m]",
+            f"{series.label}, rail Ra {series.case.rail_ra_m * 1e6:.3g} µm")
     return fig
 
 
@@ -82,12 +89,8 @@ def models(group: list[SeriesData], fit: str) -> Figure:
     ax.plot(p * MM, k_fit * MM, "k-", lw=1.5, label=f"{coeff.equation} fit")
     ax.fill_between(p * MM, k_fit * MM * (1 - FIT_BAND), k_fit * MM * (1 + FIT_BAND), color="0.85", zorder=0,
                     label="fit ±10 %")
-    ax.set_xlabel("load per contact length F/L_we [N/mm]")
-    ax.set_ylabel("stiffness per contact length k/L_we [N/m per mm]")
-    ax.set_title(f"measured vs models, rails Ra {coeff.rail_ra_m * 1e6:.3g} µm", fontsize=10)
-    ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    _finish(ax, "load per contact length F/L_we [N/mm]", "stiffness per contact length k/L_we [N/m per mm]",
+            f"measured vs models, rails Ra {coeff.rail_ra_m * 1e6:.3g} µm", legend_size=7)
     return fig
 
 
@@ -104,12 +107,7 @@ def hertz_verification(group: list[SeriesData]) -> Figure:
         k = model_curve("hertz", s.case, grid)
         ax.plot(grid, k, "-", color=color, lw=1)
         ax.fill_between(grid, k * (1 - HERTZ_BAND), k * (1 + HERTZ_BAND), color=color, alpha=0.15)
-    ax.set_xlabel("load per ball F [N]")
-    ax.set_ylabel("stiffness k [N/m]")
-    ax.set_title("ball verification: measured vs Hertz (±5 %)", fontsize=10)
-    ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    _finish(ax, "load per ball F [N]", "stiffness k [N/m]", "ball verification: measured vs Hertz (±5 %)")
     return fig
 
 
@@ -160,11 +158,8 @@ def frequency_load(series: SeriesData, data: ReportData) -> Figure:
     name = "Hertz" if reference == "hertz" else FITS[reference].equation
     ax.plot(grid[ok], [m.bounce_hz for m in modes], "k-", lw=1, label=f"rig model, bounce ({name} stiffness)")
     ax.plot(grid[ok], [m.tilt_hz[0] for m in modes], "k--", lw=1, label=f"rig model, tilt ({name} stiffness)")
-    ax.set_xlabel("load per roller F [N]")
-    ax.set_ylabel("frequency [Hz]")
-    ax.set_title(f"{series.label}: contact-mode frequencies vs load", fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    _finish(ax, "load per roller F [N]", "frequency [Hz]", f"{series.label}: contact-mode frequencies vs load",
+            legend_size=7, sci_y=False)
     return fig
 
 
