@@ -271,6 +271,9 @@ def test_export_of_corrupt_or_truncated_campaigns_fails_with_one_line(campaign, 
                           "no stored step matches run 9")
     assert_one_line_error(labctl_here(capsys, "export", str(campaign), "--uff", str(tmp_path / "o.uff"), "--no-time",
                                       "--no-frf"), "nothing to export")
+    two = tmp_path / "two.uff"
+    labctl_here_json(capsys, "export", str(campaign), "--uff", str(two), "--run", "1", "--binary", "--no-frf")
+    assert_one_line_error(labctl_here(capsys, "identify", str(two)), "load steps", "--step")
 
 
 def test_sample_rate_recovered_from_six_digit_intervals():

@@ -9,6 +9,7 @@ per channel (some exporters leave them 0) is grouped by the order of the records
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter, defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ from labctl.uff import mapping as m
 from labctl.uff.manifest import format_load_cases
 
 TAIL_BYTES = 256
+STEP_ID = re.compile(r"(series \d+ run \d+ step \d+) impact \d+")  # id2 of a labctl export
 
 
 @dataclass(frozen=True)
@@ -307,5 +309,13 @@ def _record(uff: UffFile, h: Header, sign: float, *, accel: bool) -> np.ndarray:
 
 
 def load_impacts_uff(path: str | Path, nodes: m.NodeMap = m.DEFAULT_NODES) -> ImpactSet:
-    """A UFF58 file's time records as the impacts set ``labctl identify`` processes (same type as the NPZ)."""
-    return read_uff_impacts(path, nodes).impact_set()
+    """A UFF58 file's time records as the impacts set ``labctl identify`` processes (same type as the NPZ).
+
+    A labctl export of several load steps is refused: its impacts must not be averaged into one FRF.
+    """
+    impacts = read_uff_impacts(path, nodes)
+    steps = {match.group(1) for ids in impacts.ids if (match := STEP_ID.match(ids[1] if len(ids) > 1 else ""))}
+    if len(steps) > 1:
+        raise InputError(f"{path}: holds the impacts of {len(steps)} load steps; identify one step at a time "
+                         "(labctl export --step N) or make a campaign of them with labctl import")
+    return impacts.impact_set()
