@@ -12,8 +12,6 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from drivers.errors import DeviceError
 from drivers.interfaces import Record, Rig, TriggerSpec
 from labctl import events as ev
@@ -25,6 +23,7 @@ from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
+from labctl.recording import store_curve
 from labctl.storage import schema
 from labctl.storage.writer import CampaignWriter
 
@@ -194,25 +193,8 @@ class Engine:
         return self._store_curve(series, run, spec)
 
     def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> dict:
-        rg = self.writer.h5[schema.series_name(series)][schema.run_name(run)]
-        rows = []
-        for name in sorted(k for k in rg if k.startswith("step_")):
-            g = rg[name]
-            res = g.get(schema.RESULT)
-            if res is None or not res.attrs.get(schema.COMPLETE):
-                continue
-            tilt = np.asarray(res.attrs.get("tilt_hz", [np.nan, np.nan]), dtype=float).ravel()
-            if tilt.size < 2:
-                tilt = np.array([np.nan, np.nan])
-            rows.append((float(g.attrs["load_n"]), float(res.attrs["roller_stiffness_n_per_m"]),
-                         float(res.attrs.get("roller_stiffness_std_n_per_m", np.nan)), float(res.attrs["bounce_hz"]),
-                         float(res.attrs.get("bounce_damping_ratio", np.nan)), tilt[0], tilt[1],
-                         float(res.attrs.get("coherence_at_bounce", np.nan)), float(g.attrs["knob_angle_deg"])))
-        cols = ("load_n", "stiffness_n_per_m", "stiffness_std_n_per_m", "bounce_hz", "bounce_damping_ratio",
-                "tilt_a_hz", "tilt_b_hz", "coherence_at_bounce", "knob_angle_deg")
-        table = {c: np.array([r[i] for r in rows]) for i, c in enumerate(cols)}
-        self.writer.write_curve(series, run, table)
-        refs = reference_curves(spec.case(), spec.kind, table["load_n"]) if rows else {}
+        table = store_curve(self.writer, series, run)
+        refs = reference_curves(spec.case(), spec.kind, table["load_n"]) if table["load_n"].size else {}
         self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(table["load_n"]),
                                   tuple(table["stiffness_n_per_m"]), {k: tuple(v) for k, v in refs.items()}))
         return {"series": series, "run": run, "specimen": spec.label, **{k: v.tolist() for k, v in table.items()}}

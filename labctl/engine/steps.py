@@ -11,6 +11,7 @@ import numpy as np
 from drivers.interfaces import Rig
 from labctl import events as ev
 from labctl.processing import CheckConfig, ProcessingError, check_impact, identify
+from labctl.recording import store_step_result
 from labctl.storage import schema
 from labctl.storage.reader import step_impacts
 from labctl.storage.writer import ImpactData
@@ -203,15 +204,9 @@ class StepRunner:
                              accel_ranges=data.accel_ranges, force_range_n=data.force_range_n, config=self.checks)
         except ProcessingError as exc:
             e.emit(ev.StepFailed(e.now(), pos, str(exc)))
-            e.writer.write_step_result(self.series, self.run, step, {"failed": str(exc)})
-            g = self._group(step)
-            del g[schema.RESULT]
-            g.attrs[schema.COMPLETE] = True
+            store_step_result(e.writer, self.series, self.run, step, str(exc), data.attempts)
             return None
-        summary = ident.to_dict()
-        summary["impacts"] = [{**imp, "attempt": data.attempts[i]} for i, imp in enumerate(summary.get("impacts", []))]
-        e.writer.write_step_result(self.series, self.run, step, summary, ident.frequencies_hz, ident.h1,
-                                   ident.coherence)
+        store_step_result(e.writer, self.series, self.run, step, ident, data.attempts)
         e.emit(ev.StepProcessed(e.now(), pos, load, ident.bounce_hz, tuple(ident.tilt_hz),
                                 ident.roller_stiffness_n_per_m, ident.coherence_at_bounce, ident.frequencies_hz,
                                 np.abs(ident.h1), ident.coherence, tuple(ident.channels)))

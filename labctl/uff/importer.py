@@ -15,13 +15,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from labctl.engine.sequencer import specimen_attrs
 from labctl.errors import InputError
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.processing import CheckConfig, Identification, ProcessingError, check_impact, identify
 from labctl.protocol import SpecimenSpec
+from labctl.recording import store_curve, store_step_result
 from labctl.storage import CampaignWriter, ImpactData
 from labctl.uff import mapping as m
 from labctl.uff.manifest import ManifestRow, read_manifest
@@ -29,9 +28,6 @@ from labctl.uff.reader import ImpactPlan, UffFile, UffImpacts, plan_uff_impacts
 
 ROLLERS = 3
 DEFAULT_RAIL_RA_M = 0.2e-6
-CURVE_COLUMNS = ("load_n", "stiffness_n_per_m", "stiffness_std_n_per_m", "bounce_hz", "bounce_damping_ratio",
-                 "tilt_a_hz", "tilt_b_hz", "coherence_at_bounce", "knob_angle_deg")
-
 
 @dataclass(frozen=True)
 class ImportOptions:
@@ -201,8 +197,8 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
                 ident = _store_step(writer, p, data, rig, opts)
                 runs[(p.series, p.run)].append((p, ident))
                 summary.steps.append(_step_summary(p, data, ident))
-            for (s, r), steps in runs.items():
-                writer.write_curve(s, r, _curve(steps))
+            for s, r in runs:
+                store_curve(writer, s, r)
             writer.set_status("complete", f"imported from {len(opened)} UFF file(s)")
     except BaseException:
         out.unlink(missing_ok=True)
@@ -230,23 +226,12 @@ def _store_step(writer: CampaignWriter, p: PlannedStep, imp: UffImpacts, rig: Ri
     try:
         if not accepted:
             raise ProcessingError("no accepted impact in this step")
-        ident = identify(imp.force_n[accepted], imp.accel_m_per_s2[accepted], fs, imp.channels, rig,
-                         config=opts.checks)
+        ident: Identification | str = identify(imp.force_n[accepted], imp.accel_m_per_s2[accepted], fs,
+                                               imp.channels, rig, config=opts.checks)
     except ProcessingError as exc:
-        writer.update_step(p.series, p.run, p.step, {"failed": str(exc), "complete": True})
-        return str(exc)
-    summary = ident.to_dict()
-    summary["impacts"] = [{**imp_d, "attempt": accepted[j] + 1} for j, imp_d in enumerate(summary["impacts"])]
-    writer.write_step_result(p.series, p.run, p.step, summary, ident.frequencies_hz, ident.h1, ident.coherence)
+        ident = str(exc)
+    store_step_result(writer, p.series, p.run, p.step, ident, [i + 1 for i in accepted])
     return ident
-
-
-def _curve(steps: list[tuple[PlannedStep, Identification | str]]) -> dict[str, np.ndarray]:
-    """The repetition's stiffness-vs-load table (docs/storage.md), one row per identified step."""
-    rows = [(p.row.load_n, i.roller_stiffness_n_per_m, i.roller_stiffness_std_n_per_m, i.bounce_hz,
-             i.bounce_damping_ratio, *i.tilt_hz, i.coherence_at_bounce, p.row.knob_angle_deg)
-            for p, i in steps if isinstance(i, Identification)]
-    return {c: np.array([r[k] for r in rows], dtype=float) for k, c in enumerate(CURVE_COLUMNS)}
 
 
 def _step_summary(p: PlannedStep, imp: UffImpacts, ident: Identification | str) -> dict[str, Any]:
