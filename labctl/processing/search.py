@@ -2,10 +2,11 @@
 
 The contact modes are sought between the rig's support modes and its first flexible mode (both from the
 rig file). The fit band spans the dominant resonances there plus a few half-power bandwidths; the
-multi-channel LSCF estimate gives three start poles that the variable-projection fit refines. If the tilt
-pair is not resolved by the data (the fit's two tilt poles are closer than their uncertainty, or a pole
-left the band), a two-mode fit is compared by the Bayesian information criterion and, when it explains
-the data as well, the pair is reported as degenerate.
+multi-channel LSCF estimate gives three start poles that the variable-projection fit refines. If that fit
+is not clearly resolved (a pole poorly determined, implausibly damped, too weak to matter or not worth
+its parameters, or the two tilt poles within their uncertainty), a two-mode fit is made and the pair is
+restarted from a few splits around its tilt; the best three-mode fit is kept only when the Bayesian
+information criterion prefers it, otherwise the pair is reported as degenerate.
 """
 
 from __future__ import annotations
@@ -44,13 +45,13 @@ def search_range_hz(rig: RigConfig, pred: PredictedShapes, f_top_hz: float) -> t
     """Above the support modes, below the first flexible mode (or the top of the spectra)."""
     lo = max(3.0 * pred.support_hz, 20.0)
     flex = [m.frequency_hz for m in rig.flexible_modes]
-    hi = min([0.95 * min(flex)] if flex else [f_top_hz]) if flex else f_top_hz
+    hi = 0.95 * min(flex) if flex else f_top_hz
     return lo, min(hi, f_top_hz)
 
 
 def fit_band(freqs_hz: np.ndarray, h: np.ndarray, lo_hz: float, hi_hz: float, zeta: float,
              band_widths: float) -> slice:
-    """Bins spanning the (up to three) most prominent resonances plus ``band_widths`` half-power widths."""
+    """Lines spanning the (up to six) most prominent resonances plus ``band_widths`` half-power widths."""
     i0, i1 = np.searchsorted(freqs_hz, [lo_hz, hi_hz])
     if i1 - i0 < 8:
         raise ProcessingError(f"no frequency lines between {lo_hz:.0f} and {hi_hz:.0f} Hz")
