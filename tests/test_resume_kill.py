@@ -25,7 +25,8 @@ def _impacts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out = {}
     with h5py.File(path, "r") as f:
         def visit(name, obj):
-            if isinstance(obj, h5py.Group) and name.rsplit("/", 1)[-1].startswith("impact_") and obj.attrs.get("complete"):
+            is_impact = isinstance(obj, h5py.Group) and name.rsplit("/", 1)[-1].startswith("impact_")
+            if is_impact and obj.attrs.get("complete"):
                 out[name] = (obj["force_n"][()], obj["accel_m_per_s2"][()])
         f.visititems(visit)
     return out
