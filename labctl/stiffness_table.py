@@ -13,6 +13,7 @@ from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
 
+from labctl.data.csvfile import read_csv_records
 from labctl.errors import InputError
 from labctl.physics.catalogue import Roller, rollers
 from labctl.physics.effects import ContactCase
@@ -164,26 +165,8 @@ def _row_point(path: Path, row: int, record: dict[str, str]) -> StiffnessPoint:
 def read_stiffness_table(path: str | Path) -> list[StiffnessPoint]:
     """Parse a stiffness-table CSV; any problem is an InputError naming the file, row, column and value."""
     p = Path(path)
-    try:
-        with p.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.DictReader(fh)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            missing = [c for c in REQUIRED if c not in header]
-            if missing:
-                raise InputError(f"{p}: missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
-                                 f"(required: {', '.join(REQUIRED)})")
-            reader.fieldnames = header
-            points = []
-            for record in reader:
-                if not any((v or "").strip() for v in record.values() if isinstance(v, str)):
-                    continue
-                points.append(_row_point(p, reader.line_num, record))
-    except FileNotFoundError:
-        raise InputError(f"{p}: file not found") from None
-    except IsADirectoryError:
-        raise InputError(f"{p}: is a directory, expected a stiffness-table CSV") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{p}: not a readable CSV file ({exc})") from None
+    records = read_csv_records(p, what="stiffness-table CSV", required=REQUIRED)
+    points = [_row_point(p, line, record) for line, record in records]
     if not points:
         raise InputError(f"{p}: no data rows (expected one row per measured point under the header)")
     return points

@@ -8,12 +8,12 @@ left out when one file is imported), ``load_cases`` (its impacts, e.g. ``1-3`` o
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from labctl.data.csvfile import read_csv_records
 from labctl.errors import InputError
 
 MANIFEST_COLUMNS = ("file", "load_cases", "load_n", "repetition", "step", "knob_angle_deg", "roller_type",
@@ -106,27 +106,9 @@ def _row(path: Path, line: int, rec: dict[str, str]) -> ManifestRow:
 def read_manifest(path: str | Path) -> list[ManifestRow]:
     """Parse and check a manifest; steps of one repetition must be distinct."""
     p = Path(path)
-    try:
-        with p.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.DictReader(fh)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            missing = [c for c in REQUIRED if c not in header]
-            if missing:
-                raise InputError(f"{p}: missing column(s) {', '.join(missing)} (a manifest has "
-                                 f"{', '.join(MANIFEST_COLUMNS)}; load_n and repetition are required)")
-            unknown = [h for h in header if h and h not in MANIFEST_COLUMNS]
-            if unknown:
-                raise InputError(f"{p}: unknown column(s) {', '.join(unknown)}; expected among "
-                                 f"{', '.join(MANIFEST_COLUMNS)}")
-            reader.fieldnames = header
-            rows = [_row(p, reader.line_num, rec) for rec in reader
-                    if any((v or "").strip() for v in rec.values() if isinstance(v, str))]
-    except FileNotFoundError:
-        raise InputError(f"{p}: manifest not found") from None
-    except IsADirectoryError:
-        raise InputError(f"{p}: is a directory, expected a manifest CSV") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{p}: not a readable CSV file ({exc})") from None
+    layout = f"a manifest has {', '.join(MANIFEST_COLUMNS)}; load_n and repetition are required"
+    records = read_csv_records(p, what="manifest", required=REQUIRED, allowed=MANIFEST_COLUMNS, layout=layout)
+    rows = [_row(p, line, rec) for line, rec in records]
     if not rows:
         raise InputError(f"{p}: no rows (expected one row per load step under the header)")
     return rows

@@ -1,0 +1,39 @@
+"""Reading a small CSV file as (line number, record) pairs with errors that name the file and the problem."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+
+from labctl.errors import InputError
+
+
+def read_csv_records(path: str | Path, *, what: str, required: Sequence[str], allowed: Sequence[str] | None = None,
+                     layout: str = "") -> list[tuple[int, dict[str, str]]]:
+    """Records keyed by stripped header names, blank rows skipped; missing or unknown columns are refused.
+
+    ``what`` names the kind of file in messages (``stiffness-table CSV``, ``manifest``); ``layout`` says which
+    columns such a file has.
+    """
+    p = Path(path)
+    note = f"; {layout}" if layout else f" (required: {', '.join(required)})"
+    try:
+        with p.open(newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            missing = [c for c in required if c not in header]
+            if missing:
+                raise InputError(f"{p}: missing column(s) {', '.join(missing)}{note}")
+            unknown = [h for h in header if h and allowed is not None and h not in allowed]
+            if unknown:
+                raise InputError(f"{p}: unknown column(s) {', '.join(unknown)}; expected among {', '.join(allowed)}")
+            reader.fieldnames = header
+            return [(reader.line_num, rec) for rec in reader
+                    if any((v or "").strip() for v in rec.values() if isinstance(v, str))]
+    except FileNotFoundError:
+        raise InputError(f"{p}: file not found (expected a {what})") from None
+    except IsADirectoryError:
+        raise InputError(f"{p}: is a directory, expected a {what}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{p}: not a readable CSV file ({exc})") from None
