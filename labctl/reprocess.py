@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from labctl.physics.rig_config import RigConfig, load_rig
+from labctl.physics.rig_config import RigConfig, load_rig, rig_from_text
 from labctl.processing import ProcessingError, identify
 from labctl.protocol import parse_protocol
 from labctl.stiffness_table import StiffnessPoint
@@ -37,16 +37,7 @@ class Processed:
 def rig_of(reader: CampaignReader) -> RigConfig:
     """The rig description stored in the campaign (falls back to the shipped default)."""
     text = reader.config_text("rig.toml")
-    if not text:
-        return load_rig()
-    import tempfile
-
-    with tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False) as fh:
-        fh.write(text)
-    try:
-        return load_rig(fh.name)
-    finally:
-        Path(fh.name).unlink(missing_ok=True)
+    return rig_from_text(text, f"{reader.path}:/config/rig.toml") if text else load_rig()
 
 
 def process_campaign(path: str | Path) -> Processed:

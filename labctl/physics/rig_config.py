@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -124,7 +125,20 @@ def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: str) -> Sensor
 def load_rig(path: str | Path | None = None) -> RigConfig:
     """Read a rig file (the shipped paper rig by default), converting to SI and naming any bad field."""
     p = str(path or data_path(DEFAULT_RIG))
-    doc = read_toml(p)
+    return rig_from_doc(read_toml(p), p)
+
+
+def rig_from_text(text: str, source: str) -> RigConfig:
+    """A rig description from TOML text (e.g. the copy stored in a campaign file); ``source`` names it."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{source}: not valid TOML ({exc})") from None
+    return rig_from_doc(doc, source)
+
+
+def rig_from_doc(doc: dict[str, Any], p: str) -> RigConfig:
+    """Validate a parsed rig document; errors name ``p`` and the key."""
     discs = {"upper": _disc(doc, "upper_disc", p), "lower": _disc(doc, "lower_disc", p)}
     contacts = require(doc, "contacts", dict, p)
     angles = require(contacts, "angles_deg", list, f"{p}: contacts")
