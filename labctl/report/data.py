@@ -6,7 +6,6 @@ model curves come from ``labctl.physics``.
 
 from __future__ import annotations
 
-import contextlib
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -14,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from labctl.errors import InputError, ModelDomainError
-from labctl.physics import ContactCase, RigConfig, baseline_model, material
+from labctl.errors import InputError
+from labctl.physics import ContactCase, RigConfig, material
 from labctl.reprocess import rig_of
 from labctl.storage import CampaignReader
 from labctl.storage.table import specimen_point
@@ -137,16 +136,6 @@ def specimen_case(specimen: dict[str, Any]) -> ContactCase:
     case = specimen_point(specimen, 1, 1.0, 1.0).case()
     rail = specimen.get("rail_material")
     return replace(case, rail=material(rail)) if rail else case
-
-
-def model_curve(name: str, case: ContactCase, load_n: np.ndarray) -> np.ndarray:
-    """A baseline model's stiffness at the loads; NaN where it is not defined (Eq. 5 at very low load)."""
-    model = baseline_model(name, case)
-    out = np.full(load_n.shape, np.nan)
-    for i, f in enumerate(load_n):
-        with contextlib.suppress(ModelDomainError):
-            out[i] = float(model.stiffness_n_per_m(f))
-    return out
 
 
 def _verdicts(step: Any) -> tuple[int, int, list[str]]:

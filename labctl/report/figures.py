@@ -14,8 +14,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from labctl.physics import FITS, EmpiricalFit, rig_modes
-from labctl.physics.references import fit_for_rail
-from labctl.report.data import FrfStep, ReportData, SeriesData, model_curve
+from labctl.physics.references import fit_for_rail, model_curve
+from labctl.report.data import FrfStep, ReportData, SeriesData
 
 MM = 1e-3
 CURVE_POINTS = 80

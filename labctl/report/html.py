@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from labctl import __version__
-from labctl.physics.references import fit_for_rail
+from labctl.physics.references import fit_for_rail, model_curve
 from labctl.physics.world import world_path
-from labctl.report.data import ReportData, SeriesData, model_curve
+from labctl.report.data import ReportData, SeriesData
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
