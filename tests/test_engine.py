@@ -165,3 +165,33 @@ def test_operator_override_rejects_an_accepted_impact_and_it_is_hit_again(tmp_pa
         step = f["series_01/run_01/step_001"]
         assert not step["impact_001"].attrs["accepted"] and "operator_rejected" in step["impact_001"].attrs["reasons"]
         assert [bool(step[f"impact_00{i}"].attrs["accepted"]) for i in (2, 3)] == [True, True]
+
+
+def test_a_step_that_cannot_be_identified_is_stored_failed_and_the_loading_goes_on(tmp_path):
+    from drivers.sim import twin_of
+    from labctl.campaign import rig_factory
+
+    base = rig_factory("sim", load_rig(), seed=4)
+
+    def factory(spec, series):
+        rig = base(spec, series)
+        twin, strike, blows = twin_of(rig), rig.hammer.strike, [0]
+
+        def strike_double_at_first() -> None:  # step 1: the blow, its 5 re-hits and one more are double hits
+            blows[0] += 1
+            if blows[0] <= 7:
+                twin.next_blow_double(delay_s=0.005, ratio=0.3)
+            strike()
+
+        rig.hammer.strike = strike_double_at_first
+        return rig
+
+    outcome, rec = run_engine(tmp_path / "c.h5", short_protocol(reps=1, max_load=120.0), factory)
+    assert outcome.status == "complete"
+    assert [e.position.step for e in rec.of(ev.StepFailed)] == [1]
+    with CampaignReader(tmp_path / "c.h5") as r:
+        steps = r.runs(1)[0].steps
+        assert len(steps) == 2 and steps[1].load_n > steps[0].load_n + 50
+        assert "no accepted impact" in steps[0].attrs["failed"] and steps[0].result is None
+        assert steps[1].result is not None
+        assert r.curve(1, 1)["load_n"].tolist() == [steps[1].load_n]

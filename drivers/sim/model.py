@@ -47,6 +47,12 @@ class RigLike(Protocol):
     @property
     def preload_per_roller_n(self) -> float: ...
 
+    @property
+    def roller_count(self) -> int: ...
+
+    @property
+    def load_per_knob_degree_n(self) -> float: ...
+
 
 class ModesLike(Protocol):
     """Rigid-body modes of the rig for one set of roller stiffnesses (``labctl.physics.rig.RigModes``)."""

@@ -20,7 +20,6 @@ from drivers.interfaces import Record, TriggerSpec
 from drivers.sim.model import ModesFunction, ModesLike, RigLike, SeatedRoller, SimSettings, Specimen
 from drivers.sim.response import Blow, digitise, modal_model, response
 
-ROLLERS = 3
 SETTLE_OVERSHOOT = 0.03  # fraction of a load step the load cell overshoots right after a knob turn
 
 
@@ -78,15 +77,9 @@ class RigTwin:
     def preload_n(self) -> float:
         return float(self.rig.preload_per_roller_n)
 
-    @property
-    def _newtons_per_degree(self) -> float:
-        """Load per roller added by one degree of knob turn (all rods' spring pairs share the three rollers)."""
-        ld = self.rig.loading
-        return ld.rods * ld.spring_rate_n_per_m * ld.thread_pitch_m / 360.0 / ROLLERS
-
     def load_per_roller_n(self) -> float:
         """Load on each roller now: preload + spring force (the nut takes up slack first) + creep since the turn."""
-        spring = max(0.0, self.knob_angle_deg) * self._newtons_per_degree
+        spring = max(0.0, self.knob_angle_deg) * self.rig.load_per_knob_degree_n
         creep = self._creep_n + self.creep_n_per_s * (self.time_s - self._creep_since_s)
         return max(self.preload_n, self.preload_n + spring + creep)
 
@@ -98,7 +91,7 @@ class RigTwin:
         self.knob_angle_deg += angle_deg
         self.time_s += abs(angle_deg) * self.settings.knob_turn_s_per_deg
         self._creep_n, self._creep_since_s = 0.0, self.time_s
-        self._overshoot_n = SETTLE_OVERSHOOT * ROLLERS * (self.load_per_roller_n() - before)
+        self._overshoot_n = SETTLE_OVERSHOOT * self.rig.roller_count * (self.load_per_roller_n() - before)
         self._reads_since_turn = 0
 
     def set_load_per_roller(self, load_n: float) -> None:
@@ -107,7 +100,7 @@ class RigTwin:
             raise ValueError(
                 f"load {load_n!r} N per roller is below the preload {self.preload_n:.1f} N (the upper disc's weight)"
             )
-        self.knob_angle_deg = (load_n - self.preload_n) / self._newtons_per_degree
+        self.knob_angle_deg = (load_n - self.preload_n) / self.rig.load_per_knob_degree_n
         self._creep_n, self._creep_since_s = 0.0, self.time_s
         self._overshoot_n = 0.0
         self._reads_since_turn = self.settings.load_cell_settle_reads
@@ -119,8 +112,9 @@ class RigTwin:
         settled = self._reads_since_turn >= s.load_cell_settle_reads
         transient = 0.0 if settled else self._overshoot_n * 0.5**self._reads_since_turn
         self._reads_since_turn += 1
-        value = ROLLERS * self.load_per_roller_n() + transient + self._rng_cell.normal(0.0, s.load_cell_noise_n)
-        drifting = abs(ROLLERS * self.creep_n_per_s) > s.stable_rate_n_per_s
+        rollers = self.rig.roller_count
+        value = rollers * self.load_per_roller_n() + transient + self._rng_cell.normal(0.0, s.load_cell_noise_n)
+        drifting = abs(rollers * self.creep_n_per_s) > s.stable_rate_n_per_s
         return float(value - self._tare_n), settled and not drifting
 
     def tare(self) -> None:
@@ -130,7 +124,7 @@ class RigTwin:
 
     # --- rollers and dynamics ------------------------------------------------------------------------
     def _seat(self) -> list[SeatedRoller]:
-        return [self.specimen.seat(self._rng_seat) for _ in range(ROLLERS)]
+        return [self.specimen.seat(self._rng_seat) for _ in range(self.rig.roller_count)]
 
     def rotate_rollers(self) -> None:
         """The disc was lifted and the rollers turned ~±5°: each roller now touches on a new contact spot."""

@@ -9,12 +9,6 @@ from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 
 
-def load_per_knob_degree(rig: RigConfig) -> float:
-    """Nominal load increase per roller per degree of knob turn, from the rig's spring calibration."""
-    lo = rig.loading
-    return lo.rods * lo.spring_rate_n_per_m * lo.thread_pitch_m / 360.0 / len(rig.contact_angles_rad)
-
-
 @dataclass(frozen=True)
 class StepPlan:
     step_angle_deg: float
@@ -24,7 +18,7 @@ class StepPlan:
 
 def plan_steps(protocol: Protocol, spec: SpecimenSpec, rig: RigConfig) -> StepPlan:
     """Knob angle per step (a multiple of the protocol's step, so at most ``max_steps`` steps reach the cap)."""
-    per_step = load_per_knob_degree(rig) * spec.knob_step_deg
+    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
     span = max(spec.max_load_n - rig.preload_per_roller_n, 0.0)
     needed = int(math.floor(span / per_step + 1e-9)) + 1
     multiple = max(1, math.ceil(needed / protocol.loading.max_steps))
@@ -36,4 +30,4 @@ def next_load_n(loads: list[float], step_angle_deg: float, rig: RigConfig) -> fl
     """Expected load after one more step: the last measured increment, or the rig's calibration at first."""
     if len(loads) >= 2 and loads[-1] > loads[-2]:
         return loads[-1] + (loads[-1] - loads[-2])
-    return loads[-1] + load_per_knob_degree(rig) * step_angle_deg
+    return loads[-1] + rig.load_per_knob_degree_n * step_angle_deg

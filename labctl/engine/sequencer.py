@@ -178,14 +178,12 @@ class Engine:
         loads: list[float] = []
         step = 1
         while True:
-            pos = ev.Position(series, run, step)
-            done = steps.completed_load(step)
-            if done is None:
-                self.checkpoint(pos)
-                done = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan)
-            if done is not None:
-                loads.append(done)
-            if not loads or step >= plan.steps_estimate + 5:
+            load = steps.completed_load(step)
+            if load is None:
+                self.checkpoint(ev.Position(series, run, step))
+                load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan)
+            loads.append(load)
+            if step >= plan.steps_estimate + 5:
                 break
             if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + 1e-6):
                 break

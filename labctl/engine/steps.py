@@ -21,9 +21,6 @@ if TYPE_CHECKING:
     from labctl.engine.sequencer import Engine
     from labctl.protocol import SpecimenSpec
 
-ROLLERS = 3
-
-
 def check_config(checks: dict[str, float]) -> CheckConfig:
     """The protocol's ``[checks]`` overrides (file units) as a processing CheckConfig."""
     from dataclasses import fields
@@ -51,48 +48,49 @@ class StepRunner:
         return rg.get(schema.step_name(step))
 
     def completed_load(self, step: int) -> float | None:
-        """The recorded load of a step already finished in the file (None if it still has to be run)."""
+        """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
         g = self._group(step)
-        if g is not None and g.attrs.get(schema.COMPLETE):
-            return float(g.attrs["load_n"]) if schema.RESULT in g else float("nan")
-        return None
+        return float(g.attrs["load_n"]) if g is not None and g.attrs.get(schema.COMPLETE) else None
 
-    def read_load(self, pos: ev.Position) -> tuple[float, bool]:
-        """Poll the load cell until it reports a stable value (or the settle time runs out): load per roller."""
-        lo = self.e.protocol.loading
-        deadline = time.monotonic() + lo.settle_timeout_s
-        while True:
-            reading = self.e.call("load cell", self.rig.load_cell.read)
-            if reading.stable or time.monotonic() >= deadline:
-                break
-            if lo.settle_poll_s:
-                time.sleep(lo.settle_poll_s)
-        load = reading.force_n / ROLLERS
+    def read_load_once(self, pos: ev.Position) -> tuple[float, bool]:
+        """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable."""
+        reading = self.e.call("load cell", self.rig.load_cell.read)
+        load = reading.force_n / self.e.rig_config.roller_count
         self.e.emit(ev.LoadMeasured(self.e.now(), pos, load, reading.stable))
         return load, reading.stable
 
-    def run_step(self, step: int, angle_deg: float, plan: StepPlan) -> float | None:
-        """Run (or finish) a step; returns its load, or None when the step could not be identified."""
+    def read_load(self, pos: ev.Position) -> tuple[float, bool]:
+        """Poll the load cell until it reports a stable value (or the settle time runs out)."""
+        lo = self.e.protocol.loading
+        deadline = time.monotonic() + lo.settle_timeout_s
+        while True:
+            load, stable = self.read_load_once(pos)
+            if stable or time.monotonic() >= deadline:
+                return load, stable
+            if lo.settle_poll_s:
+                time.sleep(lo.settle_poll_s)
+
+    def run_step(self, step: int, angle_deg: float, plan: StepPlan) -> float:
+        """Run (or finish) a step and return its load (a step that cannot be identified is stored as failed)."""
         e, pos = self.e, ev.Position(self.series, self.run, step)
         existing = self._group(step)
         delta = angle_deg - self.rig.actuator.knob_angle_deg
-        expected = e.rig_config.preload_per_roller_n + angle_deg * _per_degree(e)
+        expected = e.rig_config.preload_per_roller_n + angle_deg * e.rig_config.load_per_knob_degree_n
         e.emit(ev.StepStarted(e.now(), pos, plan.steps_estimate, angle_deg, expected))
         if abs(delta) > 1e-9:  # a manual actuator asks the technician, who may take as long as needed
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
         self._interlock(load, plan, pos)
         if existing is None or "load_n" not in existing.attrs:
-            e.writer.step(self.series, self.run, step, {"knob_angle_deg": angle_deg, "load_n": load,
-                                                        "load_total_n": load * ROLLERS, "load_stable": stable,
-                                                        "expected_load_n": expected})
+            e.writer.step(self.series, self.run, step, {
+                "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
+                "load_stable": stable, "expected_load_n": expected})
         step_load = float(self._group(step).attrs["load_n"])
         self._take_impacts(step, pos)
-        reading = self.e.call("load cell", self.rig.load_cell.read)  # one reading: drift shows as it is
-        load_after = reading.force_n / ROLLERS
-        self.e.emit(ev.LoadMeasured(self.e.now(), pos, load_after, reading.stable))
+        load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
         self._check_drift(step, step_load, load_after, pos)
-        return self._identify(step, pos, step_load)
+        self._identify(step, pos, step_load)
+        return step_load
 
     def _interlock(self, load: float, plan: StepPlan, pos: ev.Position) -> None:
         from labctl.engine.sequencer import Interlock
@@ -194,7 +192,7 @@ class StepRunner:
                         float(check.pulse_width_s), record.sample_rate_hz, force, accel, tuple(record.channels)))
         return accepted
 
-    def _identify(self, step: int, pos: ev.Position, load: float) -> float | None:
+    def _identify(self, step: int, pos: ev.Position, load: float) -> None:
         e = self.e
         data = step_impacts(self._group(step), accepted_only=True)
         try:
@@ -205,15 +203,8 @@ class StepRunner:
         except ProcessingError as exc:
             e.emit(ev.StepFailed(e.now(), pos, str(exc)))
             store_step_result(e.writer, self.series, self.run, step, str(exc), data.attempts)
-            return None
+            return
         store_step_result(e.writer, self.series, self.run, step, ident, data.attempts)
         e.emit(ev.StepProcessed(e.now(), pos, load, ident.bounce_hz, tuple(ident.tilt_hz),
                                 ident.roller_stiffness_n_per_m, ident.coherence_at_bounce, ident.frequencies_hz,
                                 np.abs(ident.h1), ident.coherence, tuple(ident.channels)))
-        return load
-
-
-def _per_degree(engine: Engine) -> float:
-    from labctl.engine.plan import load_per_knob_degree
-
-    return load_per_knob_degree(engine.rig_config)

@@ -93,9 +93,19 @@ class RigConfig:
         return tuple(ch for s in self.sensors for ch in s.channels)
 
     @property
+    def roller_count(self) -> int:
+        return len(self.contact_angles_rad)
+
+    @property
     def preload_per_roller_n(self) -> float:
         """Initial load on each roller: the upper disc and its rails resting on the rollers."""
-        return self.upper.mass_kg * self.loading.gravity_m_per_s2 / len(self.contact_angles_rad)
+        return self.upper.mass_kg * self.loading.gravity_m_per_s2 / self.roller_count
+
+    @property
+    def load_per_knob_degree_n(self) -> float:
+        """Load per roller added by one degree of star-knob turn: every rod's spring pair, shared by the rollers."""
+        lo = self.loading
+        return lo.rods * lo.spring_rate_n_per_m * lo.thread_pitch_m / 360.0 / self.roller_count
 
     def with_setup_stiffness(self, k_setup_n_per_m: float) -> RigConfig:
         """The same rig with another K_setup (e.g. stress stiffening)."""

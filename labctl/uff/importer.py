@@ -26,7 +26,6 @@ from labctl.uff import mapping as m
 from labctl.uff.manifest import ManifestRow, read_manifest
 from labctl.uff.reader import ImpactPlan, UffFile, UffImpacts, plan_uff_impacts
 
-ROLLERS = 3
 DEFAULT_RAIL_RA_M = 0.2e-6
 
 @dataclass(frozen=True)
@@ -212,7 +211,7 @@ def _store_step(writer: CampaignWriter, p: PlannedStep, imp: UffImpacts, rig: Ri
     fs = opts.sample_rate_hz or imp.fs_hz
     load = p.row.load_n
     writer.step(p.series, p.run, p.step, {"knob_angle_deg": p.row.knob_angle_deg, "load_n": load,
-                                          "load_total_n": load * ROLLERS, "load_stable": True,
+                                          "load_total_n": load * rig.roller_count, "load_stable": True,
                                           "source_file": str(p.file), "load_cases": list(imp.load_cases)})
     accepted = []
     for i in range(len(imp.load_cases)):
