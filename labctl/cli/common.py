@@ -59,8 +59,3 @@ def run_command(args: argparse.Namespace) -> int:
 
 def add_json(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object on stdout")
-
-
-def sci(values: Any, digits: int = 4) -> str:
-    """Numbers in compact scientific notation for text output."""
-    return ", ".join(f"{v:.{digits}g}" for v in np.atleast_1d(values))

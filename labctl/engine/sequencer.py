@@ -98,12 +98,8 @@ class Engine:
         self.emit(ev.Progress(self.now(), pos, self.impacts_done, self.impacts_total, eta))
 
     def _count_done(self) -> int:
-        n = 0
-        for sname in (k for k in self.writer.h5 if k.startswith("series_")):
-            for run in self.writer.h5[sname].values():
-                for step in (v for k, v in run.items() if k.startswith("step_")):
-                    n += sum(1 for k, g in step.items() if k.startswith("impact_") and g.attrs.get("accepted"))
-        return n
+        return sum(bool(impact.attrs.get("accepted")) for step in schema.all_steps(self.writer.h5)
+                   for impact in schema.children(step, "impact_"))
 
     # --- campaign -----------------------------------------------------------------------------------------
     def run(self) -> Outcome:

@@ -98,11 +98,7 @@ class CampaignReader:
         return attrs_of(self.h5)
 
     def config_text(self, name: str) -> str | None:
-        cfg = self.h5.get(s.CONFIG)
-        if cfg is None or name not in cfg:
-            return None
-        value = cfg[name][()]
-        return value.decode() if isinstance(value, bytes) else str(value)
+        return s.stored_text(self.h5, name)
 
     def series_indices(self) -> list[int]:
         return sorted(s.index_of(k) for k in self.h5 if k.startswith("series_"))
@@ -112,26 +108,20 @@ class CampaignReader:
 
     def runs(self, series: int) -> list[RunInfo]:
         out = []
-        sg = self.h5[s.series_name(series)]
-        for rname in sorted(k for k in sg if k.startswith("run_")):
-            rg = sg[rname]
-            run = RunInfo(series, s.index_of(rname), bool(rg.attrs.get(s.COMPLETE, False)))
-            for stname in sorted(k for k in rg if k.startswith("step_")):
-                run.steps.append(self._step_info(series, run.run, rg[stname]))
+        for rg in s.children(self.h5[s.series_name(series)], "run_"):
+            run = RunInfo(series, s.number(rg), bool(rg.attrs.get(s.COMPLETE, False)))
+            run.steps = [self._step_info(series, run.run, g) for g in s.children(rg, "step_")]
             out.append(run)
         return out
 
     def _step_info(self, series: int, run: int, g: h5py.Group) -> StepInfo:
         impacts = []
-        for name in sorted(k for k in g if k.startswith("impact_")):
-            ig = g[name]
-            if not ig.attrs.get(s.COMPLETE, False):
-                continue
-            a = attrs_of(ig)
-            impacts.append(ImpactInfo(s.index_of(name), bool(a.get("accepted")), list(a.get("reasons", [])), a))
+        for ig in s.children(g, "impact_"):
+            if ig.attrs.get(s.COMPLETE, False):
+                a = attrs_of(ig)
+                impacts.append(ImpactInfo(s.number(ig), bool(a.get("accepted")), list(a.get("reasons", [])), a))
         result = attrs_of(g[s.RESULT]) if s.RESULT in g and g[s.RESULT].attrs.get(s.COMPLETE, False) else None
-        return StepInfo(series, run, s.index_of(g.name.rsplit("/", 1)[1]), attrs_of(g), impacts, result,
-                        bool(g.attrs.get(s.COMPLETE, False)))
+        return StepInfo(series, run, s.number(g), attrs_of(g), impacts, result, bool(g.attrs.get(s.COMPLETE, False)))
 
     def step_group(self, series: int, run: int, step: int) -> h5py.Group:
         return self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
@@ -199,7 +189,3 @@ def step_impacts(group: h5py.Group, *, accepted_only: bool = False) -> StepImpac
         return StepImpacts(fs, np.empty((0, 0)), np.empty((0, 0, 0)), channels, [], [], {}, {})
     return StepImpacts(fs, np.stack(forces).astype(float), np.stack(accels).astype(float), channels, attempts,
                        accepted, f_attrs, a_attrs)
-
-
-def open_campaign(path: str | Path) -> CampaignReader:
-    return CampaignReader(path)

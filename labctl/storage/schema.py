@@ -1,6 +1,10 @@
-"""Names and versions of the campaign file layout (documented in docs/storage.md)."""
+"""Names and versions of the campaign file layout (documented in docs/storage.md), and how to walk it."""
 
 from __future__ import annotations
+
+from collections.abc import Iterator
+
+import h5py
 
 FORMAT = "labctl-campaign"
 FORMAT_VERSION = 1
@@ -32,3 +36,32 @@ def impact_name(attempt: int) -> str:
 def index_of(name: str) -> int:
     """The 1-based number at the end of a group name (``step_007`` → 7)."""
     return int(name.rsplit("_", 1)[1])
+
+
+def number(group: h5py.Group) -> int:
+    """The number of a series, run, step or impact group (``…/step_007`` → 7)."""
+    return index_of(group.name.rsplit("/", 1)[-1])
+
+
+def children(group: h5py.Group, prefix: str) -> list[h5py.Group]:
+    """Sub-groups named ``<prefix>NN…`` (``series_``, ``run_``, ``step_``, ``impact_``) in number order."""
+    return [group[k] for k in sorted(group) if k.startswith(prefix) and isinstance(group[k], h5py.Group)]
+
+
+def all_runs(h5: h5py.File) -> Iterator[h5py.Group]:
+    for series in children(h5, "series_"):
+        yield from children(series, "run_")
+
+
+def all_steps(h5: h5py.File) -> Iterator[h5py.Group]:
+    for run in all_runs(h5):
+        yield from children(run, "step_")
+
+
+def stored_text(h5: h5py.File, name: str) -> str | None:
+    """A configuration file's text kept under ``/config`` (None when the campaign has none of that name)."""
+    cfg = h5.get(CONFIG)
+    if cfg is None or name not in cfg:
+        return None
+    value = cfg[name][()]
+    return value.decode() if isinstance(value, bytes) else str(value)

@@ -8,7 +8,6 @@ without it.
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -103,27 +102,17 @@ class CampaignWriter:
         return writer
 
     def _drop_incomplete(self) -> None:
-        for sname in [k for k in self.h5 if k.startswith("series_")]:
-            for rname in list(self.h5[sname]):
-                run = self.h5[sname][rname]
-                if not isinstance(run, h5py.Group):
-                    continue
-                for stname in [k for k in run if k.startswith("step_")]:
-                    step = run[stname]
-                    for name in [k for k in step if k.startswith("impact_")]:
-                        if not step[name].attrs.get(s.COMPLETE, False):
-                            del step[name]
-                    if s.RESULT in step and not step[s.RESULT].attrs.get(s.COMPLETE, False):
-                        del step[s.RESULT]
-                if s.CURVE in run and not run[s.CURVE].attrs.get(s.COMPLETE, False):
-                    del run[s.CURVE]
+        for run in list(s.all_runs(self.h5)):
+            for step in s.children(run, "step_"):
+                for group in [*s.children(step, "impact_"), step.get(s.RESULT)]:
+                    if group is not None and not group.attrs.get(s.COMPLETE, False):
+                        del self.h5[group.name]
+            curve = run.get(s.CURVE)
+            if curve is not None and not curve.attrs.get(s.COMPLETE, False):
+                del self.h5[curve.name]
 
     def config_text(self, name: str) -> str | None:
-        cfg = self.h5.get(s.CONFIG)
-        if cfg is None or name not in cfg:
-            return None
-        value = cfg[name][()]
-        return value.decode() if isinstance(value, bytes) else str(value)
+        return s.stored_text(self.h5, name)
 
     def _group(self, *names: str, attrs: Mapping[str, Any] | None = None) -> h5py.Group:
         g = self.h5
@@ -212,7 +201,3 @@ class CampaignWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def elapsed(start: float) -> float:
-    return time.monotonic() - start
