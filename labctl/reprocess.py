@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from labctl.physics.rig_config import RigConfig, load_rig, rig_from_text
-from labctl.processing import ProcessingError, identify
+from labctl.processing import CheckConfig, ProcessingError, identify
 from labctl.protocol import parse_protocol
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import CampaignReader
@@ -45,10 +45,7 @@ def process_campaign(path: str | Path) -> Processed:
     with CampaignReader(path) as reader:
         rig = rig_of(reader)
         proto_text = reader.config_text("protocol.toml")
-        checks = parse_protocol(proto_text, f"{path}:/config/protocol.toml").checks if proto_text else {}
-        from labctl.engine.steps import check_config
-
-        config = check_config(checks)
+        config = parse_protocol(proto_text, f"{path}:/config/protocol.toml").checks if proto_text else CheckConfig()
         out = Processed(str(path), str(reader.attrs.get("status", "")))
         for series in reader.series_indices():
             spec = reader.specimen(series)

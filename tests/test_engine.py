@@ -195,3 +195,18 @@ def test_a_step_that_cannot_be_identified_is_stored_failed_and_the_loading_goes_
         assert "no accepted impact" in steps[0].attrs["failed"] and steps[0].result is None
         assert steps[1].result is not None
         assert r.curve(1, 1)["load_n"].tolist() == [steps[1].load_n]
+
+
+def test_the_protocols_checks_reach_the_engine(tmp_path):
+    from labctl.protocol import parse_protocol
+
+    proto = short_protocol(reps=1, max_load=60.0)
+    # the twin's blows last 0.25-0.45 ms: a 0.2 ms upper limit rejects every one of them
+    strict = parse_protocol(proto.source_text + "[checks]\npulse_width_max_ms = 0.2\npulse_width_min_ms = 0.05\n",
+                            "strict.toml")
+    outcome = run_campaign(strict, out=tmp_path / "c.h5", seed=1)
+    assert outcome.status == "complete"
+    with CampaignReader(tmp_path / "c.h5") as r:
+        step = r.runs(1)[0].steps[0]
+        assert step.accepted_count == 0 and all("pulse_width" in i.reasons for i in step.impacts)
+        assert "failed" in step.attrs

@@ -59,3 +59,18 @@ def test_malformed_protocols_exit_2_naming_the_field(tmp_path, text, fragments):
 
 def test_missing_protocol_file_names_shipped_ones(tmp_path):
     assert_one_line_error(labctl("run", str(tmp_path / "nope.toml")), "not found", "quick_check")
+
+
+def test_checks_table_overrides_the_impact_checks_in_si():
+    p = parse_protocol(GOOD + "[checks]\npulse_width_max_ms = 0.8\nmin_peak_force_n = 25\n", "c.toml")
+    assert p.checks.pulse_width_max_s == pytest.approx(0.8e-3) and p.checks.min_peak_force_n == 25
+    assert parse_protocol(GOOD, "c.toml").checks.pulse_width_max_s == pytest.approx(1e-3)  # the default
+
+
+@pytest.mark.parametrize(("table", "fragment"), [("overload_fraction = 2.0", "[checks] overload_fraction"),
+                                                 ("min_pulse_width_ms = 0.1", "did you mean 'pulse_width_min_ms'"),
+                                                 ("pulse_width_min_ms = 2.0", "pulse width range")])
+def test_bad_checks_are_named(tmp_path, table, fragment):
+    path = tmp_path / "bad.toml"
+    path.write_text(GOOD + "[checks]\n" + table + "\n")
+    assert_one_line_error(labctl("run", str(path), "--out", str(tmp_path / "c.h5")), fragment)

@@ -10,7 +10,7 @@ import numpy as np
 
 from drivers.interfaces import Rig
 from labctl import events as ev
-from labctl.processing import CheckConfig, ProcessingError, check_impact, identify
+from labctl.processing import ProcessingError, check_impact, identify
 from labctl.recording import store_step_result
 from labctl.storage import schema
 from labctl.storage.reader import step_impacts
@@ -21,26 +21,12 @@ if TYPE_CHECKING:
     from labctl.engine.sequencer import Engine
     from labctl.protocol import SpecimenSpec
 
-def check_config(checks: dict[str, float]) -> CheckConfig:
-    """The protocol's ``[checks]`` overrides (file units) as a processing CheckConfig."""
-    from dataclasses import fields
-
-    names = {f.name for f in fields(CheckConfig)}
-    mapped: dict[str, float] = {}
-    for key, value in checks.items():
-        if key.endswith("_ms"):
-            key, value = key[:-3] + "_s", value * 1e-3
-        if key in names:
-            mapped[key] = value
-    return CheckConfig(**mapped)
-
-
 class StepRunner:
     """Runs and resumes the steps of one repetition."""
 
     def __init__(self, engine: Engine, rig: Rig, series: int, run: int, spec: SpecimenSpec) -> None:
         self.e, self.rig, self.series, self.run, self.spec = engine, rig, series, run, spec
-        self.checks = check_config(engine.protocol.checks)
+        self.checks = engine.protocol.checks
         self.channels = {c.name: c for c in rig.daq.channels}
 
     def _group(self, step: int):  # noqa: ANN202

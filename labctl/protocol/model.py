@@ -7,6 +7,7 @@ from typing import Literal
 
 from labctl.physics import ContactCase, Roller, material, roller, static_load_rating_n
 from labctl.physics.catalogue import UM
+from labctl.processing import CheckConfig
 
 SpecimenKind = Literal["roller", "ball"]
 
@@ -80,7 +81,7 @@ class Protocol:
     loading: LoadingSpec
     acquisition: AcquisitionSpec
     repetitions: RepetitionSpec
-    checks: dict[str, float] = field(default_factory=dict)
+    checks: CheckConfig = field(default_factory=CheckConfig)
     source_path: str = ""
     source_text: str = ""
 

@@ -11,6 +11,8 @@ from typing import Any
 
 from labctl.errors import InputError
 from labctl.physics import materials, rollers
+from labctl.physics.world import to_si
+from labctl.processing import CheckConfig
 from labctl.protocol.model import (
     AcquisitionSpec,
     LoadingSpec,
@@ -23,8 +25,8 @@ from labctl.protocol.model import (
 TOP_KEYS = {"protocol", "specimen", "specimens", "loading", "acquisition", "repetitions", "checks"}
 SPECIMEN_KEYS = {"kind", "label", "roller_type", "ball_diameter_mm", "ball_material", "rail_material", "rail_ra_um",
                  "max_load_n", "knob_step_deg"}
-CHECK_KEYS = {"overload_fraction", "min_pulse_width_ms", "max_pulse_width_ms", "min_peak_force_n",
-              "min_coherence", "double_hit_ratio"}
+# the impact checks' thresholds, with times in ms at this edge (pulse_width_min_ms, …)
+CHECK_KEYS = {f.name[:-2] + "_ms" if f.name.endswith("_s") else f.name for f in fields(CheckConfig)}
 
 
 class _Where:
@@ -150,6 +152,16 @@ def _specimen(t: dict[str, Any], where: _Where, loading: LoadingSpec) -> Specime
                         rail_ra_m=rail_ra_m, max_load_n=max_load, knob_step_deg=step)
 
 
+def _checks(doc: dict[str, Any], path: str) -> CheckConfig:
+    """The impact checks' thresholds, overridden where the protocol's ``[checks]`` table says so."""
+    t, w = _table(doc, "checks", path), _Where(path, "checks")
+    _check_keys(t, CHECK_KEYS, w)
+    try:
+        return CheckConfig(**dict(to_si(k, _number(t, k, 0, w, lo=0)) for k in t))
+    except ValueError as exc:
+        raise InputError(f"{path}: [checks] {exc}") from None
+
+
 def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
     """Validate protocol TOML text."""
     try:
@@ -171,10 +183,7 @@ def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
         _specimen(s, _Where(path, "specimen" if "specimen" in doc else f"specimens[{i}]"), loading)
         for i, s in enumerate(raw)
     )
-    checks = _table(doc, "checks", path)
-    wc = _Where(path, "checks")
-    _check_keys(checks, CHECK_KEYS, wc)
-    checks_si = {k: _number(checks, k, 0, wc, lo=0) for k in checks}
+    checks = _checks(doc, path)
     return Protocol(
         name=str(head.get("name", Path(path).stem)),
         description=str(head.get("description", "")),
@@ -182,7 +191,7 @@ def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
         loading=loading,
         acquisition=_acquisition(doc, path),
         repetitions=_repetitions(doc, path),
-        checks=checks_si,
+        checks=checks,
         source_path=path,
         source_text=text,
     )
