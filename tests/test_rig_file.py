@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from labctl.data import data_path
 from labctl.errors import InputError
 from labctl.physics import load_rig
 from labctl.physics.rig_config import DEFAULT_RIG
@@ -43,4 +44,18 @@ def test_missing_file_and_bad_toml(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[upper_disc\nmass_kg = 3")
     with pytest.raises(InputError, match="not valid TOML"):
+        load_rig(bad)
+
+
+def test_rig_uncertainty_is_read_and_checked(tmp_path):
+    rig = load_rig()
+    assert rig.uncertainty.mass_std_kg == pytest.approx(0.12)
+    assert rig.uncertainty.setup_stiffness_std_n_per_m == pytest.approx(1.5e8)
+    text = (data_path(DEFAULT_RIG)).read_text().replace("mass_setup_correlation = 0.0", "mass_setup_correlation = 2.0")
+    bad = tmp_path / "rig.toml"
+    bad.write_text(text)
+    with pytest.raises(InputError, match=r"uncertainty\.mass_setup_correlation = 2\.0"):
+        load_rig(bad)
+    bad.write_text(text.replace("mass_setup_correlation = 2.0", "mass_sdt_kg = 1.0"))
+    with pytest.raises(InputError, match=r"uncertainty\.mass_sdt_kg: unknown key"):
         load_rig(bad)

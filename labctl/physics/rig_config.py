@@ -63,6 +63,16 @@ class Loading:
 
 
 @dataclass(frozen=True)
+class RigUncertainty:
+    """1-σ uncertainties of the rig parameters that set every reported stiffness (from the rig file)."""
+
+    mass_std_kg: float = 0.0  # the disc mass (both discs, as in Eq. 4)
+    setup_stiffness_std_n_per_m: float = 0.0  # K_setup
+    mass_setup_correlation: float = 0.0  # correlation of the two estimates (a calibration fit gives it)
+    model_rel: float = 0.0  # relative stiffness error of the rig model's idealisation (rigid discs, point contacts)
+
+
+@dataclass(frozen=True)
 class RigConfig:
     """Everything the rig dynamics and the simulator need to know about the physical setup."""
 
@@ -81,6 +91,8 @@ class RigConfig:
     sensors: tuple[Sensor, ...]
     flexible_modes: tuple[FlexibleMode, ...] = field(default=())
     source: str = ""
+    uncertainty: RigUncertainty = RigUncertainty()
+    calibration: dict[str, Any] = field(default_factory=dict)  # provenance of a calibrated rig (empty: nominal)
 
     @property
     def contact_xy_m(self) -> np.ndarray:
@@ -130,6 +142,26 @@ def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: str) -> Sensor
     # upper-disc sensors sit on its top face, lower-disc sensors on its underside
     z = 0.5 * discs[disc].thickness_m * (1.0 if disc == "upper" else -1.0)
     return Sensor(name, disc, r * math.cos(ang), r * math.sin(ang), z, ang)
+
+
+def _uncertainty(doc: dict[str, Any], where: str) -> RigUncertainty:
+    table = doc.get("uncertainty", {})
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: uncertainty = {table!r}: expected a table")
+    known = {"mass_std_kg", "setup_stiffness_std_n_per_m", "mass_setup_correlation", "model_rel"}
+    for key in table:
+        if key not in known:
+            raise InputError(f"{where}: uncertainty.{key}: unknown key; expected one of {', '.join(sorted(known))}")
+    values = {}
+    for key in known:
+        if key in table:
+            v = require(table, key, float, f"{where}: uncertainty")
+            lo = -1.0 if key == "mass_setup_correlation" else 0.0
+            hi = 1.0 if key == "mass_setup_correlation" else math.inf
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise InputError(f"{where}: uncertainty.{key} = {v!r}: expected a finite number in [{lo:g}, {hi:g}]")
+            values[key] = v
+    return RigUncertainty(**values)
 
 
 def load_rig(path: str | Path | None = None) -> RigConfig:
@@ -193,4 +225,6 @@ def rig_from_doc(doc: dict[str, Any], p: str) -> RigConfig:
         sensors=sensors,
         flexible_modes=flex,
         source=p,
+        uncertainty=_uncertainty(doc, p),
+        calibration=dict(require(doc, "calibration", dict, p)) if "calibration" in doc else {},
     )
