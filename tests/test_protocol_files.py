@@ -32,13 +32,14 @@ def test_shipped_protocols_validate_and_follow_the_paper():
 @pytest.mark.parametrize(
     ("text", "fragments"),
     [
-        (GOOD.replace("impacts_per_step = 3", "impacts_per_step = 0"), ["[acquisition].impacts_per_step = 0"]),
+        (GOOD.replace("impacts_per_step = 3", "impacts_per_step = 0"),
+         ["acquisition.impacts_per_step = 0", "an integer 1-100"]),
         (GOOD.replace("impacts_per_step = 3", "impacts_per_step = \"three\""), ["impacts_per_step", "integer"]),
-        (GOOD + "[loading]\nmax_load_kn = 1.0\n", ["unknown key 'max_load_kn'"]),
+        (GOOD + "[loading]\nmax_load_kn = 1.0\n", ["loading: unknown key(s) max_load_kn (did you mean"]),
         (GOOD.replace("roller_type = 1", "roller_type = 1\nmax_load_n = 2000.0"), ["max_load_n = 2000.0", "C0 cap"]),
         (GOOD.replace("roller_type = 1", "roller_type = 42"), ["roller_type = 42"]),
         (GOOD.replace("roller_type = 1", "roller_type = 1\nrail_material = \"cheese\""), ["rail_material"]),
-        (GOOD + "[acquisition2]\n", ["unknown key 'acquisition2'"]),
+        (GOOD + "[acquisition2]\n", ["unknown key(s) acquisition2 (did you mean 'acquisition'?)"]),
         (GOOD.replace("[acquisition]", "[acquisition]\nsample_rate_hz = -5"), ["sample_rate_hz = -5"]),
         (GOOD.replace("[acquisition]", "[acquisition]\nduration_ms = 3200"), ["duration_ms"]),
         ("[protocol]\nname = 'x'\n", ["missing [specimen]"]),
@@ -67,10 +68,48 @@ def test_checks_table_overrides_the_impact_checks_in_si():
     assert parse_protocol(GOOD, "c.toml").checks.pulse_width_max_s == pytest.approx(1e-3)  # the default
 
 
-@pytest.mark.parametrize(("table", "fragment"), [("overload_fraction = 2.0", "[checks] overload_fraction"),
+@pytest.mark.parametrize(("table", "fragment"), [("overload_fraction = 2.0",
+                                                  "checks.overload_fraction = 2.0: expected a number in (0, 1]"),
                                                  ("min_pulse_width_ms = 0.1", "did you mean 'pulse_width_min_ms'"),
                                                  ("pulse_width_min_ms = 2.0", "pulse width range")])
 def test_bad_checks_are_named(tmp_path, table, fragment):
     path = tmp_path / "bad.toml"
     path.write_text(GOOD + "[checks]\n" + table + "\n")
     assert_one_line_error(labctl("run", str(path), "--out", str(tmp_path / "c.h5")), fragment)
+
+
+@pytest.mark.parametrize(("table", "line", "fragment"), [
+    ("[loading]", "knob_step_deg = nan", "loading.knob_step_deg = nan: expected a finite number in (0, 3600]"),
+    ("[specimen]", "knob_step_deg = nan", "specimen.knob_step_deg = nan: expected a finite number in (0, 3600]"),
+    ("[specimen]", "max_load_n = nan", "specimen.max_load_n = nan: expected a finite positive number"),
+    ("[specimen]", "max_load_n = -inf", "specimen.max_load_n = -inf: expected a finite positive number"),
+    ("[specimen]", "rail_ra_um = nan", "specimen.rail_ra_um = nan: expected a finite number in [0, 50]"),
+    ("[acquisition]", "trigger_level_n = nan", "acquisition.trigger_level_n = nan: expected a finite positive number"),
+    ("[acquisition]", "timeout_s = inf", "acquisition.timeout_s = inf: expected a finite positive number"),
+    ("[repetitions]", "rotate_rollers_deg = nan", "repetitions.rotate_rollers_deg = nan: expected a finite number"),
+    ("[checks]", "min_peak_force_n = nan", "checks.min_peak_force_n = nan: expected a finite number ≥ 0"),
+])
+def test_nan_and_inf_are_refused_naming_file_table_key_value_and_expectation(table, line, fragment):
+    text = GOOD if table in GOOD else GOOD + f"{table}\n"
+    with pytest.raises(InputError) as err:
+        parse_protocol(text.replace(table, f"{table}\n{line}", 1), "p.toml")
+    assert str(err.value).startswith(f"p.toml: {fragment}"), str(err.value)
+
+
+def test_a_nan_protocol_leaves_no_campaign_file(tmp_path):
+    path = tmp_path / "nan.toml"
+    path.write_text(GOOD.replace("[acquisition]", "[acquisition]\ntrigger_level_n = nan"))
+    assert_one_line_error(labctl("run", str(path), "--backend", "sim", "--out", str(tmp_path / "c.h5")),
+                          str(path), "acquisition.trigger_level_n = nan")
+    assert not (tmp_path / "c.h5").exists()
+
+
+@pytest.mark.parametrize(("line", "fragment"), [
+    ("impacts_per_step = 3.0", "acquisition.impacts_per_step = 3.0: expected int (an integer 1-100)"),
+    ("trigger_level_n = true", "acquisition.trigger_level_n = True: expected float (a positive number)"),
+    ("trigger_levl_n = 3", "acquisition: unknown key(s) trigger_levl_n (did you mean 'trigger_level_n'?)"),
+])
+def test_wrong_types_and_typos_name_the_expectation_and_the_closest_key(line, fragment):
+    with pytest.raises(InputError, match="^p.toml: " + fragment.replace("(", r"\(").replace(")", r"\)")
+                       .replace("?", r"\?").replace(".", r"\.")):
+        parse_protocol(GOOD.replace("impacts_per_step = 3", line), "p.toml")

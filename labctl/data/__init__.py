@@ -1,7 +1,10 @@
-"""Data files shipped with labctl: material and roller catalogues, rig descriptions, world scenarios."""
+"""Data files shipped with labctl (material and roller catalogues, rig descriptions, world scenarios) and the one
+way configuration files are read: ``labctl.data.schema`` (typed keys, one error format) and ``labctl.data.units``
+(edge units to SI)."""
 
 from __future__ import annotations
 
+import math
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -30,7 +33,10 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 
 
 def require(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    """Fetch ``table[key]`` and check its type, with an error naming ``where.key``."""
+    """Fetch ``table[key]`` and check its type, with an error naming ``where.key`` (a float must be finite).
+
+    Kept for readers not yet on ``labctl.data.schema`` (whose ``read``/``build`` new code should use).
+    """
     if key not in table:
         raise InputError(f"{where}: missing key '{key}'")
     value = table[key]
@@ -40,6 +46,8 @@ def require(table: dict[str, Any], key: str, kind: type | tuple[type, ...], wher
     if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
         names = " or ".join(k.__name__ for k in kinds)
         raise InputError(f"{where}.{key} = {value!r}: expected {names}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise InputError(f"{where}.{key} = {value!r}: expected a finite number")
     return value
 
 
