@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from labctl.data import data_path, positive, read_toml, require
-from labctl.errors import InputError
+from labctl.data import data_path, read_toml
+from labctl.data.schema import Integer, Number, Numbers, Spec, Table, Tables, Text, Where, build, parse_toml, read
 
-MM = 1e-3
 DEFAULT_RIG = "rigs/paper_rig.toml"
 AXES = ("X", "Y", "Z")
 
@@ -126,42 +124,41 @@ class RigConfig:
         return replace(self, setup_stiffness_n_per_m=k_setup_n_per_m)
 
 
-def _disc(doc: dict[str, Any], key: str, where: str) -> Disc:
-    t = require(doc, key, dict, where)
-    w = f"{where}: {key}"
-    return Disc(positive(t, "mass_kg", w), positive(t, "inertia_kg_m2", w), positive(t, "thickness_mm", w) * MM)
+_POSITIVE = Number(gt=0)
+DISC: dict[str, Spec] = {"mass_kg": _POSITIVE, "inertia_kg_m2": _POSITIVE, "thickness_mm": Number(gt=0, unit="mm")}
+CONTACTS: dict[str, Spec] = {"radius_mm": Number(gt=0, unit="mm"), "angles_deg": Numbers(Number(unit="deg"), 3),
+                             "setup_stiffness_n_per_m": _POSITIVE}
+SUPPORT: dict[str, Spec] = {"stiffness_n_per_m": _POSITIVE, "radius_mm": Number(gt=0, unit="mm"),
+                            "damping_ratio": _POSITIVE}
+LOADING: dict[str, Spec] = {"rods": Integer(ge=1), "thread_pitch_mm": Number(gt=0, unit="mm"),
+                            "spring_rate_n_per_m": _POSITIVE, "gravity_m_per_s2": _POSITIVE}
+UNCERTAINTY: dict[str, Spec] = {"mass_std_kg": Number(ge=0), "setup_stiffness_std_n_per_m": Number(ge=0),
+                                "mass_setup_correlation": Number(ge=-1, le=1), "model_rel": Number(ge=0)}
+POINT: dict[str, Spec] = {"radius_mm": Number(ge=0, unit="mm"), "angle_deg": Number(unit="deg")}
+SENSOR: dict[str, Spec] = {"name": Text(), "disc": Text(("upper", "lower")), **POINT}
+FLEXIBLE_MODE: dict[str, Spec] = {"frequency_hz": _POSITIVE, "damping_ratio": _POSITIVE, "modal_mass_kg": _POSITIVE,
+                                  "hammer": Number(default=1.0), "shape": Table(default={})}
+TOP: dict[str, Spec] = {
+    "name": Text(default=None), "description": Text(default=None), "upper_disc": Table(), "lower_disc": Table(),
+    "contacts": Table(), "uncertainty": Table(default={}), "support": Table(), "damping": Table(),
+    "loading": Table(), "hammer": Table(), "sensors": Tables(), "flexible_modes": Tables(default=[]),
+    "calibration": Table(default={}),
+}
 
 
-def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: str) -> Sensor:
-    name = require(entry, "name", str, where)
-    disc = require(entry, "disc", str, where)
-    if disc not in discs:
-        raise InputError(f"{where}.disc = {disc!r}: expected 'upper' or 'lower'")
-    r = require(entry, "radius_mm", float, where) * MM
-    ang = math.radians(require(entry, "angle_deg", float, where))
+def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: Where) -> Sensor:
+    t = read(entry, SENSOR, where)
+    r, ang = t["radius_m"], t["angle_rad"]
     # upper-disc sensors sit on its top face, lower-disc sensors on its underside
-    z = 0.5 * discs[disc].thickness_m * (1.0 if disc == "upper" else -1.0)
-    return Sensor(name, disc, r * math.cos(ang), r * math.sin(ang), z, ang)
+    z = 0.5 * discs[t["disc"]].thickness_m * (1.0 if t["disc"] == "upper" else -1.0)
+    return Sensor(t["name"], t["disc"], r * math.cos(ang), r * math.sin(ang), z, ang)
 
 
-def _uncertainty(doc: dict[str, Any], where: str) -> RigUncertainty:
-    table = doc.get("uncertainty", {})
-    if not isinstance(table, dict):
-        raise InputError(f"{where}: uncertainty = {table!r}: expected a table")
-    known = {"mass_std_kg", "setup_stiffness_std_n_per_m", "mass_setup_correlation", "model_rel"}
-    for key in table:
-        if key not in known:
-            raise InputError(f"{where}: uncertainty.{key}: unknown key; expected one of {', '.join(sorted(known))}")
-    values = {}
-    for key in known:
-        if key in table:
-            v = require(table, key, float, f"{where}: uncertainty")
-            lo = -1.0 if key == "mass_setup_correlation" else 0.0
-            hi = 1.0 if key == "mass_setup_correlation" else math.inf
-            if not (math.isfinite(v) and lo <= v <= hi):
-                raise InputError(f"{where}: uncertainty.{key} = {v!r}: expected a finite number in [{lo:g}, {hi:g}]")
-            values[key] = v
-    return RigUncertainty(**values)
+def _flexible_mode(entry: dict[str, Any], channels: tuple[str, ...], where: Where) -> FlexibleMode:
+    t = read(entry, FLEXIBLE_MODE, where)
+    raw = t.pop("shape")
+    shape = read(raw, dict.fromkeys(channels, Number(default=None)), where.at("shape"))
+    return FlexibleMode(**t, shape={ch: shape[ch] for ch in raw})  # in the file's order
 
 
 def load_rig(path: str | Path | None = None) -> RigConfig:
@@ -172,59 +169,40 @@ def load_rig(path: str | Path | None = None) -> RigConfig:
 
 def rig_from_text(text: str, source: str) -> RigConfig:
     """A rig description from TOML text (e.g. the copy stored in a campaign file); ``source`` names it."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: not valid TOML ({exc})") from None
-    return rig_from_doc(doc, source)
+    return rig_from_doc(parse_toml(text, source), source)
 
 
 def rig_from_doc(doc: dict[str, Any], p: str) -> RigConfig:
-    """Validate a parsed rig document; errors name ``p`` and the key."""
-    discs = {"upper": _disc(doc, "upper_disc", p), "lower": _disc(doc, "lower_disc", p)}
-    contacts = require(doc, "contacts", dict, p)
-    angles = require(contacts, "angles_deg", list, f"{p}: contacts")
-    if len(angles) != 3:
-        raise InputError(f"{p}: contacts.angles_deg = {angles!r}: expected three roller positions")
-    support = require(doc, "support", dict, p)
-    loading = require(doc, "loading", dict, p)
-    hammer = require(doc, "hammer", dict, p)
-    h_r = require(hammer, "radius_mm", float, f"{p}: hammer") * MM
-    h_a = math.radians(require(hammer, "angle_deg", float, f"{p}: hammer"))
-    sensors = tuple(
-        _sensor(e, discs, f"{p}: sensors[{i}]") for i, e in enumerate(require(doc, "sensors", list, p))
-    )
-    flex = tuple(
-        FlexibleMode(
-            frequency_hz=positive(e, "frequency_hz", f"{p}: flexible_modes[{i}]"),
-            damping_ratio=positive(e, "damping_ratio", f"{p}: flexible_modes[{i}]"),
-            modal_mass_kg=positive(e, "modal_mass_kg", f"{p}: flexible_modes[{i}]"),
-            hammer=float(e.get("hammer", 1.0)),
-            shape={str(k): float(v) for k, v in e.get("shape", {}).items()},
-        )
-        for i, e in enumerate(doc.get("flexible_modes", []))
-    )
+    """Validate a parsed rig document; errors name ``p``, the table and the key (``labctl.data.schema``)."""
+    top = Where(p)
+    t = read(doc, TOP, top)
+    discs = {"upper": build(Disc, t["upper_disc"], DISC, top.at("upper_disc")),
+             "lower": build(Disc, t["lower_disc"], DISC, top.at("lower_disc"))}
+    contacts = read(t["contacts"], CONTACTS, top.at("contacts"))
+    support = read(t["support"], SUPPORT, top.at("support"))
+    damping = read(t["damping"], {"modal_damping_ratio": _POSITIVE}, top.at("damping"))
+    hammer = read(t["hammer"], POINT, top.at("hammer"))
+    h_r, h_a = hammer["radius_m"], hammer["angle_rad"]
+    sensors = tuple(_sensor(e, discs, top.at("sensors").at(i)) for i, e in enumerate(t["sensors"]))
+    channels = tuple(ch for s in sensors for ch in s.channels)
+    flex = tuple(_flexible_mode(e, channels, top.at("flexible_modes").at(i))
+                 for i, e in enumerate(t["flexible_modes"]))
     return RigConfig(
-        name=str(doc.get("name", Path(p).stem)),
+        name=t.get("name", Path(p).stem),
         upper=discs["upper"],
         lower=discs["lower"],
-        contact_radius_m=positive(contacts, "radius_mm", f"{p}: contacts") * MM,
-        contact_angles_rad=tuple(math.radians(float(a)) for a in angles),
-        setup_stiffness_n_per_m=positive(contacts, "setup_stiffness_n_per_m", f"{p}: contacts"),
-        support_stiffness_n_per_m=positive(support, "stiffness_n_per_m", f"{p}: support"),
-        support_radius_m=positive(support, "radius_mm", f"{p}: support") * MM,
-        support_damping_ratio=positive(support, "damping_ratio", f"{p}: support"),
-        modal_damping_ratio=positive(require(doc, "damping", dict, p), "modal_damping_ratio", f"{p}: damping"),
-        loading=Loading(
-            rods=require(loading, "rods", int, f"{p}: loading"),
-            thread_pitch_m=positive(loading, "thread_pitch_mm", f"{p}: loading") * MM,
-            spring_rate_n_per_m=positive(loading, "spring_rate_n_per_m", f"{p}: loading"),
-            gravity_m_per_s2=float(loading.get("gravity_m_per_s2", 9.81)),
-        ),
+        contact_radius_m=contacts["radius_m"],
+        contact_angles_rad=contacts["angles_rad"],
+        setup_stiffness_n_per_m=contacts["setup_stiffness_n_per_m"],
+        support_stiffness_n_per_m=support["stiffness_n_per_m"],
+        support_radius_m=support["radius_m"],
+        support_damping_ratio=support["damping_ratio"],
+        modal_damping_ratio=damping["modal_damping_ratio"],
+        loading=build(Loading, t["loading"], LOADING, top.at("loading")),
         hammer_xy_m=(h_r * math.cos(h_a), h_r * math.sin(h_a)),
         sensors=sensors,
         flexible_modes=flex,
         source=p,
-        uncertainty=_uncertainty(doc, p),
-        calibration=dict(require(doc, "calibration", dict, p)) if "calibration" in doc else {},
+        uncertainty=build(RigUncertainty, t["uncertainty"], UNCERTAINTY, top.at("uncertainty")),
+        calibration=dict(t["calibration"]),
     )
