@@ -18,10 +18,11 @@ from typing import Any
 from drivers.errors import DeviceError
 from drivers.hw import InputWiring, ManualActuator, ManualHammer, MccUsbDaq, MtSicsLoadCell, NiDaq, SerialHammer
 from drivers.interfaces import Channel, Operator, Rig
-from labctl.data import data_path, positive, read_toml, require
+from labctl.data import data_path, read_toml
+from labctl.data.schema import Integer, Number, Spec, Table, Tables, Text, Where, check_keys, read, value
+from labctl.data.units import MV, STANDARD_GRAVITY_M_PER_S2
 from labctl.errors import InputError, LabctlError
 
-STANDARD_GRAVITY_M_PER_S2 = 9.80665
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
 ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # DESIGN §4: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
@@ -78,22 +79,23 @@ def find_devices_file(devices: str | Path | None = None) -> Path:
 
 def load_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
                  nidaqmx_module: Any = None) -> dict[str, DeviceSpec]:
-    """Parse and validate a devices file into one spec per role; errors name the file, key and value.
+    """Parse and validate a devices file into one spec per role; errors name the file, table, key and value.
 
     ``usb_backend`` (a pyusb backend) and ``nidaqmx_module`` replace the system's, e.g. with emulators.
     """
     path = find_devices_file(devices)
+    top = Where(str(path))
     doc = read_toml(path)
-    _known(doc, SECTIONS, str(path))
+    check_keys(doc, SECTIONS, top)
     missing = [s for s in SECTIONS if s not in doc]
     if missing:
-        raise InputError(f"{path}: missing section(s) [{'], ['.join(missing)}]; see {EXAMPLE}")
-    tables = {s: require(doc, s, dict, str(path)) for s in SECTIONS}
+        raise top.problem(f"missing section(s) [{'], ['.join(missing)}]; see {EXAMPLE}")
+    tables = read(doc, dict.fromkeys(SECTIONS, Table()), top)
     return {
-        "load_cell": _load_cell(tables["load_cell"], f"{path}: load_cell"),
-        "daq": _daq(tables["daq"], f"{path}: daq", usb_backend, nidaqmx_module),
-        "hammer": _hammer(tables["hammer"], f"{path}: hammer"),
-        "actuator": _actuator(tables["actuator"], f"{path}: actuator"),
+        "load_cell": _load_cell(tables["load_cell"], top.at("load_cell")),
+        "daq": _daq(tables["daq"], top.at("daq"), usb_backend, nidaqmx_module),
+        "hammer": _hammer(tables["hammer"], top.at("hammer")),
+        "actuator": _actuator(tables["actuator"], top.at("actuator")),
     }
 
 
@@ -136,109 +138,76 @@ def check_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
 
 
 # ---- sections ----------------------------------------------------------------------------------------------
-def _load_cell(t: dict[str, Any], where: str) -> DeviceSpec:
-    kind = _choice(t, "type", ("mtsics",), where)
-    _known(t, ("type", "port", "baudrate", "timeout_s", "busy_retries", "stable_timeout_s", "gravity_m_per_s2"),
-           where)
-    port = require(t, "port", str, where)
-    options = dict(baudrate=_int(t, "baudrate", 9600, where), timeout_s=_pos(t, "timeout_s", 2.0, where),
-                   busy_retries=_int(t, "busy_retries", 3, where, low=0),
-                   stable_timeout_s=_pos(t, "stable_timeout_s", 10.0, where),
-                   gravity_m_per_s2=_pos(t, "gravity_m_per_s2", STANDARD_GRAVITY_M_PER_S2, where))
+LOAD_CELL: dict[str, Spec] = {
+    "type": Text(("mtsics",)), "port": Text(), "baudrate": Integer(ge=1, default=9600),
+    "timeout_s": Number(gt=0, default=2.0), "busy_retries": Integer(ge=0, default=3),
+    "stable_timeout_s": Number(gt=0, default=10.0), "gravity_m_per_s2": Number(gt=0, default=STANDARD_GRAVITY_M_PER_S2),
+}
+SERIAL_HAMMER: dict[str, Spec] = {
+    "type": Text(("serial",)), "port": Text(), "level": Integer(1, 255, default=128),
+    "baudrate": Integer(ge=1, default=115200), "timeout_s": Number(gt=0, default=2.0),
+    "boot_delay_s": Number(ge=0, default=2.0),
+}
+ACTUATOR: dict[str, Spec] = {"type": Text(("manual",)), "knobs": Integer(ge=1, default=4)}
+
+
+def _load_cell(t: dict[str, Any], where: Where) -> DeviceSpec:
+    options = read(t, LOAD_CELL, where)
+    kind, port = options.pop("type"), options.pop("port")
     return DeviceSpec("load_cell", kind, port, lambda _op: MtSicsLoadCell(port, **options))
 
 
-def _daq(t: dict[str, Any], where: str, usb_backend: Any, nidaqmx_module: Any) -> DeviceSpec:
-    kind = _choice(t, "type", ("mcc_usb", "nidaqmx"), where)
-    extra = ("serial",) if kind == "mcc_usb" else ("iepe_current_ma",)
-    _known(t, ("type", "channels", *extra), where)
-    rows = require(t, "channels", list, where)
-    wiring = [_channel(row, f"{where}.channels[{i}]", kind) for i, row in enumerate(rows)]
+def _daq(t: dict[str, Any], where: Where, usb_backend: Any, nidaqmx_module: Any) -> DeviceSpec:
+    kind = value(t, "type", Text(("mcc_usb", "nidaqmx")), where)
+    extra: dict[str, Spec] = {"serial": Text(default="")} if kind == "mcc_usb" else \
+        {"iepe_current_ma": Number(gt=0, unit="ma", default=2.0)}
+    options = read(t, {"type": Text(), "channels": Tables(), **extra}, where)
+    wiring = [_channel(row, where.at("channels").at(i), kind) for i, row in enumerate(options["channels"])]
     try:
         if kind == "mcc_usb":
-            serial = require(t, "serial", str, where) if t.get("serial") else None
+            serial = options["serial"] or None
             MccUsbDaq(wiring, serial=serial)  # validate the wiring now, with the file named
             return DeviceSpec("daq", kind, f"USB-1608FS-Plus {serial or '(first found)'}",
                               lambda _op: MccUsbDaq(wiring, serial=serial, backend=usb_backend))
-        current_a = _pos(t, "iepe_current_ma", 2.0, where) * 1e-3
+        current_a = options["iepe_current_a"]
         NiDaq(wiring, iepe_current_a=current_a)
     except ValueError as exc:
-        raise InputError(f"{where}: {exc}") from None
+        raise where.problem(str(exc)) from None
     address = ", ".join(sorted({w.terminal.split("/")[0] for w in wiring}))
     return DeviceSpec("daq", kind, address,
                       lambda _op: NiDaq(wiring, iepe_current_a=current_a, nidaqmx_module=nidaqmx_module))
 
 
-def _channel(row: Any, where: str, daq_kind: str) -> InputWiring:
-    if not isinstance(row, dict):
-        raise InputError(f"{where} = {row!r}: expected a table with name, kind, input, sensitivity and range")
-    kind = _choice(row, "kind", ("force", "acceleration"), where)
-    unit, sens_key, range_key = ("n", "sensitivity_mv_per_n", "range_n") if kind == "force" else \
-        ("g", "sensitivity_mv_per_g", "range_g")
-    _known(row, ("name", "kind", "input", sens_key, range_key, "adc_range_v"), where)
-    name = require(row, "name", str, where)
-    if kind == "acceleration" and not ACCEL_NAME.match(name):
-        raise InputError(f"{where}.name = {name!r}: expected an accelerometer name A1X … A4Z")
-    terminal = require(row, "input", int if daq_kind == "mcc_usb" else str, where)
-    per_unit = 1.0 if unit == "n" else STANDARD_GRAVITY_M_PER_S2  # V/g -> V/(m/s²)
-    channel = Channel(name, kind, "N" if unit == "n" else "m/s^2",
-                      positive(row, sens_key, where) * 1e-3 / per_unit, positive(row, range_key, where) * per_unit)
-    adc = positive(row, "adc_range_v", where) if "adc_range_v" in row else None
-    if adc is not None and daq_kind != "mcc_usb":
-        raise InputError(f"{where}.adc_range_v: only for type = 'mcc_usb' (NI sets its range from range_*)")
-    return InputWiring(channel, str(terminal), adc)
+def _channel(row: dict[str, Any], where: Where, daq_kind: str) -> InputWiring:
+    kind = value(row, "kind", Text(("force", "acceleration")), where)
+    force = kind == "force"
+    sens_key, range_key = ("sensitivity_mv_per_n", "range_n") if force else ("sensitivity_mv_per_g", "range_g")
+    t = read(row, {"name": Text(), "kind": Text(), "input": Integer() if daq_kind == "mcc_usb" else Text(),
+                   sens_key: Number(gt=0), range_key: Number(gt=0), "adc_range_v": Number(gt=0, default=None)}, where)
+    name = t["name"]
+    if not force and not ACCEL_NAME.match(name):
+        raise where.bad("name", name, "an accelerometer name A1X … A4Z")
+    if "adc_range_v" in t and daq_kind != "mcc_usb":
+        raise where.problem("adc_range_v: only for type = 'mcc_usb' (NI sets its range from range_*)")
+    per_unit = 1.0 if force else STANDARD_GRAVITY_M_PER_S2  # mV/g -> V/(m/s²), g -> m/s²
+    channel = Channel(name, kind, "N" if force else "m/s^2", t[sens_key] * MV / per_unit, t[range_key] * per_unit)
+    return InputWiring(channel, str(t["input"]), t.get("adc_range_v"))
 
 
-def _hammer(t: dict[str, Any], where: str) -> DeviceSpec:
-    kind = _choice(t, "type", ("manual", "serial"), where)
+def _hammer(t: dict[str, Any], where: Where) -> DeviceSpec:
+    kind = value(t, "type", Text(("manual", "serial")), where)
     if kind == "manual":
-        _known(t, ("type",), where)
+        read(t, {"type": Text()}, where)
         return DeviceSpec("hammer", kind, "operator", lambda op: ManualHammer(op))
-    _known(t, ("type", "port", "level", "baudrate", "timeout_s", "boot_delay_s"), where)
-    port = require(t, "port", str, where)
-    options = dict(level=_int(t, "level", 128, where, low=1, high=255), baudrate=_int(t, "baudrate", 115200, where),
-                   timeout_s=_pos(t, "timeout_s", 2.0, where), boot_delay_s=_num(t, "boot_delay_s", 2.0, where))
+    options = read(t, SERIAL_HAMMER, where)
+    del options["type"]
+    port = options.pop("port")
     return DeviceSpec("hammer", kind, port, lambda _op: SerialHammer(port, **options))
 
 
-def _actuator(t: dict[str, Any], where: str) -> DeviceSpec:
-    _choice(t, "type", ("manual",), where)
-    _known(t, ("type", "knobs"), where)
-    knobs = _int(t, "knobs", 4, where, low=1)
+def _actuator(t: dict[str, Any], where: Where) -> DeviceSpec:
+    knobs = read(t, ACTUATOR, where)["knobs"]
     return DeviceSpec("actuator", "manual", "operator", lambda op: ManualActuator(op, knobs=knobs))
-
-
-# ---- value helpers -----------------------------------------------------------------------------------------
-def _known(table: dict[str, Any], allowed: tuple[str, ...], where: str) -> None:
-    unknown = sorted(set(table) - set(allowed))
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; expected {', '.join(allowed)}")
-
-
-def _choice(table: dict[str, Any], key: str, options: tuple[str, ...], where: str) -> str:
-    value = require(table, key, str, where)
-    if value not in options:
-        raise InputError(f"{where}.{key} = {value!r}: expected one of {', '.join(options)}")
-    return value
-
-
-def _int(table: dict[str, Any], key: str, default: int, where: str, *, low: int = 1, high: int | None = None) -> int:
-    value = require(table, key, int, where) if key in table else default
-    if value < low or (high is not None and value > high):
-        bounds = f"{low}-{high}" if high is not None else f"at least {low}"
-        raise InputError(f"{where}.{key} = {value!r}: expected an integer {bounds}")
-    return value
-
-
-def _pos(table: dict[str, Any], key: str, default: float, where: str) -> float:
-    return positive(table, key, where) if key in table else default
-
-
-def _num(table: dict[str, Any], key: str, default: float, where: str) -> float:
-    value = require(table, key, float, where) if key in table else default
-    if value < 0:
-        raise InputError(f"{where}.{key} = {value!r}: expected zero or more")
-    return value
 
 
 def example_path() -> Path:

@@ -150,3 +150,45 @@ def test_check_without_a_devices_file(tmp_path: Path) -> None:
 def test_check_with_a_broken_devices_file(tmp_path: Path) -> None:
     path = devices_file(tmp_path, edit=('kind = "force"', 'kind = "pressure"'))
     assert_one_line_error(labctl("devices", "check", "--devices", str(path)), str(path), "kind = 'pressure'")
+
+
+SERIAL_HAMMER = 'type = "serial"\nport = "/dev/ttyACM0"'
+
+
+@pytest.mark.parametrize(("hammer", "edit", "message"), [
+    ('type = "manual"', ("timeout_s = 2.0", "timeout_s = inf"),
+     "load_cell.timeout_s = inf: expected a finite positive number"),
+    ('type = "manual"', ("stable_timeout_s = 10.0", "stable_timeout_s = nan"),
+     "load_cell.stable_timeout_s = nan: expected a finite positive number"),
+    ('type = "manual"', ("range_g = 50.0", "range_g = inf"), "daq.channels[1].range_g = inf: expected a finite"),
+    ('type = "manual"', ("sensitivity_mv_per_n = 0.23", "sensitivity_mv_per_n = nan"),
+     "daq.channels[0].sensitivity_mv_per_n = nan: expected a finite positive number"),
+    (SERIAL_HAMMER + "\nboot_delay_s = nan", None, "hammer.boot_delay_s = nan: expected a finite number ≥ 0"),
+    (SERIAL_HAMMER + "\ntimeout_s = -inf", None, "hammer.timeout_s = -inf: expected a finite positive number"),
+    ('type = "manual"', ("knobs = 4", "knobs = 4.0"), "actuator.knobs = 4.0: expected int (an integer at least 1)"),
+    ('type = "manual"', ('name = "F"', "name = 5"), "daq.channels[0].name = 5: expected str (a string)"),
+    ('type = "manual"', ("baudrate = 9600", "baudrat = 9600"),
+     "load_cell: unknown key(s) baudrat (did you mean 'baudrate'?)"),
+])
+def test_nan_inf_and_garbage_in_a_devices_file_are_refused_naming_table_key_and_value(
+        tmp_path: Path, hammer: str, edit: tuple[str, str] | None, message: str) -> None:
+    path = devices_file(tmp_path, hammer=hammer, edit=edit)
+    with pytest.raises(InputError) as err:
+        load_devices(path)
+    assert str(err.value).startswith(f"{path}: {message}"), str(err.value)
+
+
+def test_ni_iepe_current_must_be_finite(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, daq=NI_DAQ.replace("iepe_current_ma = 2.0", "iepe_current_ma = inf"))
+    with pytest.raises(InputError, match=r"daq\.iepe_current_ma = inf: expected a finite positive number"):
+        load_devices(path, nidaqmx_module=FakeNiHardware().module())
+
+
+def test_a_garbage_devices_file_is_one_line_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "devices.toml"
+    path.write_bytes(b"\x00\x01garbage = = [\n")
+    with pytest.raises(InputError, match="not valid TOML"):
+        load_devices(path)
+    path.write_text('load_cell = 3\n[daq]\n[hammer]\n[actuator]\n')
+    with pytest.raises(InputError, match=r"load_cell = 3: expected a table"):
+        load_devices(path)

@@ -16,6 +16,8 @@ GPA = 1e9
 MRAD = 1e-3
 MS = 1e-3
 DEG = math.pi / 180.0
+MV = 1e-3  # sensitivities in mV per unit
+STANDARD_GRAVITY_M_PER_S2 = 9.80665  # accelerations and ranges in g
 
 # edge unit -> (SI unit, factor to SI); the name suffix is ``_<unit>``
 EDGE_UNITS: dict[str, tuple[str, float]] = {

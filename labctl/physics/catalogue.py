@@ -6,12 +6,13 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from labctl.data import data_path, positive, read_toml, require
+from labctl.data import data_path, read_toml
+from labctl.data.schema import Integer, Number, Spec, Tables, Text, Where, read
+from labctl.data.units import MM, UM
 from labctl.errors import InputError
-from labctl.physics.materials import Material, material
+from labctl.physics.materials import Material, material, materials
 
-MM = 1e-3
-UM = 1e-6
+__all__ = ["MM", "UM", "Roller", "roller", "rollers"]
 
 
 @dataclass(frozen=True)
@@ -30,21 +31,38 @@ class Roller:
         return 0.5 * self.diameter_m
 
 
+ROLLER: dict[str, Spec] = {
+    "type": Integer(ge=1),
+    "diameter_mm": Number(gt=0, unit="mm"),
+    "contact_length_mm": Number(gt=0, unit="mm"),
+    "total_length_mm": Number(gt=0, unit="mm"),
+    "material": Text(),
+    "roughness_ra_um": Number(ge=0, unit="um", default=None),
+}
+
+
 @cache
 def _rollers(path: str) -> dict[int, Roller]:
-    doc = read_toml(path)
-    default_ra = float(doc.get("default_roughness_ra_um", 0.03))
+    top = Where(path)
+    doc = read(read_toml(path), {"default_roughness_ra_um": Number(ge=0, unit="um", default=0.03),
+                                 "rollers": Tables()}, top)
+    known = tuple(materials())
     out: dict[int, Roller] = {}
-    for i, entry in enumerate(require(doc, "rollers", list, path)):
-        where = f"{path}: rollers[{i}]"
-        type_id = require(entry, "type", int, where)
-        out[type_id] = Roller(
-            diameter_m=positive(entry, "diameter_mm", where) * MM,
-            contact_length_m=positive(entry, "contact_length_mm", where) * MM,
-            total_length_m=positive(entry, "total_length_mm", where) * MM,
-            material=material(require(entry, "material", str, where)),
-            roughness_ra_m=float(entry.get("roughness_ra_um", default_ra)) * UM,
-            type_id=type_id,
+    for i, entry in enumerate(doc["rollers"]):
+        where = top.at("rollers").at(i)
+        t = read(entry, {**ROLLER, "material": Text(known)}, where)
+        if t["type"] in out:
+            raise where.bad("type", t["type"], f"a type number not used before (types so far: {sorted(out)})")
+        if t["contact_length_m"] > t["total_length_m"]:
+            raise where.bad("contact_length_mm", entry["contact_length_mm"],
+                            f"at most total_length_mm = {entry['total_length_mm']!r} (L_we ≤ L_r)")
+        out[t["type"]] = Roller(
+            diameter_m=t["diameter_m"],
+            contact_length_m=t["contact_length_m"],
+            total_length_m=t["total_length_m"],
+            material=material(t["material"]),
+            roughness_ra_m=t.get("roughness_ra_m", doc["default_roughness_ra_m"]),
+            type_id=t["type"],
         )
     return out
 

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from labctl.data import data_path, positive, read_toml, require
+from labctl.data import data_path, read_toml
+from labctl.data.schema import Number, Spec, Table, Text, Where, read
+from labctl.data.units import GPA
 from labctl.errors import InputError
 
-GPA = 1e9
+__all__ = ["BEARING_STEEL", "GPA", "Material", "effective_modulus", "hardness_pa", "material", "materials"]
 
 
 @dataclass(frozen=True)
@@ -38,19 +40,23 @@ def effective_modulus(a: Material, b: Material) -> float:
     return 1.0 / (a.plane_strain_compliance + b.plane_strain_compliance)
 
 
+MATERIAL: dict[str, Spec] = {
+    "description": Text(default=""),
+    "youngs_modulus_gpa": Number(gt=0, unit="gpa"),
+    "poisson_ratio": Number(gt=-1, lt=0.5),
+    "hardness_hrc": Number(ge=0, le=100, default=60.0),
+}
+
+
 @cache
 def _catalogue(path: str) -> dict[str, Material]:
-    doc = read_toml(path)
-    table = require(doc, "materials", dict, path)
+    top = Where(path)
+    table = read(read_toml(path), {"materials": Table()}, top)["materials"]
     out: dict[str, Material] = {}
     for name, entry in table.items():
-        where = f"{path}: materials.{name}"
-        out[name] = Material(
-            name=name,
-            youngs_modulus_pa=positive(entry, "youngs_modulus_gpa", where) * GPA,
-            poisson_ratio=require(entry, "poisson_ratio", float, where),
-            hardness_hrc=float(entry.get("hardness_hrc", 60.0)),
-        )
+        t = read(entry, MATERIAL, top.at("materials").at(name))
+        out[name] = Material(name=name, youngs_modulus_pa=t["youngs_modulus_pa"], poisson_ratio=t["poisson_ratio"],
+                             hardness_hrc=t["hardness_hrc"])
     return out
 
 

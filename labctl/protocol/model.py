@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from labctl.data.units import UM
 from labctl.physics import ContactCase, Roller, material, roller, static_load_rating_n
-from labctl.physics.catalogue import UM
 from labctl.processing import CheckConfig
 
 SpecimenKind = Literal["roller", "ball"]
