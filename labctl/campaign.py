@@ -17,7 +17,7 @@ from labctl.engine import Engine, Outcome, RunControl
 from labctl.errors import InputError
 from labctl.events import Event, EventBus
 from labctl.physics.rig_config import RigConfig, load_rig
-from labctl.physics.world import world_path
+from labctl.physics.world import load_world, world_path
 from labctl.protocol import Protocol, SpecimenSpec, load_protocol
 from labctl.storage import CampaignWriter
 
@@ -79,6 +79,12 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
         from labctl.hardware import find_devices_file
 
         devices = find_devices_file(None)
+    if backend == "hw":  # a bad devices or world file is refused before any campaign file exists
+        from labctl.hardware import load_devices
+
+        load_devices(devices)
+    elif backend == "sim":
+        load_world(world)
     factory = rig_factory(backend, rig_config, world=world, seed=seed, operator=operator, devices=devices)
     if not resume:
         writer = CampaignWriter.create(out, protocol_name=proto.name, backend=backend, seed=seed,

@@ -192,3 +192,11 @@ def test_a_garbage_devices_file_is_one_line_naming_the_file(tmp_path: Path) -> N
     path.write_text('load_cell = 3\n[daq]\n[hammer]\n[actuator]\n')
     with pytest.raises(InputError, match=r"load_cell = 3: expected a table"):
         load_devices(path)
+
+
+def test_a_bad_devices_file_is_refused_before_a_campaign_file_exists(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, edit=("sensitivity_mv_per_n = 0.23", "sensitivity_mv_per_n = nan"))
+    out = tmp_path / "c.h5"
+    proc = labctl("run", "protocols/quick_check.toml", "--backend", "hw", "--devices", str(path), "--out", str(out))
+    assert_one_line_error(proc, str(path), "daq.channels[0].sensitivity_mv_per_n = nan")
+    assert not out.exists()

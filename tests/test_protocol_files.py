@@ -113,3 +113,12 @@ def test_wrong_types_and_typos_name_the_expectation_and_the_closest_key(line, fr
     with pytest.raises(InputError, match="^p.toml: " + fragment.replace("(", r"\(").replace(")", r"\)")
                        .replace("?", r"\?").replace(".", r"\.")):
         parse_protocol(GOOD.replace("impacts_per_step = 3", line), "p.toml")
+
+
+def test_a_bad_world_file_is_refused_before_a_campaign_file_exists(tmp_path):
+    world = tmp_path / "w.toml"
+    world.write_text('[baseline]\nmodel = "tripp"\n[scatter]\nstiffness_rel = nan\n')
+    out = tmp_path / "c.h5"
+    proc = labctl("run", "protocols/quick_check.toml", "--backend", "sim", "--world", str(world), "--out", str(out))
+    assert_one_line_error(proc, str(world), "scatter.stiffness_rel = nan")
+    assert not out.exists()
