@@ -7,7 +7,7 @@ import math
 import pytest
 
 from labctl.data import data_path
-from labctl.data.schema import Integer, Number, Numbers, Table, Text, Where, build, read
+from labctl.data.schema import Integer, Number, Numbers, Table, Text, Where, bounded, build, read
 from labctl.data.units import from_si, si_name, to_si
 from labctl.errors import InputError
 from labctl.physics.catalogue import rollers
@@ -123,3 +123,16 @@ def test_bad_catalogue_entries_are_refused_naming_file_table_key_value(tmp_path,
 def test_shipped_catalogues_read_in_si():
     assert materials()["1.3505"].youngs_modulus_pa == pytest.approx(210e9)
     assert rollers()[1].diameter_m == pytest.approx(3e-3) and rollers()[1].roughness_ra_m == pytest.approx(0.028e-6)
+
+
+def test_bounded_schemas_read_world_effect_parameters_in_edge_units():
+    from labctl.physics.effects import EFFECTS
+
+    misalignment = bounded(EFFECTS["misalignment"].BOUNDS)
+    assert list(misalignment) == ["tilt_mrad"]
+    assert read({"tilt_mrad": 1.5}, misalignment, W) == {"tilt_rad": pytest.approx(1.5e-3)}
+    assert _error({"tilt_mrad": 50.0}, misalignment, Where("w.toml").at("effects").at("misalignment")) == \
+        "w.toml: effects.misalignment.tilt_mrad = 50.0: expected a number in [0, 5]"
+    assert read({"edge_length_mm": 0.1}, bounded(EFFECTS["end_effects"].BOUNDS), W) == \
+        {"edge_length_m": pytest.approx(1e-4)}
+    assert _error({"tilt_deg": 1.0}, misalignment, W).startswith("f.toml: t: unknown key(s) tilt_deg (did you mean")

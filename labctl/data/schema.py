@@ -23,7 +23,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import Any, TypeVar
 
-from labctl.data.units import factor, si_name
+from labctl.data.units import edge_name, factor, si_name
 from labctl.errors import InputError
 
 T = TypeVar("T")
@@ -236,6 +236,21 @@ class Anything:
 
 
 Spec = Number | Integer | Text | Flag | Numbers | Table | Tables | Anything
+
+
+PREFERRED_EDGE_UNITS: Mapping[str, str] = {"m": "mm", "rad": "mrad", "s": "ms", "pa": "gpa"}
+
+
+def bounded(bounds: Mapping[str, tuple[float, float]], edge_units: Mapping[str, str] = PREFERRED_EDGE_UNITS, *,
+            default: Any = None) -> dict[str, Spec]:
+    """A schema for SI parameters with closed bounds, each read in its edge unit: ``{"tilt_rad": (0, 5e-3)}``
+    gives the key ``tilt_mrad``, a number in [0, 5] converted to rad (a world effect's ``BOUNDS``, say)."""
+    out: dict[str, Spec] = {}
+    for si_key, (lo, hi) in bounds.items():
+        unit = next((u for si, u in edge_units.items() if si_key.endswith(f"_{si}")), "")
+        f = factor(unit) if unit else 1.0
+        out[edge_name(si_key, unit) if unit else si_key] = Number(ge=lo / f, le=hi / f, unit=unit, default=default)
+    return out
 
 
 # ---- reading tables ------------------------------------------------------------------------------------------
