@@ -16,7 +16,6 @@ Every error is an ``InputError`` (one line, exit 2) of one of these forms, ``TAB
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from collections.abc import Iterable, Mapping
@@ -66,6 +65,8 @@ class Where:
 
     def unknown(self, keys: Iterable[str], valid: Iterable[str]) -> InputError:
         """Unknown keys, each with the closest valid key when one is close (difflib), and the valid ones."""
+        import difflib  # only when there is an error to explain
+
         valid = sorted(valid)
         named = []
         for key in keys:
