@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Iterable, Mapping
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass, fields, replace
 from typing import Any, TypeVar
 
 from labctl.data.units import edge_name, factor, si_name
@@ -159,7 +159,7 @@ class Text:
         if not self.choices:
             return "a string"
         hints = self.choices if isinstance(self.choices, Mapping) else {}
-        return "one of " + ", ".join(f"'{c}' ({hints[c]})" if hints.get(c) else str(c) for c in self.choices)
+        return "one of " + ", ".join(f"{c} ({hints[c]})" if hints.get(c) else str(c) for c in self.choices)
 
     def read(self, key: str, value: Any, where: Where) -> str:
         if not isinstance(value, str):
@@ -314,8 +314,9 @@ def _default(spec: Spec) -> Any:
 
 def build(cls: type[T], doc: Any, schema: Mapping[str, Spec], where: Where, **given: Any) -> T:
     """A dataclass from a table: each schema key fills the field of its SI name; absent keys keep the field's
-    default (a field without one is required). ``given`` fills fields that do not come from the table.
-    A ``ValueError`` raised by the dataclass itself (a rule across fields) becomes ``FILE: TABLE: ...``.
+    default (a field without a plain default, or with a ``default_factory``, is required). ``given`` fills
+    fields that do not come from the table. A ``ValueError`` raised by the dataclass itself (a rule across
+    fields) becomes ``FILE: TABLE: ...``.
     """
     defaults = {f.name: f.default for f in fields(cls) if f.default is not MISSING}  # type: ignore[arg-type]
     full = {}
@@ -334,8 +335,6 @@ def build(cls: type[T], doc: Any, schema: Mapping[str, Spec], where: Where, **gi
 
 
 def _with_default(spec: Spec, default: Any) -> Spec:
-    from dataclasses import replace
-
     return replace(spec, default=default)
 
 
