@@ -7,7 +7,8 @@ from collections.abc import Iterator
 import h5py
 
 FORMAT = "labctl-campaign"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 CONFIG = "config"
 FORCE = "force_n"
 ACCEL = "accel_m_per_s2"
@@ -15,6 +16,7 @@ RESULT = "result"
 CURVE = "curve"
 COMPLETE = "complete"
 FRF_MAX_HZ = 2500.0
+TRACE_CHUNK = 4096  # samples per chunk of a stored trace (the scale-offset filter packs each chunk)
 
 
 def series_name(series: int) -> str:
