@@ -274,7 +274,7 @@ class CampaignWriter:
         frf = result.frf
         if frf is not None:
             keep = frf.frequencies_hz <= s.FRF_MAX_HZ
-            g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep])
+            g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep], **COMPRESS)
             g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
             g.create_dataset("coherence", data=np.asarray(frf.coherence)[..., keep].astype(np.float32), **COMPRESS)
         _attrs(g, {f.name: getattr(result, f.name) for f in fields(result) if f.name != "frf"})
