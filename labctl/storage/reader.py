@@ -80,14 +80,14 @@ def trace(ds: h5py.Dataset) -> np.ndarray:
 def impact_info(g: h5py.Group) -> ImpactInfo:
     """The timing, checks and verdict of a stored impact (either schema)."""
     a = attrs_of(g)
+    reasons = [str(r) for r in a.get("reasons", [])]
+    auto = tuple(r for r in reasons if r not in OPERATOR_REASONS)  # the checks' reasons
     if "verdict_source" in a:  # schema 2
-        checks = CheckSummary(bool(a.get("check_accepted", a["accepted"])), tuple(a.get("check_reasons", ())),
+        by_operator = a["verdict_source"] == OPERATOR
+        checks = CheckSummary(bool(a.get("check_accepted", not auto)) if by_operator else bool(a["accepted"]), auto,
                               float(a.get("peak_force_n", np.nan)), float(a.get("pulse_width_s", np.nan)))
-        verdict = Verdict(bool(a["accepted"]), OPERATOR if a["verdict_source"] == OPERATOR else CHECKS,
-                          str(a.get("verdict_reason", "")))
-    else:  # schema 1: the operator's verdict was a reason among the checks'
-        reasons = [str(r) for r in a.get("reasons", [])]
-        auto = tuple(r for r in reasons if r not in OPERATOR_REASONS)
+        verdict = Verdict(bool(a["accepted"]), OPERATOR if by_operator else CHECKS, str(a.get("verdict_reason", "")))
+    else:  # schema 1: the operator's verdict was only a reason among the checks'
         by_operator = any(r in OPERATOR_REASONS for r in reasons)
         checks = CheckSummary(not auto if by_operator else bool(a.get("accepted")), auto,
                               float(a.get("peak_force_n", np.nan)), float(a.get("pulse_width_s", np.nan)))

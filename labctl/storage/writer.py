@@ -242,12 +242,14 @@ class CampaignWriter:
         _attrs(a, {"unit": "m/s^2", "channels": list(record.channels),
                    "sensitivity_v_per_unit": cal.accel_sensitivity_v_per_m_per_s2,
                    "range_units": cal.accel_range_m_per_s2})
+        if self._accepted is not None:
+            self._accepted += int(info.verdict.accepted)
         _attrs(g, {"attempt": record.attempt, "sample_rate_hz": info.sample_rate_hz,
                    "trigger_index": info.trigger_index, "timestamp_utc": info.timestamp_utc,
                    "clipped": list(info.clipped), "check_accepted": bool(info.checks.accepted),
-                   "check_reasons": list(info.checks.reasons), "peak_force_n": info.checks.peak_force_n,
-                   "pulse_width_s": info.checks.pulse_width_s})
-        self._verdict(g, info.verdict)
+                   "peak_force_n": info.checks.peak_force_n, "pulse_width_s": info.checks.pulse_width_s,
+                   "accepted": bool(info.verdict.accepted), "verdict_source": info.verdict.source,
+                   "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)})
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
 
@@ -257,7 +259,7 @@ class CampaignWriter:
         g.attrs["accepted"] = bool(verdict.accepted)
         g.attrs["verdict_source"] = verdict.source
         g.attrs["verdict_reason"] = verdict.reason
-        g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons) if "check_reasons" in g.attrs else [])
+        g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
 
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
