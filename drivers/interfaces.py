@@ -111,7 +111,28 @@ class LoadActuator(Instrument, Protocol):
     def turn_knobs(self, angle_deg: float) -> None: ...
 
 
-OperatorAction = Literal["mount_specimen", "turn_knobs", "strike", "rotate_rollers", "unload", "confirm"]
+OperatorAction = Literal["mount_specimen", "turn_knobs", "strike", "rotate_rollers", "unload", "confirm",
+                         "review_impact"]
+REVIEW_CHOICES = ("accept", "reject")
+
+
+@dataclass(frozen=True)
+class ImpactReview:
+    """One stored blow put to the operator: where it is, and what the automatic checks said about it."""
+
+    series: int
+    run: int
+    step: int
+    attempt: int
+    checks_accepted: bool
+    reasons: tuple[str, ...]
+    peak_force_n: float
+    pulse_width_s: float
+
+    def message(self) -> str:
+        said = "passed the checks" if self.checks_accepted else f"flagged: {', '.join(self.reasons)}"
+        return (f"series {self.series} run {self.run} step {self.step} impact {self.attempt}: {said} "
+                f"(peak {self.peak_force_n:.0f} N, pulse {self.pulse_width_s * 1e3:.2f} ms); accept or reject?")
 
 
 @runtime_checkable
@@ -127,6 +148,17 @@ class Operator(Protocol):
         ...
 
     def notify(self, message: str) -> None: ...
+
+
+@runtime_checkable
+class ImpactReviewer(Protocol):
+    """An operator that gives a verdict on each stored blow (optional; the engine asks only such operators,
+    or ones with ``reviews_impacts = True`` through ``prompt(..., REVIEW_CHOICES, "review_impact")``).
+
+    ``review_impact`` returns ("accept" or "reject", reason), or None to leave the checks' verdict.
+    """
+
+    def review_impact(self, review: ImpactReview) -> tuple[str, str] | None: ...
 
 
 @dataclass

@@ -11,7 +11,10 @@ from dataclasses import dataclass, field
 from typing import TextIO
 
 from drivers.errors import DeviceDisconnected, DeviceError
-from drivers.interfaces import OperatorAction
+from drivers.interfaces import REVIEW_CHOICES, ImpactReview, OperatorAction
+
+ReviewKey = tuple[int, int, int, int]
+"""(series, run, step, attempt) of a blow."""
 
 PromptCallback = Callable[[str, tuple[str, ...]], "str | None"]
 """Called with (message, choices) for a prompt of its action; returns the answer, or None for the default."""
@@ -31,9 +34,14 @@ class PromptLog:
 class ScriptedOperator:
     """Answers every prompt without a person: a callback for its action, else the next scripted answer for
     that action, else the first choice (the confirmation). Every prompt and notice is recorded.
+
+    ``reviews`` gives verdicts on chosen blows, keyed by (series, run, step, attempt): ("accept" or "reject",
+    reason); every other blow keeps the checks' verdict. ``reviewed`` records each verdict given.
     """
 
     answers: Mapping[str, Iterable[str]] = field(default_factory=dict)
+    reviews: Mapping[ReviewKey, tuple[str, str]] = field(default_factory=dict)
+    reviewed: list[tuple[ReviewKey, str, str]] = field(default_factory=list)
     callbacks: dict[str, PromptCallback] = field(default_factory=dict)
     prompts: list[PromptLog] = field(default_factory=list)
     notices: list[str] = field(default_factory=list)
@@ -63,6 +71,18 @@ class ScriptedOperator:
 
     def notify(self, message: str) -> None:
         self.notices.append(message)
+
+    def review_impact(self, review: ImpactReview) -> tuple[str, str] | None:
+        """The scripted verdict on this blow, if the script names it (else the checks decide)."""
+        key = (review.series, review.run, review.step, review.attempt)
+        verdict = self.reviews.get(key)
+        if verdict is None:
+            return None
+        if verdict[0] not in REVIEW_CHOICES:
+            raise DeviceError(self.name, "review", f"scripted verdict {verdict[0]!r} is not one of {REVIEW_CHOICES}")
+        self.reviewed.append((key, verdict[0], verdict[1]))
+        self.prompts.append(PromptLog(review.message(), REVIEW_CHOICES, "review_impact", verdict[0]))
+        return verdict
 
     def actions(self) -> list[str]:
         """The action tags of every prompt so far, in order."""

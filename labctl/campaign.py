@@ -2,24 +2,84 @@
 
     from labctl.campaign import run_campaign
     outcome = run_campaign("protocols/quick_check.toml", out="qc.h5", backend="sim", seed=1)
-    for curve in outcome.curves: print(curve["load_n"], curve["stiffness_n_per_m"])
+    for curve in outcome.curves: print(curve.load_n, curve.stiffness_n_per_m)
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterable
+import tomllib
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
-from drivers.interfaces import Operator, Rig
+from drivers.interfaces import REVIEW_CHOICES, Operator, Rig
+from drivers.operators import ScriptedOperator
 from labctl.backends import make_rig
-from labctl.engine import Engine, Outcome, RunControl
+from labctl.engine import Condition, Engine, Outcome, RunControl
+from labctl.engine.plan import plan_steps
 from labctl.errors import InputError
 from labctl.events import Event, EventBus
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.physics.world import load_world, world_path
 from labctl.protocol import Protocol, SpecimenSpec, load_protocol
 from labctl.storage import CampaignWriter
+
+REVIEW_KEYS = {"series": 1, "run": 1, "step": None, "attempt": None, "verdict": None, "reason": None}
+
+
+def load_operator_script(path: str | Path) -> ScriptedOperator:
+    """A scripted operator from a TOML file: verdicts on chosen blows (``[[review]]`` tables) and answers to
+    prompts by action (``[answers]``: action = [answers in order]); every other prompt gets its first choice.
+    """
+    p = Path(path)
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{p}: operator script not found") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"{p}: not a readable TOML operator script ({exc})") from None
+    unknown = sorted(set(doc) - {"review", "answers"})
+    if unknown:
+        raise InputError(f"{p}: unknown table {unknown[0]!r}; expected [[review]] and [answers]")
+    answers = doc.get("answers", {})
+    if not isinstance(answers, dict) or not all(isinstance(v, list) and all(isinstance(a, str) for a in v)
+                                                for v in answers.values()):
+        raise InputError(f"{p}: [answers]: expected action = [\"answer\", ...] lists of strings")
+    reviews: dict[tuple[int, int, int, int], tuple[str, str]] = {}
+    entries = doc.get("review", [])
+    if not isinstance(entries, list):
+        raise InputError(f"{p}: review: expected [[review]] tables")
+    for n, entry in enumerate(entries, start=1):
+        key, verdict, reason = _review_entry(entry, f"{p}: [[review]] #{n}")
+        if key in reviews:
+            raise InputError(f"{p}: [[review]] #{n}: series {key[0]} run {key[1]} step {key[2]} attempt {key[3]} "
+                             "has a verdict already")
+        reviews[key] = (verdict, reason)
+    return ScriptedOperator(answers={k: list(v) for k, v in answers.items()}, reviews=reviews,
+                            name=f"operator@{p.name}")
+
+
+def _review_entry(entry: Any, where: str) -> tuple[tuple[int, int, int, int], str, str]:
+    if not isinstance(entry, dict):
+        raise InputError(f"{where}: expected a table")
+    unknown = sorted(set(entry) - set(REVIEW_KEYS))
+    if unknown:
+        raise InputError(f"{where}: unknown key {unknown[0]!r}; expected {', '.join(REVIEW_KEYS)}")
+    values = {k: entry.get(k, default) for k, default in REVIEW_KEYS.items()}
+    for k in ("series", "run", "step", "attempt"):
+        v = values[k]
+        if v is None:
+            raise InputError(f"{where}: {k} is missing; expected an integer >= 1")
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise InputError(f"{where}: {k} = {v!r}; expected an integer >= 1")
+    if values["verdict"] not in REVIEW_CHOICES:
+        raise InputError(f"{where}: verdict = {values['verdict']!r}; expected one of {', '.join(REVIEW_CHOICES)}")
+    reason = values["reason"]
+    if not isinstance(reason, str) or not reason.strip():
+        raise InputError(f"{where}: reason = {reason!r}; expected a non-empty text saying why")
+    key = (values["series"], values["run"], values["step"], values["attempt"])
+    return key, str(values["verdict"]), reason.strip()
 
 
 def _text(path: str | Path | None) -> str:
@@ -55,9 +115,13 @@ def rig_factory(backend: str, rig: RigConfig, *, world: str | Path | None = None
 def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: str = "sim", resume: bool = False,
                  world: str | Path | None = None, seed: int | None = None, rig: str | Path | None = None,
                  devices: str | Path | None = None, operator: Operator | None = None,
-                 subscribers: Iterable[Callable[[Event], object]] = (), control: RunControl | None = None
-                 ) -> Outcome:
-    """Run a protocol (or continue an interrupted campaign with ``resume=True``) and return how it ended."""
+                 subscribers: Iterable[Callable[[Event], object]] = (), control: RunControl | None = None,
+                 conditions: Sequence[Condition] = ()) -> Outcome:
+    """Run a protocol (or continue an interrupted campaign with ``resume=True``) and return how it ended.
+
+    Every input (protocol, rig, world, devices, output path) is read and checked before a new file is
+    created, so a bad input leaves no file behind. ``conditions`` are extra safe-point checks for the engine.
+    """
     out = Path(out)
     if resume:
         writer = CampaignWriter.open_existing(out)
@@ -67,24 +131,37 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
             writer.close()
             raise InputError(f"{out}: was written with a different protocol than {proto.source_path}; "
                              "resume with the same protocol file")
-        desc = json.loads(str(writer.h5.attrs.get("backend_description", "{}")) or "{}")
-        backend = str(writer.h5.attrs.get("backend", backend))
-        seed_attr = int(writer.h5.attrs.get("seed", -1))
+        stored_attrs = writer.attrs
+        desc = stored_attrs.get("backend_description") or {}
+        desc = desc if isinstance(desc, dict) else json.loads(str(desc) or "{}")
+        backend = str(stored_attrs.get("backend", backend))
+        seed_attr = int(stored_attrs.get("seed", -1))
         seed = seed if seed is not None else (None if seed_attr < 0 else seed_attr)
         world = world if world is not None else desc.get("world_file") or None
     else:
         proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
-    rig_config = load_rig(rig)
-    if backend == "hw" and devices is None:
-        from labctl.hardware import find_devices_file
+        if out.exists():
+            raise InputError(f"{out}: already exists; use --resume to continue it or choose another --out")
+        if out.parent.exists() and not out.parent.is_dir():
+            raise InputError(f"{out}: its folder {out.parent} is a file")
+    try:
+        rig_config = load_rig(rig)
+        for spec in proto.specimens:
+            spec.case()
+            plan_steps(proto, spec, rig_config)
+        if backend == "sim":
+            load_world(world)
+            if any(spec.kind == "ball" for spec in proto.specimens) and world is None:
+                load_world("balls")
+        if backend == "hw":
+            from labctl.hardware import find_devices_file, load_devices
 
-        devices = find_devices_file(None)
-    if backend == "hw":  # a bad devices or world file is refused before any campaign file exists
-        from labctl.hardware import load_devices
-
-        load_devices(devices)
-    elif backend == "sim":
-        load_world(world)
+            devices = find_devices_file(devices)
+            load_devices(devices)
+    except BaseException:
+        if resume:
+            writer.close()
+        raise
     factory = rig_factory(backend, rig_config, world=world, seed=seed, operator=operator, devices=devices)
     if not resume:
         writer = CampaignWriter.create(out, protocol_name=proto.name, backend=backend, seed=seed,
@@ -95,6 +172,13 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
     for sub in subscribers:
         bus.subscribe(sub)
     try:
-        return Engine(proto, rig_config, factory, writer, bus, control).run()
+        engine = Engine(proto, rig_config, factory, writer, bus, control, conditions)
+    except BaseException:
+        writer.close()
+        if not resume:
+            out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
+        raise
+    try:
+        return engine.run()
     finally:
         writer.close()

@@ -1,46 +1,94 @@
-"""Storing a step's identification and a repetition's stiffness curve: one way, used by the engine and imports."""
+"""The one step pipeline: check a delivered record → store it → identify the step from its stored impacts.
+
+The engine (live), the UFF importer and ``labctl process`` (reprocessing) all call ``check_record`` and
+``process_step``, so an impact's stored verdict means the same everywhere: an impact the operator accepted
+is used even when a check flagged it; one the operator rejected is never used.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
 
 import numpy as np
 
-from labctl.processing import Identification
-from labctl.storage import schema
-from labctl.storage.writer import CampaignWriter
-
-CURVE_COLUMNS = ("load_n", "stiffness_n_per_m", "stiffness_std_n_per_m", "bounce_hz", "bounce_damping_ratio",
-                 "tilt_a_hz", "tilt_b_hz", "coherence_at_bounce", "knob_angle_deg")
-
-
-def store_step_result(writer: CampaignWriter, series: int, run: int, step: int, result: Identification | str,
-                      attempts: Sequence[int]) -> None:
-    """Store a step's identification (impacts numbered by their attempts), or mark the step failed with why."""
-    if isinstance(result, str):
-        writer.update_step(series, run, step, {"failed": result, schema.COMPLETE: True})
-        return
-    summary = result.to_dict()
-    summary["impacts"] = [{**imp, "attempt": attempts[i]} for i, imp in enumerate(summary.get("impacts", []))]
-    writer.write_step_result(series, run, step, summary, result.frequencies_hz, result.h1, result.coherence)
+from labctl.physics.rig_config import RigConfig
+from labctl.processing import CheckConfig, ProcessingError, check_impact, identify
+from labctl.storage.records import (
+    CHECKS,
+    Calibration,
+    CheckSummary,
+    ImpactInfo,
+    ImpactOutcome,
+    ImpactRecord,
+    StepResult,
+    Verdict,
+    failed_step,
+    step_result,
+)
 
 
-def store_curve(writer: CampaignWriter, series: int, run: int) -> dict[str, np.ndarray]:
-    """Build the repetition's stiffness-vs-load table from its stored step results, store it, and return it."""
-    rg = writer.h5[schema.series_name(series)][schema.run_name(run)]
-    rows = []
-    for name in sorted(k for k in rg if k.startswith("step_")):
-        g = rg[name]
-        res = g.get(schema.RESULT)
-        if res is None or not res.attrs.get(schema.COMPLETE):
-            continue
-        tilt = np.asarray(res.attrs.get("tilt_hz", [np.nan, np.nan]), dtype=float).ravel()
-        tilt = tilt if tilt.size >= 2 else np.array([np.nan, np.nan])
-        a = res.attrs
-        rows.append((float(g.attrs["load_n"]), float(a["roller_stiffness_n_per_m"]),
-                     float(a.get("roller_stiffness_std_n_per_m", np.nan)), float(a["bounce_hz"]),
-                     float(a.get("bounce_damping_ratio", np.nan)), tilt[0], tilt[1],
-                     float(a.get("coherence_at_bounce", np.nan)), float(g.attrs.get("knob_angle_deg", np.nan))))
-    table = {c: np.array([r[i] for r in rows], dtype=float) for i, c in enumerate(CURVE_COLUMNS)}
-    writer.write_curve(series, run, table)
-    return table
+@dataclass(frozen=True)
+class Delivered:
+    """What a DAQ (or an imported file) delivered for one blow, before any check."""
+
+    sample_rate_hz: float
+    force_n: np.ndarray
+    accel_m_per_s2: np.ndarray
+    channels: tuple[str, ...]
+    trigger_index: int = 0
+    timestamp_s: float | None = None
+    clipped: tuple[str, ...] = ()
+    calibration: Calibration = Calibration()
+
+
+def check_record(data: Delivered, attempt: int, checks: CheckConfig) -> ImpactRecord:
+    """The impact record of one delivered blow with the automatic checks' verdict (source "checks")."""
+    cal = data.calibration
+    ranges = list(cal.accel_range_m_per_s2) if cal.accel_range_m_per_s2 is not None else None
+    check = check_impact(np.asarray(data.force_n, dtype=float), np.asarray(data.accel_m_per_s2, dtype=float),
+                         data.sample_rate_hz, index=attempt, accel_ranges=ranges, force_range_n=cal.force_range_n,
+                         config=checks)
+    clipped = () if "overload" in check.reasons else tuple(f"clipped:{c}" for c in data.clipped)
+    reasons = (*check.reasons, *clipped)
+    accepted = bool(check.accepted) and not data.clipped
+    when = datetime.fromtimestamp(data.timestamp_s, UTC) if data.timestamp_s is not None else datetime.now(UTC)
+    info = ImpactInfo(attempt, float(data.sample_rate_hz), int(data.trigger_index),
+                      when.isoformat(timespec="milliseconds"),
+                      CheckSummary(accepted, reasons, float(check.peak_force_n), float(check.pulse_width_s)),
+                      Verdict(accepted, CHECKS), tuple(data.clipped))
+    return ImpactRecord(info, tuple(data.channels), np.asarray(data.force_n, dtype=float),
+                        np.asarray(data.accel_m_per_s2, dtype=float), cal)
+
+
+def forced_verdicts(records: Sequence[ImpactRecord]) -> list[bool | None]:
+    """Per impact what identification must obey: the operator's verdict, a clipped record's rejection, or
+    None (the checks decide again)."""
+    out: list[bool | None] = []
+    for r in records:
+        if r.verdict.forced is not None:
+            out.append(r.verdict.forced)
+        elif r.info.clipped and not r.accepted:
+            out.append(False)  # the DAQ said so; the checks cannot see it in the samples
+        else:
+            out.append(None)
+    return out
+
+
+def process_step(records: Sequence[ImpactRecord], rig: RigConfig, checks: CheckConfig) -> StepResult:
+    """Identify one load step from all its stored impacts, honouring every stored verdict."""
+    records = list(records)
+    if not records:
+        return failed_step("no impacts stored")
+    forced = forced_verdicts(records)
+    attempts = [r.attempt for r in records]
+    cal = records[-1].calibration
+    try:
+        ident = identify(np.stack([r.force_n for r in records]), np.stack([r.accel_m_per_s2 for r in records]),
+                         records[-1].sample_rate_hz, records[-1].channels, rig,
+                         accel_ranges=None if cal.accel_range_m_per_s2 is None else list(cal.accel_range_m_per_s2),
+                         force_range_n=cal.force_range_n, config=checks, forced=forced)
+    except ProcessingError as exc:
+        return failed_step(str(exc), [ImpactOutcome(r.attempt, False, r.info.reasons) for r in records])
+    return step_result(ident, attempts)

@@ -1,16 +1,18 @@
-"""(Re)process a campaign file from its raw impacts with the current processing code."""
+"""(Re)process a campaign file from its stored impacts with the current processing code and the same step
+pipeline the engine uses (stored verdicts honoured)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from labctl.physics.rig_config import RigConfig, load_rig, rig_from_text
-from labctl.processing import CheckConfig, ProcessingError, identify
+from labctl.errors import InputError
+from labctl.physics.rig_config import RigConfig, rig_from_text
+from labctl.processing import CheckConfig
 from labctl.protocol import parse_protocol
+from labctl.recording import process_step
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage import CampaignReader
+from labctl.storage import CampaignReader, StepResult
 from labctl.storage.table import specimen_point
 
 
@@ -22,8 +24,11 @@ class StepRow:
     step: int
     load_n: float
     knob_angle_deg: float
-    result: dict[str, Any] | None
-    error: str = ""
+    result: StepResult
+
+    @property
+    def error(self) -> str:
+        return self.result.error
 
 
 @dataclass
@@ -35,38 +40,32 @@ class Processed:
 
 
 def rig_of(reader: CampaignReader) -> RigConfig:
-    """The rig description stored in the campaign (falls back to the shipped default)."""
-    text = reader.config_text("rig.toml")
-    return rig_from_text(text, f"{reader.path}:/config/rig.toml") if text else load_rig()
+    """The rig description stored in the campaign (InputError when the file has none)."""
+    return rig_from_text(reader.required_config("rig.toml"), f"{reader.path}:/config/rig.toml")
+
+
+def checks_of(reader: CampaignReader) -> CheckConfig:
+    """The impact checks the campaign ran with (an import without a protocol: the defaults)."""
+    text = reader.config_text("protocol.toml")
+    return parse_protocol(text, f"{reader.path}:/config/protocol.toml").checks if text else CheckConfig()
 
 
 def process_campaign(path: str | Path) -> Processed:
     """Identify every step of every run again from its stored impacts."""
     with CampaignReader(path) as reader:
         rig = rig_of(reader)
-        proto_text = reader.config_text("protocol.toml")
-        config = parse_protocol(proto_text, f"{path}:/config/protocol.toml").checks if proto_text else CheckConfig()
+        checks = checks_of(reader)
+        if reader.step_count() == 0:
+            raise InputError(f"{path}: the campaign holds no load step yet (nothing was measured)")
         out = Processed(str(path), str(reader.attrs.get("status", "")))
         for series in reader.series_indices():
             spec = reader.specimen(series)
             for run in reader.runs(series):
                 for step in run.steps:
-                    row = StepRow(series, str(spec.get("label", "")), run.run, step.step, step.load_n,
-                                  float(step.attrs.get("knob_angle_deg", 0.0)), None)
-                    data = reader.impact_arrays(series, run.run, step.step)
-                    if not data.attempts:
-                        row.error = "no impacts stored"
-                    else:
-                        try:
-                            ident = identify(data.force_n, data.accel_m_per_s2, data.sample_rate_hz, data.channels,
-                                             rig, accel_ranges=data.accel_ranges, force_range_n=data.force_range_n,
-                                             config=config)
-                            row.result = ident.to_dict()
-                            out.points.append(specimen_point(spec, run.run, step.load_n,
-                                                             ident.roller_stiffness_n_per_m))
-                        except ProcessingError as exc:
-                            row.error = str(exc)
-                    out.rows.append(row)
+                    result = process_step(reader.impacts(series, run.run, step.step), rig, checks)
+                    out.rows.append(StepRow(series, str(spec.get("label", "")), run.run, step.step, step.load_n,
+                                            step.knob_angle_deg, result))
+                    if result.identified:
+                        out.points.append(specimen_point(spec, run.run, step.load_n,
+                                                         result.roller_stiffness_n_per_m))
     return out
-
-

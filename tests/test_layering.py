@@ -111,3 +111,17 @@ def test_the_scan_sees_upward_and_relative_imports():
     assert violations("from . import rig\nfrom labctl.errors import InputError\n", "labctl.physics", True) == []
     assert violations("import labctl.tui.app\n", "labctl.engine.runner") == [
         "labctl.engine.runner:1 floor 3 imports labctl.tui.app (floor 4)"]
+
+
+def test_only_storage_imports_h5py():
+    """The campaign file format has one owner: nothing outside labctl/storage opens HDF5 itself."""
+    found = []
+    for path in sources():
+        module = module_name(path)
+        if module.startswith("labctl.storage"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            found += [f"{module}:{node.lineno} imports {n}" for n in names if n.split(".")[0] == "h5py"]
+    assert not found, "\n".join(found)

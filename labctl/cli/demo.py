@@ -16,7 +16,9 @@ PROTOCOL = "roller_stiffness"
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the roller-type-1 campaign on the simulated rig and compare with models")
-    p.add_argument("--out", default="labctl-demo", help="directory for campaign.h5 and stiffness.csv")
+    p.add_argument("--out", default="labctl-demo",
+                   help="directory for campaign.h5 and stiffness.csv (default ./labctl-demo)")
+    p.add_argument("--force", action="store_true", help="overwrite a campaign.h5 already in that directory")
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig (default 1)")
     p.add_argument("--world", help="world scenario for the simulated rig (default: Tripp + surface roughness)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -24,13 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def summarise(curves: list[dict[str, Any]], case: Any) -> list[dict[str, float]]:
+def summarise(curves: list[Any], case: Any) -> list[dict[str, float]]:
     """Per load step over the repetitions: mean load and stiffness, spread (max-min)/mean, and the models."""
     from labctl.physics.references import reference_curves
 
-    n = min(len(c["load_n"]) for c in curves)
-    loads = np.array([c["load_n"][:n] for c in curves])
-    k = np.array([c["stiffness_n_per_m"][:n] for c in curves])
+    n = min(len(c.load_n) for c in curves)
+    loads = np.array([c.load_n[:n] for c in curves])
+    k = np.array([c.stiffness_n_per_m[:n] for c in curves])
     mean_load, mean_k = loads.mean(axis=0), k.mean(axis=0)
     refs = reference_curves(case, "roller", mean_load)
     return [{"step": i + 1, "load_n": float(mean_load[i]), "stiffness_n_per_m": float(mean_k[i]),
@@ -42,15 +44,20 @@ def summarise(curves: list[dict[str, Any]], case: Any) -> list[dict[str, float]]
 def run(args: argparse.Namespace) -> int:
     from labctl.campaign import run_campaign
     from labctl.cli.progress import ProgressPrinter
+    from labctl.errors import InputError
     from labctl.protocol import load_protocol
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     path = out / "campaign.h5"
-    path.unlink(missing_ok=True)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file; --out names a directory for campaign.h5 and stiffness.csv")
+    if path.exists() and not args.force:
+        raise InputError(f"{path}: a campaign is already there; use --force to overwrite it or choose another --out")
     protocol = load_protocol(PROTOCOL)
+    out.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
     outcome = run_campaign(protocol, out=path, backend="sim", seed=args.seed, world=args.world, subscribers=subs)
     if outcome.status != "complete" or not outcome.curves:

@@ -10,7 +10,7 @@ from labctl.cli.common import add_json, emit
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("process", help="(re)process a campaign file; export the stiffness table as CSV")
     p.add_argument("file", metavar="FILE.h5", help="campaign file")
-    p.add_argument("--csv", metavar="OUT", help="write the stiffness table (DESIGN.md §4 columns) to this CSV")
+    p.add_argument("--csv", metavar="OUT", help="write the stiffness table (one row per identified step) to this CSV")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -24,15 +24,17 @@ def run(args: argparse.Namespace) -> int:
         write_stiffness_table(args.csv, done.points)
     steps = []
     for r in done.rows:
+        res = r.result
         item = {"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
-                "knob_angle_deg": r.knob_angle_deg}
-        if r.result:
-            item.update({k: r.result[k] for k in ("bounce_hz", "bounce_damping_ratio", "tilt_hz",
-                                                   "roller_stiffness_n_per_m", "coherence_at_bounce")
-                         if k in r.result})
-            item["rejected_impacts"] = sum(1 for i in r.result.get("impacts", []) if not i.get("accepted"))
+                "knob_angle_deg": r.knob_angle_deg, "used_impacts": list(res.used_attempts),
+                "rejected_impacts": res.rejected_count}
+        if res.identified:
+            item.update({"bounce_hz": res.bounce_hz, "bounce_damping_ratio": res.bounce_damping_ratio,
+                         "tilt_hz": list(res.tilt_hz), "roller_stiffness_n_per_m": res.roller_stiffness_n_per_m,
+                         "roller_stiffness_std_n_per_m": res.roller_stiffness_std_n_per_m,
+                         "coherence_at_bounce": res.coherence_at_bounce})
         else:
-            item["error"] = r.error
+            item["error"] = res.error
         steps.append(item)
     result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
               "csv": args.csv}

@@ -23,6 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, help="random seed for the simulated rig")
     p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
     p.add_argument("--devices", help="devices TOML file for --backend hw")
+    p.add_argument("--operator", metavar="FILE.toml",
+                   help="scripted operator: verdicts on chosen impacts ([[review]] series/run/step/attempt, "
+                        "verdict accept|reject, reason) and prompt answers ([answers]); see docs/storage.md")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_json(p)
     p.set_defaults(func=run)
@@ -42,17 +45,20 @@ def install_sigint(control: RunControl) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from labctl.campaign import run_campaign
+    from labctl.campaign import load_operator_script, run_campaign
     from labctl.cli.progress import ProgressPrinter
     from labctl.engine import RunControl
 
+    operator = load_operator_script(args.operator) if args.operator else None
     control = RunControl()
     install_sigint(control)
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
     outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume, world=args.world,
-                           seed=args.seed, rig=args.rig, devices=args.devices, subscribers=subs, control=control)
+                           seed=args.seed, rig=args.rig, devices=args.devices, operator=operator, subscribers=subs,
+                           control=control)
     result = {"status": outcome.status, "path": outcome.path, "message": outcome.message,
-              "runs": [{k: c[k] for k in ("series", "run", "specimen", "load_n", "stiffness_n_per_m")}
+              "runs": [{"series": c.series, "run": c.run, "specimen": c.specimen, "step": c.step.tolist(),
+                        "load_n": c.load_n.tolist(), "stiffness_n_per_m": c.stiffness_n_per_m.tolist()}
                        for c in outcome.curves]}
 
     def text(r: dict) -> str:

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from labctl.engine.calls import GuardedCaller, HardwareFailure
+from labctl.engine.conditions import Condition, LoadDrift, LoadInterlock, SafePoint, Trip
 from labctl.engine.control import RunControl, StopRequested
-from labctl.engine.sequencer import Engine, Interlock, Outcome, RigFactory
+from labctl.engine.sequencer import Engine, Outcome, RigFactory
+from labctl.engine.steps import Interlock
 
-__all__ = ["Engine", "GuardedCaller", "HardwareFailure", "Interlock", "Outcome", "RigFactory", "RunControl",
-           "StopRequested"]
+__all__ = ["Condition", "Engine", "GuardedCaller", "HardwareFailure", "Interlock", "LoadDrift", "LoadInterlock",
+           "Outcome", "RigFactory", "RunControl", "SafePoint", "StopRequested", "Trip"]

@@ -8,7 +8,7 @@ After each repetition the stiffness-vs-load curve is stored. Resuming continues 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 
@@ -16,30 +16,29 @@ from drivers.errors import DeviceError
 from drivers.interfaces import Record, Rig, TriggerSpec
 from labctl import events as ev
 from labctl.engine.calls import GuardedCaller, HardwareFailure
+from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.plan import StepPlan, next_load_n, plan_steps
-from labctl.engine.steps import StepRunner
+from labctl.engine.steps import Interlock, StepRunner
 from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
-from labctl.recording import store_curve
-from labctl.storage import schema
+from labctl.storage.records import RepetitionCurve
 from labctl.storage.writer import CampaignWriter
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
-
-
-class Interlock(LabctlError):
-    """The load cell read more than the protocol's cap: the run stopped and the operator was asked to unload."""
+NOTHING_LEFT = "nothing left to do: every repetition of this campaign is complete"
 
 
 @dataclass
 class Outcome:
+    """How a run ended; ``curves`` are every finished repetition of the campaign (resumed or not)."""
+
     status: str
     path: str
     message: str = ""
-    curves: list[dict] = field(default_factory=list)
+    curves: list[RepetitionCurve] = field(default_factory=list)
 
 
 def specimen_attrs(spec: SpecimenSpec) -> dict:
@@ -58,8 +57,11 @@ class Engine:
     """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``writer``'s file."""
 
     def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, writer: CampaignWriter,
-                 bus: ev.EventBus | None = None, control: RunControl | None = None) -> None:
+                 bus: ev.EventBus | None = None, control: RunControl | None = None,
+                 conditions: Sequence[Condition] = ()) -> None:
+        """``conditions`` are checked at every safe point after the load interlock and the load-drift check."""
         self.protocol, self.rig_config, self.rig_factory, self.writer = protocol, rig_config, rig_factory, writer
+        self.conditions: tuple[Condition, ...] = (*DEFAULT_CONDITIONS, *conditions)
         self.bus = bus or ev.EventBus()
         self.control = control or RunControl()
         self.t0 = time.monotonic()
@@ -68,7 +70,6 @@ class Engine:
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
         steps = sum(p.steps_estimate for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
-        self.impacts_done = self._count_done()
         self._session_start = (time.monotonic(), self.impacts_done)
 
     # --- events -------------------------------------------------------------------------------------------
@@ -97,22 +98,27 @@ class Engine:
         eta = (time.monotonic() - t_start) / rate_n * remaining if rate_n > 0 else None
         self.emit(ev.Progress(self.now(), pos, self.impacts_done, self.impacts_total, eta))
 
-    def _count_done(self) -> int:
-        return sum(bool(impact.attrs.get("accepted")) for step in schema.all_steps(self.writer.h5)
-                   for impact in schema.children(step, "impact_"))
+    @property
+    def impacts_done(self) -> int:
+        """Accepted impacts in the file (the file is the only count)."""
+        return self.writer.accepted_count()
 
     # --- campaign -----------------------------------------------------------------------------------------
     def run(self) -> Outcome:
         """Run (or continue) the whole campaign; the file's status tells how it ended."""
-        resumed = self.impacts_done > 0 or any(k.startswith("series_") for k in self.writer.h5)
+        resumed = self.writer.has_series()
         self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.writer.path,
-                                     str(self.writer.h5.attrs.get("backend", "")), len(self.protocol.specimens),
+                                     str(self.writer.attrs.get("backend", "")), len(self.protocol.specimens),
                                      self.protocol.repetitions.count, tuple(p.steps_estimate for p in self.plans),
                                      self.protocol.acquisition.impacts_per_step, resumed))
         outcome = Outcome("complete", self.writer.path)
+        reps = self.protocol.repetitions.count
+        if resumed and all(len(self.writer.complete_runs(i)) >= reps
+                           for i in range(1, len(self.protocol.specimens) + 1)):
+            outcome.message = NOTHING_LEFT
         try:
             for index, (spec, plan) in enumerate(zip(self.protocol.specimens, self.plans, strict=True), start=1):
-                outcome.curves.extend(self._series(index, spec, plan))
+                self._series(index, spec, plan)
         except StopRequested as stop:
             outcome.status, outcome.message = stop.status, f"stopped by request ({stop.status}); resume with --resume"
         except Interlock as exc:
@@ -123,16 +129,16 @@ class Engine:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
         finally:
             self.call.close()
+            outcome.curves = self.writer.curves()
             self.writer.set_status(outcome.status, outcome.message)
             self.emit(ev.CampaignFinished(self.now(), outcome.status, self.writer.path, outcome.message))
         return outcome
 
-    def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> list[dict]:
-        sg = self.writer.series(index, specimen_attrs(spec))
-        runs_done = {k for k, g in sg.items() if k.startswith("run_") and g.attrs.get(schema.COMPLETE)}
+    def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> None:
+        self.writer.series(index, specimen_attrs(spec))
+        runs_done = self.writer.complete_runs(index)
         if len(runs_done) >= self.protocol.repetitions.count:
-            return []
-        curves = []
+            return
         with ExitStack() as stack:
             rig = self.rig_factory(spec, index)
             for what, inst in (("daq", rig.daq), ("hammer", rig.hammer), ("load cell", rig.load_cell),
@@ -143,16 +149,16 @@ class Engine:
             fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
             if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
                 self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)")
-            if not sg.attrs.get("mounted"):
+            if not self.writer.is_mounted(index):
                 self.prompt(rig, f"Mount {spec.label} between the rails (rail Ra {spec.rail_ra_m * 1e6:g} µm) and "
                             "set the knobs to the preload", "mount_specimen")
-                sg.attrs["mounted"] = True
+                self.writer.mark_mounted(index)
             for run in range(1, self.protocol.repetitions.count + 1):
-                if schema.run_name(run) in runs_done:
+                if run in runs_done:
                     continue
                 pos = ev.Position(index, run)
                 self.checkpoint(pos)
-                started = schema.run_name(run) in sg
+                started = self.writer.run_started(index, run)
                 if run > 1 and not started:
                     self._unload(rig)
                     self.prompt(rig, f"Lift the upper disc and rotate the rollers about "
@@ -160,24 +166,23 @@ class Engine:
                                 "rotate_rollers")
                 self.writer.run(index, run)
                 self.emit(ev.RunStarted(self.now(), pos, spec.label))
-                curves.append(self._run(rig, index, run, spec, plan))
+                self._run(rig, index, run, spec, plan)
             self._unload(rig)
-        return curves
 
     def _unload(self, rig: Rig) -> None:
         angle = rig.actuator.knob_angle_deg
         if angle:
             self.call("actuator", rig.actuator.turn_knobs, -angle, timeout_s=None, retries=0)
 
-    def _run(self, rig: Rig, series: int, run: int, spec: SpecimenSpec, plan: StepPlan) -> dict:
-        steps = StepRunner(self, rig, series, run, spec)
+    def _run(self, rig: Rig, series: int, run: int, spec: SpecimenSpec, plan: StepPlan) -> RepetitionCurve:
+        steps = StepRunner(self, rig, series, run, plan.cap_n)
         loads: list[float] = []
         step = 1
         while True:
             load = steps.completed_load(step)
             if load is None:
                 self.checkpoint(ev.Position(series, run, step))
-                load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan)
+                load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan.steps_estimate)
             loads.append(load)
             if step >= plan.steps_estimate + 5:
                 break
@@ -186,12 +191,12 @@ class Engine:
             step += 1
         return self._store_curve(series, run, spec)
 
-    def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> dict:
-        table = store_curve(self.writer, series, run)
-        refs = reference_curves(spec.case(), spec.kind, table["load_n"]) if table["load_n"].size else {}
-        self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(table["load_n"]),
-                                  tuple(table["stiffness_n_per_m"]), {k: tuple(v) for k, v in refs.items()}))
-        return {"series": series, "run": run, "specimen": spec.label, **{k: v.tolist() for k, v in table.items()}}
+    def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> RepetitionCurve:
+        curve = self.writer.store_curve(series, run)
+        refs = reference_curves(spec.case(), spec.kind, curve.load_n) if curve.load_n.size else {}
+        self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(curve.load_n),
+                                  tuple(curve.stiffness_n_per_m), {k: tuple(v) for k, v in refs.items()}))
+        return curve
 
     def acquire(self, rig: Rig, pos: ev.Position) -> Record:
         """Arm, strike and fetch one record; a missed blow (trigger timeout) is retried a bounded number of times.

@@ -1,42 +1,75 @@
-"""One load step: set the load, wait until it is stable, take the impacts, identify the modes, store it all."""
+"""One load step: set the load, wait until it is stable, take and store the impacts (with the operator's
+verdicts), identify the step through the one step pipeline, store the result.
+
+The runner talks to the engine only through ``Services`` (a Protocol the engine satisfies), so this module
+does not import the sequencer, and it keeps no counters: what was taken is what the file holds.
+"""
 
 from __future__ import annotations
 
-import json
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 
-from drivers.interfaces import Rig
+from drivers.interfaces import REVIEW_CHOICES, ImpactReview, Record, Rig
 from labctl import events as ev
-from labctl.processing import ProcessingError, check_impact, identify
-from labctl.recording import store_step_result
-from labctl.storage import schema
-from labctl.storage.reader import step_impacts
-from labctl.storage.writer import ImpactData
+from labctl.engine.conditions import Condition, SafePoint, Trip, Where
+from labctl.engine.control import RunControl
+from labctl.errors import LabctlError
+from labctl.physics.rig_config import RigConfig
+from labctl.protocol import Protocol as LabProtocol
+from labctl.recording import Delivered, check_record, process_step
+from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, Verdict
+from labctl.storage.writer import CampaignWriter
 
-if TYPE_CHECKING:
-    from labctl.engine.plan import StepPlan
-    from labctl.engine.sequencer import Engine
-    from labctl.protocol import SpecimenSpec
+
+class Interlock(LabctlError):
+    """A condition stopped the run (e.g. the load cell read more than the cap); the operator was asked to unload."""
+
+
+class Services(Protocol):
+    """What a step needs from the engine: configuration, the file, guarded calls, events and prompts."""
+
+    protocol: LabProtocol
+    writer: CampaignWriter
+    control: RunControl
+    conditions: Sequence[Condition]
+    rig_config: RigConfig
+
+    def call(self, what: str, fn: object, *args: object, timeout_s: object = ..., retries: int | None = None
+             ) -> object: ...
+    def now(self) -> float: ...
+    def emit(self, event: ev.Event) -> None: ...
+    def notify(self, level: str, message: str) -> None: ...
+    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",)) -> str: ...
+    def checkpoint(self, pos: ev.Position) -> None: ...
+    def progress(self, pos: ev.Position) -> None: ...
+    def acquire(self, rig: Rig, pos: ev.Position) -> Record: ...
+
+
+def calibration_of(rig: Rig, channels: Sequence[str]) -> Calibration:
+    """The DAQ's sensitivities and ranges for a record's channels (None where the DAQ does not say)."""
+    by_name = {c.name: c for c in rig.daq.channels}
+    force = next((c for c in by_name.values() if c.kind == "force"), None)
+    known = [by_name[c] for c in channels if c in by_name]
+    complete = len(known) == len(channels)
+    return Calibration(force.sensitivity_v_per_unit if force else None, force.range_units if force else None,
+                       tuple(c.sensitivity_v_per_unit for c in known) if complete else None,
+                       tuple(c.range_units for c in known) if complete else None)
+
 
 class StepRunner:
     """Runs and resumes the steps of one repetition."""
 
-    def __init__(self, engine: Engine, rig: Rig, series: int, run: int, spec: SpecimenSpec) -> None:
-        self.e, self.rig, self.series, self.run, self.spec = engine, rig, series, run, spec
-        self.checks = engine.protocol.checks
-        self.channels = {c.name: c for c in rig.daq.channels}
-
-    def _group(self, step: int):  # noqa: ANN202
-        rg = self.e.writer.h5[schema.series_name(self.series)][schema.run_name(self.run)]
-        return rg.get(schema.step_name(step))
+    def __init__(self, services: Services, rig: Rig, series: int, run: int, cap_n: float) -> None:
+        self.e, self.rig, self.series, self.run, self.cap_n = services, rig, series, run, cap_n
+        self.checks = services.protocol.checks
 
     def completed_load(self, step: int) -> float | None:
         """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
-        g = self._group(step)
-        return float(g.attrs["load_n"]) if g is not None and g.attrs.get(schema.COMPLETE) else None
+        return self.e.writer.step_load(self.series, self.run, step, complete_only=True)
 
     def read_load_once(self, pos: ev.Position) -> tuple[float, bool]:
         """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable."""
@@ -56,141 +89,144 @@ class StepRunner:
             if lo.settle_poll_s:
                 time.sleep(lo.settle_poll_s)
 
-    def run_step(self, step: int, angle_deg: float, plan: StepPlan) -> float:
+    # --- safe points ------------------------------------------------------------------------------------
+    def safe_point(self, where: Where, pos: ev.Position, load_n: float | None = None,
+                   step_load_n: float | None = None) -> list[Trip]:
+        """Check every condition; an interlock unloads and stops, a suspend asks the operator (continue/abort).
+
+        Returns the suspend trips the operator chose to continue past.
+        """
+        point = SafePoint(where, pos, self.cap_n, self.e.protocol.loading.load_tolerance_fraction, load_n,
+                          step_load_n)
+        passed = []
+        for condition in self.e.conditions:
+            trip = condition.check(point)
+            if trip is None:
+                continue
+            self.e.emit(ev.Suspended(self.e.now(), pos, trip.message))
+            if trip.kind == "interlock":
+                self.e.prompt(self.rig, trip.message, "unload")
+                self.e.call("actuator", self.rig.actuator.turn_knobs, -self.rig.actuator.knob_angle_deg,
+                            timeout_s=None, retries=0)
+                raise Interlock(trip.message)
+            if self.e.prompt(self.rig, trip.message, "confirm", ("continue", "abort")) == "abort":
+                self.e.control.abort()
+                self.e.checkpoint(pos)
+            passed.append(trip)
+        return passed
+
+    # --- the step ---------------------------------------------------------------------------------------
+    def run_step(self, step: int, angle_deg: float, steps_estimate: int) -> float:
         """Run (or finish) a step and return its load (a step that cannot be identified is stored as failed)."""
         e, pos = self.e, ev.Position(self.series, self.run, step)
-        existing = self._group(step)
         delta = angle_deg - self.rig.actuator.knob_angle_deg
         expected = e.rig_config.preload_per_roller_n + angle_deg * e.rig_config.load_per_knob_degree_n
-        e.emit(ev.StepStarted(e.now(), pos, plan.steps_estimate, angle_deg, expected))
+        e.emit(ev.StepStarted(e.now(), pos, steps_estimate, angle_deg, expected))
         if abs(delta) > 1e-9:  # a manual actuator asks the technician, who may take as long as needed
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
-        self._interlock(load, plan, pos)
-        if existing is None or "load_n" not in existing.attrs:
+        self.safe_point("before_step", pos, load_n=load)
+        if e.writer.step_load(self.series, self.run, step) is None:
             e.writer.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
                 "load_stable": stable, "expected_load_n": expected})
-        step_load = float(self._group(step).attrs["load_n"])
-        self._take_impacts(step, pos)
+        step_load = e.writer.step_load(self.series, self.run, step)
+        assert step_load is not None
+        self._take_impacts(step, step_load)
         load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
-        self._check_drift(step, step_load, load_after, pos)
+        trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)
+        flags = {t.condition: True for t in trips}
+        e.writer.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
         self._identify(step, pos, step_load)
         return step_load
 
-    def _interlock(self, load: float, plan: StepPlan, pos: ev.Position) -> None:
-        from labctl.engine.sequencer import Interlock
-
-        limit = plan.cap_n * (1 + self.e.protocol.loading.load_tolerance_fraction)
-        if load > limit:
-            msg = f"load {load:.1f} N per roller exceeds the cap {plan.cap_n:.1f} N (+tolerance): unload now"
-            self.e.emit(ev.Suspended(self.e.now(), pos, msg))
-            self.e.prompt(self.rig, msg, "unload")
-            self.e.call("actuator", self.rig.actuator.turn_knobs, -self.rig.actuator.knob_angle_deg, timeout_s=None,
-                        retries=0)
-            raise Interlock(msg)
-
-    def _check_drift(self, step: int, before: float, after: float, pos: ev.Position) -> None:
-        tol = self.e.protocol.loading.load_tolerance_fraction
-        if abs(after - before) <= tol * before:
-            self.e.writer.update_step(self.series, self.run, step, {"load_after_n": after})
-            return
-        msg = (f"load drifted from {before:.1f} N to {after:.1f} N per roller during the step "
-               f"(tolerance {tol:.0%}); check the knobs")
-        self.e.emit(ev.Suspended(self.e.now(), pos, msg))
-        answer = self.e.prompt(self.rig, msg, "confirm", ("continue", "abort"))
-        if answer == "abort":
-            self.e.control.abort()
-            self.e.checkpoint(pos)
-        self.e.writer.update_step(self.series, self.run, step, {"load_after_n": after, "load_drift": True})
-
-    def _take_impacts(self, step: int, pos: ev.Position) -> None:
+    def _take_impacts(self, step: int, step_load: float) -> None:
         e, acq = self.e, self.e.protocol.acquisition
-        g = self._group(step)
-        attempts = sorted(schema.index_of(k) for k in g if k.startswith("impact_"))
-        accepted = sum(1 for k in g if k.startswith("impact_") and g[k].attrs.get("accepted"))
-        rejected = len(attempts) - accepted
-        attempt = attempts[-1] if attempts else 0
+        infos = e.writer.impact_infos(self.series, self.run, step)
+        attempt = infos[-1].attempt if infos else 0
         while True:
-            e.checkpoint(ev.Position(self.series, self.run, step, accepted + 1))  # a verdict given while paused
-            accepted, rejected = self._apply_override(step, attempt, accepted, rejected)  # applies here
+            infos = e.writer.impact_infos(self.series, self.run, step)
+            accepted = sum(i.accepted for i in infos)
+            pos = ev.Position(self.series, self.run, step, accepted + 1)
+            e.checkpoint(pos)  # a verdict given while paused applies here
+            if self._apply_override(step, attempt):
+                continue
             if accepted >= acq.impacts_per_step:
                 break
+            rejected = len(infos) - accepted
             if rejected > acq.max_rehits:
                 e.notify("warning", f"step {step}: {rejected} rejected impacts, more than {acq.max_rehits} re-hits; "
                          "going on with the accepted ones")
                 break
-            ipos = ev.Position(self.series, self.run, step, accepted + 1)
-            record = e.acquire(self.rig, ipos)
+            self.safe_point("before_impact", pos, step_load_n=step_load)
+            record = e.acquire(self.rig, pos)
             attempt += 1
-            ok = self._store(step, attempt, record, accepted, ipos)
-            accepted += ok
-            rejected += not ok
-            if ok:
-                e.impacts_done += 1
-            e.progress(ipos)
+            self._store(step, attempt, record, pos)
+            e.progress(pos)
 
-    def _apply_override(self, step: int, attempt: int, accepted: int, rejected: int) -> tuple[int, int]:
-        """Apply a pending operator verdict to the latest impact of this step (kept in the file with the reason)."""
+    def _apply_override(self, step: int, attempt: int) -> bool:
+        """Apply a pending verdict from the run control to the step's latest impact; True if it changed one."""
         override = self.e.control.take_override()
         if override is None:
-            return accepted, rejected
+            return False
         verdict, target = override
         if target is not None and target != attempt:
             self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since")
-            return accepted, rejected
-        g = self._group(step).get(schema.impact_name(attempt)) if attempt else None
-        if g is None or bool(g.attrs["accepted"]) == verdict:
-            return accepted, rejected
-        reasons = [r for r in json.loads(g.attrs.get("reasons", "[]")) if r != "operator_accepted"]
-        reasons.append("operator_accepted" if verdict else "operator_rejected")
-        g.attrs["accepted"], g.attrs["reasons"] = verdict, json.dumps(reasons)
-        self.e.writer.h5.flush()
-        verb = "accepted" if verdict else "rejected"
-        self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator")
-        if verdict:
-            self.e.impacts_done += 1
-            return accepted + 1, rejected - 1
-        self.e.impacts_done -= 1
-        return accepted - 1, rejected + 1
+            return False
+        infos = self.e.writer.impact_infos(self.series, self.run, step)
+        latest = next((i for i in infos if i.attempt == attempt), None)
+        if latest is None or latest.accepted == verdict:
+            return False
+        self.e.writer.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
+        self.e.notify("info", f"impact {attempt} of step {step} {'accepted' if verdict else 'rejected'} "
+                      "by the operator")
+        return True
 
-    def _store(self, step: int, attempt: int, record, index: int, pos: ev.Position) -> bool:  # noqa: ANN001
-        force = np.asarray(record.force_n, dtype=np.float32).astype(float)
-        accel = np.asarray(record.accel_m_per_s2, dtype=np.float32).astype(float)
-        ranges = [self.channels[c].range_units for c in record.channels if c in self.channels]
-        force_ch = next((c for c in self.channels.values() if c.kind == "force"), None)
-        check = check_impact(force, accel, record.sample_rate_hz, index=index,
-                             accel_ranges=ranges if len(ranges) == len(record.channels) else None,
-                             force_range_n=force_ch.range_units if force_ch else None, config=self.checks)
-        clipped = () if "overload" in check.reasons else tuple(f"clipped:{c}" for c in record.clipped)
-        reasons = tuple(check.reasons) + clipped
-        accepted = bool(check.accepted) and not record.clipped
-        calib_accel = {"sensitivity_v_per_unit": [self.channels[c].sensitivity_v_per_unit for c in record.channels
-                                                  if c in self.channels], "range_units": ranges}
-        calib_force = ({"sensitivity_v_per_unit": force_ch.sensitivity_v_per_unit, "range_units": force_ch.range_units}
-                       if force_ch else {})
-        self.e.writer.write_impact(self.series, self.run, step, attempt, ImpactData(
-            record.sample_rate_hz, force, accel, tuple(record.channels), record.trigger_index, record.timestamp_s,
-            accepted, reasons, float(check.peak_force_n), float(check.pulse_width_s), tuple(record.clipped),
-            calib_force, calib_accel))
-        cls = ev.ImpactAcquired if accepted else ev.ImpactRejected
-        self.e.emit(cls(self.e.now(), pos, attempt, accepted, reasons, float(check.peak_force_n),
-                        float(check.pulse_width_s), record.sample_rate_hz, force, accel, tuple(record.channels)))
-        return accepted
+    def _store(self, step: int, attempt: int, record: Record, pos: ev.Position) -> None:
+        """Check, store and (when the operator reviews) judge one blow; the next is armed only after that."""
+        impact = check_record(Delivered(record.sample_rate_hz, record.force_n, record.accel_m_per_s2,
+                                        tuple(record.channels), record.trigger_index, record.timestamp_s,
+                                        tuple(record.clipped), calibration_of(self.rig, record.channels)),
+                              attempt, self.checks)
+        self.e.writer.write_impact(self.series, self.run, step, impact)
+        info = impact.info
+        cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
+        self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
+                        info.checks.pulse_width_s, record.sample_rate_hz, impact.force_n, impact.accel_m_per_s2,
+                        tuple(record.channels)))
+        verdict = self._review(step, impact)
+        if verdict is not None:
+            self.e.writer.set_verdict(self.series, self.run, step, attempt, verdict)
+            if verdict.accepted != impact.accepted:
+                verb = "accepted" if verdict.accepted else "rejected"
+                self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator ({verdict.reason})")
+
+    def _review(self, step: int, impact: ImpactRecord) -> Verdict | None:
+        """The operator's verdict on a stored blow, when the operator reviews blows (else None)."""
+        op, info = self.rig.operator, impact.info
+        review = ImpactReview(self.series, self.run, step, impact.attempt, info.checks.accepted, info.checks.reasons,
+                              info.checks.peak_force_n, info.checks.pulse_width_s)
+        if callable(getattr(op, "review_impact", None)):
+            answer = op.review_impact(review)  # type: ignore[attr-defined]
+            if answer is None:
+                return None
+            choice, reason = answer
+            self.e.emit(ev.OperatorPrompted(self.e.now(), review.message(), "review_impact", choice))
+        elif getattr(op, "reviews_impacts", False):
+            choice, reason = self.e.prompt(self.rig, review.message(), "review_impact", REVIEW_CHOICES), "operator"
+        else:
+            return None
+        return Verdict(choice == "accept", OPERATOR, reason or "operator")
 
     def _identify(self, step: int, pos: ev.Position, load: float) -> None:
         e = self.e
-        data = step_impacts(self._group(step), accepted_only=True)
-        try:
-            if not data.attempts:
-                raise ProcessingError("no accepted impact in this step")
-            ident = identify(data.force_n, data.accel_m_per_s2, data.sample_rate_hz, data.channels, e.rig_config,
-                             accel_ranges=data.accel_ranges, force_range_n=data.force_range_n, config=self.checks)
-        except ProcessingError as exc:
-            e.emit(ev.StepFailed(e.now(), pos, str(exc)))
-            store_step_result(e.writer, self.series, self.run, step, str(exc), data.attempts)
+        result = process_step(e.writer.impacts(self.series, self.run, step), e.rig_config, self.checks)
+        e.writer.write_step_result(self.series, self.run, step, result)
+        if not result.identified:
+            e.emit(ev.StepFailed(e.now(), pos, result.error))
             return
-        store_step_result(e.writer, self.series, self.run, step, ident, data.attempts)
-        e.emit(ev.StepProcessed(e.now(), pos, load, ident.bounce_hz, tuple(ident.tilt_hz),
-                                ident.roller_stiffness_n_per_m, ident.coherence_at_bounce, ident.frequencies_hz,
-                                np.abs(ident.h1), ident.coherence, tuple(ident.channels)))
+        frf = result.frf
+        assert frf is not None
+        e.emit(ev.StepProcessed(e.now(), pos, load, result.bounce_hz, tuple(result.tilt_hz),
+                                result.roller_stiffness_n_per_m, result.coherence_at_bounce, frf.frequencies_hz,
+                                np.abs(frf.h1), frf.coherence, tuple(result.channels)))

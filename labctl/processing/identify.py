@@ -176,7 +176,7 @@ def _bounce_coherence(spectra: Spectra, used: list[int], modes: ContactModes) ->
 
 
 def _coherence_check(spectra: Spectra, frf: FrfEstimate, used: list[int], modes: ContactModes,
-                     min_coherence: float) -> int | None:
+                     min_coherence: float, protected: frozenset[int] = frozenset()) -> int | None:
     """The impact whose removal lifts the coherence at the bounce above ``min_coherence`` (if one does).
 
     Only the bounce (the stiffness comes from it) is judged: the hammer's scatter over the disc changes how
@@ -184,9 +184,12 @@ def _coherence_check(spectra: Spectra, frf: FrfEstimate, used: list[int], modes:
     """
     if mode_coherence(frf, modes)[modes.classes.bounce] >= min_coherence or len(used) < 3:
         return None
-    without = [_bounce_coherence(spectra, [u for u in used if u != i], modes) for i in used]
+    candidates = [i for i in used if i not in protected]  # the operator's accepted impacts stay
+    if not candidates:
+        return None
+    without = [_bounce_coherence(spectra, [u for u in used if u != i], modes) for i in candidates]
     best = int(np.argmax(without))
-    return used[best] if without[best] >= min_coherence else None
+    return candidates[best] if without[best] >= min_coherence else None
 
 
 def _channel_noise(accel: np.ndarray, used: list[int]) -> np.ndarray:
@@ -223,8 +226,12 @@ def identify(
     config: IdentifyConfig | CheckConfig | None = None,
     contact: TrippContact | None = None,
     load_n: float | None = None,
+    forced: Sequence[bool | None] | None = None,
 ) -> Identification:
     """Identify one load step from its impacts; ``contact`` and ``load_n`` add the roller-only stiffness.
+
+    ``forced`` holds the operator's verdict per impact (None: the checks decide): an impact forced True is
+    used even when a check flags it (and is never dropped for coherence), one forced False is never used.
 
     Raises ProcessingError when no impact or no mode is usable.
     """
@@ -235,6 +242,10 @@ def identify(
     checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
                            config=cfg.checks, channels=names, extremes=(top[i], bottom[i]))
               for i in range(force.shape[0])]
+    if forced is not None:
+        if len(forced) != len(checks):
+            raise InputError(f"{len(forced)} operator verdicts for {len(checks)} impacts")
+        checks = [_operator_verdict(c, f) for c, f in zip(checks, forced, strict=True)]
     accepted = [c.index for c in checks if c.accepted]
     if not accepted:
         summary = "; ".join(f"impact {c.index}: {', '.join(c.reasons)}" for c in checks)
@@ -253,7 +264,8 @@ def identify(
     zeta = rig.modal_damping_ratio
     modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
     warnings: list[str] = []
-    drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence)
+    protected = frozenset(k for k, i in enumerate(accepted) if forced is not None and forced[i])
+    drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence, protected)
     if drop is not None:
         i = accepted[drop]
         checks[i] = checks[i].rejected_for(LOW_COHERENCE, "coherence at the bounce rises above "
@@ -262,6 +274,18 @@ def identify(
         frf = estimate_frf(spectra, used)
         modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
     return _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings)
+
+
+def _operator_verdict(check: ImpactCheck, accept: bool | None) -> ImpactCheck:
+    """An impact's check with the operator's verdict applied (None leaves the checks' verdict)."""
+    if accept is None:
+        return check
+    if accept:
+        return replace(check, accepted=True, notes=(*check.notes, "accepted by the operator"))
+    return check.rejected_for(OPERATOR_REJECTED, "rejected by the operator")
+
+
+OPERATOR_REJECTED = "operator_rejected"
 
 
 def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, spectra: Spectra, used: list[int],

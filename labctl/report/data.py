@@ -16,7 +16,7 @@ import numpy as np
 from labctl.errors import InputError
 from labctl.physics import ContactCase, RigConfig, material
 from labctl.reprocess import rig_of
-from labctl.storage import CampaignReader
+from labctl.storage import CampaignReader, RunInfo, StepInfo
 from labctl.storage.table import specimen_point
 
 
@@ -138,27 +138,27 @@ def specimen_case(specimen: dict[str, Any]) -> ContactCase:
     return replace(case, rail=material(rail)) if rail else case
 
 
-def _verdicts(step: Any) -> tuple[int, int, list[str]]:
+def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
     """(accepted, rejected, rejection reasons) of a step's impacts, the identification's verdict included."""
-    late = {int(i.get("attempt", -1)): i for i in (step.result or {}).get("impacts", []) if isinstance(i, dict)}
+    late = {i.attempt: i for i in step.result.impacts} if step.result is not None else {}
     accepted, rejected, reasons = 0, 0, []
     for imp in step.impacts:
         why = list(imp.reasons)
         ident = late.get(imp.attempt)
-        if ident is not None and not ident.get("accepted", True):
-            why += [r for r in ident.get("reasons", []) if r not in why]
-        if imp.accepted and (ident is None or ident.get("accepted", True)):
+        if ident is not None and not ident.used:
+            why += [r for r in ident.reasons if r not in why]
+        if imp.accepted and (ident is None or ident.used):
             accepted += 1
         else:
             rejected += 1
-            reasons += why or ["unspecified"]
+            reasons += [r for r in why if r != "operator_accepted"] or ["unspecified"]
     return accepted, rejected, reasons
 
 
-def _run_curve(run: Any) -> RunCurve | None:
-    rows = [(s.step, s.load_n, s.result["roller_stiffness_n_per_m"], s.result.get("bounce_hz", np.nan),
-             *(list(s.result.get("tilt_hz") or [np.nan, np.nan]) + [np.nan, np.nan])[:2])
-            for s in run.steps if s.result and np.isfinite(s.result.get("roller_stiffness_n_per_m", np.nan))]
+def _run_curve(run: RunInfo) -> RunCurve | None:
+    rows = [(s.step, s.load_n, s.result.roller_stiffness_n_per_m, s.result.bounce_hz,
+             *(tuple(s.result.tilt_hz) + (np.nan, np.nan))[:2])
+            for s in run.steps if s.result is not None and s.result.identified]
     if not rows:
         return None
     a = np.array(rows, dtype=float)
@@ -177,12 +177,10 @@ def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int,
         info = next(st for run in reader.runs(s) if run.run == r for st in run.steps if st.step == n)
     except (KeyError, StopIteration):
         raise InputError(f"{reader.path}: no step series {s} run {r} step {n} (--frf-step)") from None
-    if frf is None or not info.result:
+    if frf is None or info.result is None or not info.result.identified:
         raise InputError(f"{reader.path}: step series {s} run {r} step {n} has no stored FRF (not identified)")
-    modes = [(m["kind"], float(m["frequency_hz"])) for m in info.result.get("modes", []) if isinstance(m, dict)]
-    if not modes:
-        modes = [("bounce", float(info.result["bounce_hz"]))]
-    channels = list(info.result.get("channels") or [f"ch{i + 1}" for i in range(frf[1].shape[0])])
+    modes = [(m.kind, m.frequency_hz) for m in info.result.modes] or [("bounce", info.result.bounce_hz)]
+    channels = list(info.result.channels or [f"ch{i + 1}" for i in range(frf[1].shape[0])])
     return FrfStep(s, r, n, info.load_n, frf[0], frf[1], frf[2], channels, modes)
 
 
@@ -190,6 +188,9 @@ def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = N
     """Read everything the report shows; ``frf_step`` = (series, run, step) for Fig. 7 (default: the first
     repetition's highest load)."""
     with CampaignReader(path) as reader:
+        rig = rig_of(reader)
+        if reader.step_count() == 0:
+            raise InputError(f"{path}: the campaign holds no load step yet (nothing to report)")
         series: list[SeriesData] = []
         stats = ImpactStats()
         failed: list[tuple[int, int, int, str]] = []
@@ -199,12 +200,12 @@ def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = N
             for run in runs:
                 for st in run.steps:
                     stats.rows.append(ImpactRow(s, run.run, st.step, st.load_n, *_verdicts(st)))
-                    if "failed" in st.attrs:
-                        failed.append((s, run.run, st.step, str(st.attrs["failed"])))
+                    if st.result is not None and st.result.error:
+                        failed.append((s, run.run, st.step, st.result.error))
             curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
             series.append(SeriesData(s, str(spec.get("label", f"series {s}")), str(spec.get("kind", "roller")),
                                      spec, specimen_case(spec), curves))
         config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
                   if (text := reader.config_text(name))}
         return ReportData(Path(path), reader.attrs, series, stats, _frf(reader, series, frf_step), config,
-                          rig_of(reader), failed)
+                          rig, failed)

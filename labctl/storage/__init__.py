@@ -1,9 +1,23 @@
-"""HDF5 campaign files: written one impact at a time (``writer``), read back for processing and reports."""
+"""HDF5 campaign files: typed records written one impact at a time (``writer``), read back (``reader``)."""
 
 from __future__ import annotations
 
 from labctl.storage.reader import CampaignReader, RunInfo, StepInfo
+from labctl.storage.records import (
+    Calibration,
+    CheckSummary,
+    ImpactInfo,
+    ImpactOutcome,
+    ImpactRecord,
+    ModeResult,
+    RepetitionCurve,
+    StepFrf,
+    StepResult,
+    Verdict,
+)
 from labctl.storage.table import campaign_stiffness_points
-from labctl.storage.writer import CampaignWriter, ImpactData
+from labctl.storage.writer import CampaignWriter
 
-__all__ = ["CampaignReader", "CampaignWriter", "ImpactData", "RunInfo", "StepInfo", "campaign_stiffness_points"]
+__all__ = ["Calibration", "CampaignReader", "CampaignWriter", "CheckSummary", "ImpactInfo", "ImpactOutcome",
+           "ImpactRecord", "ModeResult", "RepetitionCurve", "RunInfo", "StepFrf", "StepInfo", "StepResult",
+           "Verdict", "campaign_stiffness_points"]

@@ -1,4 +1,9 @@
-"""Read campaign files: structure, raw impacts for (re)processing, step results and stiffness curves."""
+"""Read campaign files into typed records: structure, impacts for (re)processing, step results and curves.
+
+Reads schema 2 (integer ADC counts with per-channel scale and offset, typed verdicts) and schema 1 (float32
+traces, verdict folded into ``reasons``). Refuses what it does not understand with an InputError naming the
+file: an unknown format version, a complete impact with a missing dataset, a missing stored configuration.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +17,23 @@ import numpy as np
 
 from labctl.errors import InputError
 from labctl.storage import schema as s
+from labctl.storage.records import (
+    CHECKS,
+    OPERATOR,
+    Calibration,
+    CheckSummary,
+    ImpactInfo,
+    ImpactRecord,
+    RepetitionCurve,
+    StepFrf,
+    StepResult,
+    Verdict,
+    curve_from_steps,
+    failed_step,
+    result_from_mapping,
+)
+
+OPERATOR_REASONS = ("operator_accepted", "operator_rejected")
 
 
 def _decode(value: Any) -> Any:
@@ -33,31 +55,113 @@ def attrs_of(obj: h5py.Group | h5py.Dataset) -> dict[str, Any]:
     return {k: _decode(v) for k, v in obj.attrs.items()}
 
 
-@dataclass
-class ImpactInfo:
-    attempt: int
-    accepted: bool
-    reasons: list[str]
-    attrs: dict[str, Any]
+def _floats(value: Any) -> tuple[float, ...] | None:
+    if value is None:
+        return None
+    return tuple(float(v) for v in np.atleast_1d(np.asarray(value, dtype=float)))
 
 
-@dataclass
+def _where(group: h5py.Group | h5py.Dataset) -> str:
+    return f"{group.file.filename}:{group.name}"
+
+
+def trace(ds: h5py.Dataset) -> np.ndarray:
+    """A stored trace in physical units: counts × scale + offset (per channel), or the stored floats."""
+    raw = ds[()]
+    if "scale" not in ds.attrs:
+        return np.asarray(raw, dtype=float)
+    scale = np.asarray(ds.attrs["scale"], dtype=float)
+    offset = np.asarray(ds.attrs.get("offset", 0.0), dtype=float)
+    if raw.ndim == 2:
+        return raw.astype(float) * scale[:, None] + np.broadcast_to(offset, scale.shape)[:, None]
+    return raw.astype(float) * float(scale) + float(offset)
+
+
+def impact_info(g: h5py.Group) -> ImpactInfo:
+    """The timing, checks and verdict of a stored impact (either schema)."""
+    a = attrs_of(g)
+    reasons = [str(r) for r in a.get("reasons", [])]
+    auto = tuple(r for r in reasons if r not in OPERATOR_REASONS)  # the checks' reasons
+    if "verdict_source" in a:  # schema 2
+        by_operator = a["verdict_source"] == OPERATOR
+        checks = CheckSummary(bool(a.get("check_accepted", not auto)) if by_operator else bool(a["accepted"]), auto,
+                              float(a.get("peak_force_n", np.nan)), float(a.get("pulse_width_s", np.nan)))
+        verdict = Verdict(bool(a["accepted"]), OPERATOR if by_operator else CHECKS, str(a.get("verdict_reason", "")))
+    else:  # schema 1: the operator's verdict was only a reason among the checks'
+        by_operator = any(r in OPERATOR_REASONS for r in reasons)
+        checks = CheckSummary(not auto if by_operator else bool(a.get("accepted")), auto,
+                              float(a.get("peak_force_n", np.nan)), float(a.get("pulse_width_s", np.nan)))
+        verdict = Verdict(bool(a.get("accepted")), OPERATOR if by_operator else CHECKS)
+    return ImpactInfo(int(a.get("attempt", s.number(g))), float(a.get("sample_rate_hz", np.nan)),
+                      int(a.get("trigger_index", 0)), str(a.get("timestamp_utc", "")), checks, verdict,
+                      tuple(str(c) for c in a.get("clipped", ())))
+
+
+def impact_record(g: h5py.Group) -> ImpactRecord:
+    """A stored impact with its traces; a complete impact without its datasets is a damaged file."""
+    missing = [name for name in (s.FORCE, s.ACCEL) if name not in g]
+    if missing:
+        raise InputError(f"{_where(g)}: impact is marked complete but dataset {', '.join(missing)} is missing "
+                         "(damaged file)")
+    f, a = g[s.FORCE], g[s.ACCEL]
+    fa, aa = attrs_of(f), attrs_of(a)
+    sens = fa.get("sensitivity_v_per_unit")
+    calib = Calibration(None if sens is None else float(sens),
+                        None if fa.get("range_units") is None else float(fa["range_units"]),
+                        _floats(aa.get("sensitivity_v_per_unit")), _floats(aa.get("range_units")))
+    return ImpactRecord(impact_info(g), tuple(str(c) for c in aa.get("channels", ())), trace(f), trace(a), calib)
+
+
+def step_frf(g: h5py.Group) -> StepFrf | None:
+    r = g.get(s.RESULT)
+    if r is None or "h1" not in r:
+        return None
+    coh = r["coherence"][()] if "coherence" in r else np.full(r["h1"].shape, np.nan)
+    return StepFrf(r["frequencies_hz"][()], r["h1"][()], coh)
+
+
+def step_result_of(g: h5py.Group) -> StepResult | None:
+    """The stored result of a step group (None: not identified yet); a failed step carries its reason."""
+    r = g.get(s.RESULT)
+    if r is not None and r.attrs.get(s.COMPLETE, False):
+        return result_from_mapping(attrs_of(r), step_frf(g))
+    if "failed" in g.attrs:  # schema 1 kept the failure on the step
+        return failed_step(str(_decode(g.attrs["failed"])))
+    return None
+
+
+def complete_impacts(g: h5py.Group) -> list[h5py.Group]:
+    return [ig for ig in s.children(g, "impact_") if ig.attrs.get(s.COMPLETE, False)]
+
+
+@dataclass(frozen=True)
 class StepInfo:
+    """A stored load step: its load, its impacts (without traces) and its result."""
+
     series: int
     run: int
     step: int
-    attrs: dict[str, Any]
+    load_n: float
+    knob_angle_deg: float
     impacts: list[ImpactInfo]
-    result: dict[str, Any] | None
+    result: StepResult | None
     complete: bool
-
-    @property
-    def load_n(self) -> float:
-        return float(self.attrs.get("load_n", np.nan))
+    attrs: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
     def accepted_count(self) -> int:
         return sum(1 for i in self.impacts if i.accepted)
+
+    @property
+    def load_drift(self) -> bool:
+        return bool(self.attrs.get("load_drift", False))
+
+
+def step_info(series: int, run: int, g: h5py.Group) -> StepInfo:
+    a = attrs_of(g)
+    return StepInfo(series, run, s.number(g), float(a.get("load_n", np.nan)), float(a.get("knob_angle_deg", np.nan)),
+                    [impact_info(ig) for ig in complete_impacts(g)], step_result_of(g),
+                    bool(a.get(s.COMPLETE, False)), a)
 
 
 @dataclass
@@ -66,6 +170,24 @@ class RunInfo:
     run: int
     complete: bool
     steps: list[StepInfo] = field(default_factory=list)
+
+
+def curve_of(run_group: h5py.Group, series: int, specimen: str) -> RepetitionCurve | None:
+    """The stored curve of a repetition (None before the repetition finished)."""
+    c = run_group.get(s.CURVE)
+    if c is None:
+        return None
+    run = s.number(run_group)
+    steps = [step_info(series, run, g) for g in s.children(run_group, "step_")]
+    built = curve_from_steps(series, run, specimen,
+                             [(st.step, st.load_n, st.knob_angle_deg, st.result) for st in steps if st.result])
+    stored = {k: np.asarray(c[k][()]) for k in c}
+    if "step" not in stored:  # schema 1 stored no step numbers: the identified steps in order
+        stored["step"] = built.step if built.step.size == stored["load_n"].size else np.arange(
+            1, stored["load_n"].size + 1)
+    cols = {k: np.asarray(stored.get(k, np.full(stored["load_n"].size, np.nan))) for k in built.columns()}
+    cols["step"] = cols["step"].astype(int)
+    return RepetitionCurve(series, run, specimen, **cols)
 
 
 class CampaignReader:
@@ -82,6 +204,12 @@ class CampaignReader:
         if _decode(self.h5.attrs.get("format")) != s.FORMAT:
             self.h5.close()
             raise InputError(f"{self.path}: not a labctl campaign file (no format attribute '{s.FORMAT}')")
+        version = _decode(self.h5.attrs.get("format_version"))
+        if version not in s.READABLE_VERSIONS:
+            self.h5.close()
+            raise InputError(f"{self.path}: format_version {version!r} is not one this labctl reads "
+                             f"({', '.join(map(str, s.READABLE_VERSIONS))}); update labctl")
+        self.format_version = int(version)
 
     def close(self) -> None:
         if self.h5.id.valid:
@@ -100,6 +228,14 @@ class CampaignReader:
     def config_text(self, name: str) -> str | None:
         return s.stored_text(self.h5, name)
 
+    def required_config(self, name: str) -> str:
+        """A stored configuration file the caller cannot do without (InputError when absent)."""
+        text = self.config_text(name)
+        if not text:
+            raise InputError(f"{self.path}: has no stored /config/{name}; the campaign cannot be reprocessed "
+                             "without the configuration it ran with")
+        return text
+
     def series_indices(self) -> list[int]:
         return sorted(s.index_of(k) for k in self.h5 if k.startswith("series_"))
 
@@ -110,44 +246,50 @@ class CampaignReader:
         out = []
         for rg in s.children(self.h5[s.series_name(series)], "run_"):
             run = RunInfo(series, s.number(rg), bool(rg.attrs.get(s.COMPLETE, False)))
-            run.steps = [self._step_info(series, run.run, g) for g in s.children(rg, "step_")]
+            run.steps = [step_info(series, run.run, g) for g in s.children(rg, "step_")]
             out.append(run)
         return out
 
-    def _step_info(self, series: int, run: int, g: h5py.Group) -> StepInfo:
-        impacts = []
-        for ig in s.children(g, "impact_"):
-            if ig.attrs.get(s.COMPLETE, False):
-                a = attrs_of(ig)
-                impacts.append(ImpactInfo(s.number(ig), bool(a.get("accepted")), list(a.get("reasons", [])), a))
-        result = attrs_of(g[s.RESULT]) if s.RESULT in g and g[s.RESULT].attrs.get(s.COMPLETE, False) else None
-        return StepInfo(series, run, s.number(g), attrs_of(g), impacts, result, bool(g.attrs.get(s.COMPLETE, False)))
+    def step_count(self) -> int:
+        return sum(1 for _ in s.all_steps(self.h5))
 
     def step_group(self, series: int, run: int, step: int) -> h5py.Group:
         return self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
 
+    def impacts(self, series: int, run: int, step: int) -> list[ImpactRecord]:
+        """Every complete impact of a step, with traces, calibration and verdict."""
+        return [impact_record(ig) for ig in complete_impacts(self.step_group(series, run, step))]
+
+    def impact_infos(self, series: int, run: int, step: int) -> list[ImpactInfo]:
+        """Timing, checks and verdict of every complete impact of a step (no traces read)."""
+        return [impact_info(ig) for ig in complete_impacts(self.step_group(series, run, step))]
+
     def impact_arrays(self, series: int, run: int, step: int, *, accepted_only: bool = False) -> StepImpacts:
-        """A step's stored impacts (all, or only the accepted ones)."""
-        return step_impacts(self.step_group(series, run, step), accepted_only=accepted_only)
+        """A step's stored impacts stacked as arrays (all, or only those whose verdict is accepted)."""
+        return stack_impacts([r for r in self.impacts(series, run, step) if r.accepted or not accepted_only])
 
     def step_frf(self, series: int, run: int, step: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        g = self.step_group(series, run, step)
-        if s.RESULT not in g or "h1" not in g[s.RESULT]:
-            return None
-        r = g[s.RESULT]
-        coh = r["coherence"][()] if "coherence" in r else np.full(r["h1"].shape, np.nan)
-        return r["frequencies_hz"][()], r["h1"][()], coh
+        frf = step_frf(self.step_group(series, run, step))
+        return None if frf is None else (frf.frequencies_hz, frf.h1, frf.coherence)
 
-    def curve(self, series: int, run: int) -> dict[str, np.ndarray] | None:
+    def curve(self, series: int, run: int) -> RepetitionCurve | None:
         rg = self.h5[s.series_name(series)][s.run_name(run)]
-        if s.CURVE not in rg:
-            return None
-        return {k: rg[s.CURVE][k][()] for k in rg[s.CURVE]}
+        return curve_of(rg, series, str(self.specimen(series).get("label", "")))
+
+    def curves(self) -> list[RepetitionCurve]:
+        """The stored curve of every finished repetition, in series and run order."""
+        out = []
+        for series in self.series_indices():
+            for rg in s.children(self.h5[s.series_name(series)], "run_"):
+                curve = self.curve(series, s.number(rg))
+                if curve is not None:
+                    out.append(curve)
+        return out
 
 
 @dataclass
 class StepImpacts:
-    """A step's impacts as arrays: force (n_imp, n), accel (n_imp, n_ch, n), with calibration attributes."""
+    """A step's impacts as arrays: force (n_imp, n), accel (n_imp, n_ch, n), with calibration and verdicts."""
 
     sample_rate_hz: float
     force_n: np.ndarray
@@ -155,37 +297,21 @@ class StepImpacts:
     channels: tuple[str, ...]
     attempts: list[int]
     accepted: list[bool]
-    force_attrs: dict[str, Any]
-    accel_attrs: dict[str, Any]
+    calibration: Calibration = Calibration()
 
     @property
     def accel_ranges(self) -> list[float] | None:
-        r = self.accel_attrs.get("range_units")
+        r = self.calibration.accel_range_m_per_s2
         return None if r is None else list(r)
 
     @property
     def force_range_n(self) -> float | None:
-        r = self.force_attrs.get("range_units")
-        return None if r is None else float(r)
+        return self.calibration.force_range_n
 
 
-def step_impacts(group: h5py.Group, *, accepted_only: bool = False) -> StepImpacts:
-    """Read the complete impacts of a step group (used by the engine on its open file and by readers)."""
-    forces, accels, attempts, accepted = [], [], [], []
-    fs, channels, f_attrs, a_attrs = float("nan"), (), {}, {}
-    for name in sorted(k for k in group if k.startswith("impact_")):
-        ig = group[name]
-        ok = bool(ig.attrs.get("accepted", False))
-        if not ig.attrs.get(s.COMPLETE, False) or (accepted_only and not ok):
-            continue
-        forces.append(ig[s.FORCE][()])
-        accels.append(ig[s.ACCEL][()])
-        attempts.append(s.index_of(name))
-        accepted.append(ok)
-        fs = float(ig.attrs["sample_rate_hz"])
-        a_attrs, f_attrs = attrs_of(ig[s.ACCEL]), attrs_of(ig[s.FORCE])
-        channels = tuple(a_attrs.get("channels", ()))
-    if not forces:
-        return StepImpacts(fs, np.empty((0, 0)), np.empty((0, 0, 0)), channels, [], [], {}, {})
-    return StepImpacts(fs, np.stack(forces).astype(float), np.stack(accels).astype(float), channels, attempts,
-                       accepted, f_attrs, a_attrs)
+def stack_impacts(records: list[ImpactRecord]) -> StepImpacts:
+    if not records:
+        return StepImpacts(float("nan"), np.empty((0, 0)), np.empty((0, 0, 0)), (), [], [])
+    return StepImpacts(records[-1].sample_rate_hz, np.stack([r.force_n for r in records]),
+                       np.stack([r.accel_m_per_s2 for r in records]), records[-1].channels,
+                       [r.attempt for r in records], [r.accepted for r in records], records[-1].calibration)

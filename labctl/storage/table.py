@@ -5,8 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.reader import CampaignReader
 
@@ -33,7 +31,7 @@ def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
             spec = reader.specimen(series)
             for run in reader.runs(series):
                 for step in run.steps:
-                    if step.result and np.isfinite(step.result.get("roller_stiffness_n_per_m", np.nan)):
+                    if step.result is not None and step.result.identified:
                         points.append(specimen_point(spec, run.run, step.load_n,
-                                                     step.result["roller_stiffness_n_per_m"]))
+                                                     step.result.roller_stiffness_n_per_m))
     return points

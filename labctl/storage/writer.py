@@ -8,8 +8,8 @@ without it.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, fields, is_dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -20,6 +20,15 @@ import numpy as np
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.storage import schema as s
+from labctl.storage.reader import attrs_of, complete_impacts, curve_of, impact_info, impact_record, step_info
+from labctl.storage.records import (
+    ImpactInfo,
+    ImpactRecord,
+    RepetitionCurve,
+    StepResult,
+    Verdict,
+    curve_from_steps,
+)
 
 
 def utc_now() -> str:
@@ -28,31 +37,59 @@ def utc_now() -> str:
 
 def _attrs(obj: h5py.Group | h5py.Dataset, values: Mapping[str, Any]) -> None:
     for key, value in values.items():
-        if value is None:
-            continue
-        if isinstance(value, list | tuple | dict) and not (isinstance(value, list | tuple) and value
-                                                             and all(isinstance(v, int | float) for v in value)):
-            value = json.dumps(value)
-        obj.attrs[key] = value
+        if value is not None:
+            obj.attrs[key] = _attr_value(value)
 
 
-@dataclass(frozen=True)
-class ImpactData:
-    """What the engine hands to storage for one blow: raw traces, calibration and the check's verdict."""
+def _dumps(value: Any) -> Any:
+    """JSON for nested values (dataclasses included)."""
+    return json.dumps(value, default=lambda o: asdict(o) if is_dataclass(o) else str(o))
 
-    sample_rate_hz: float
-    force_n: np.ndarray
-    accel_m_per_s2: np.ndarray
-    channels: tuple[str, ...]
-    trigger_index: int
-    timestamp_s: float
-    accepted: bool
-    reasons: tuple[str, ...]
-    peak_force_n: float
-    pulse_width_s: float
-    clipped: tuple[str, ...]
-    force_calibration: Mapping[str, Any]
-    channel_calibration: Mapping[str, Any]
+
+def _attr_value(value: Any) -> Any:
+    if is_dataclass(value) and not isinstance(value, type):
+        return _dumps(value)
+    if isinstance(value, list | tuple | dict) and not (isinstance(value, list | tuple) and value
+                                                         and all(isinstance(v, int | float) for v in value)):
+        return _dumps(value)
+    return value
+
+
+ADC_BITS = (24, 16, 18, 20, 22, 12, 14)  # common converter resolutions, most likely first
+COMPRESS = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+
+
+def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, float] | None:
+    """``x`` as integer counts of an ADC spanning ±``range_units`` and the step per count, if that is exact.
+
+    Exact means counts × step reproduces every sample bit for bit, so storing counts loses nothing.
+    """
+    if range_units is None or not np.isfinite(range_units) or range_units <= 0 or not np.isfinite(x).all():
+        return None
+    for bits in ADC_BITS:
+        step = 2.0 * float(range_units) / 2.0**bits
+        k = np.rint(x / step)
+        if np.abs(k).max(initial=0.0) <= 2.0**31 - 1 and np.array_equal(k * step, x):
+            return k.astype(np.int32), step
+    return None
+
+
+def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float | None]) -> h5py.Dataset:
+    """A trace as integer counts with per-channel ``scale`` (scale-offset filter) when the samples are exact
+    ADC steps, else as float32 with shuffle + gzip."""
+    x = np.asarray(x, dtype=float)
+    rows = x.reshape(-1, x.shape[-1])
+    coded = [adc_counts(row, r) for row, r in zip(rows, ranges, strict=True)] if len(ranges) == len(rows) else [None]
+    n = x.shape[-1]
+    chunks = (1, min(n, s.TRACE_CHUNK)) if x.ndim == 2 else (min(n, s.TRACE_CHUNK),)
+    if all(c is not None for c in coded):
+        counts = np.stack([c[0] for c in coded]).reshape(x.shape)  # type: ignore[index]
+        scale = [c[1] for c in coded]  # type: ignore[index]
+        ds = g.create_dataset(name, data=counts, chunks=chunks, scaleoffset=0)
+        ds.attrs["scale"] = scale if x.ndim == 2 else scale[0]
+        ds.attrs["offset"] = [0.0] * len(scale) if x.ndim == 2 else 0.0
+        return ds
+    return g.create_dataset(name, data=x.astype(np.float32), chunks=chunks, **COMPRESS)
 
 
 class CampaignWriter:
@@ -61,6 +98,7 @@ class CampaignWriter:
     def __init__(self, h5: h5py.File) -> None:
         self.h5 = h5
         self.path = str(h5.filename)
+        self._accepted: int | None = None  # accepted impacts in the file, counted once then kept up to date
 
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
@@ -94,6 +132,11 @@ class CampaignWriter:
         if h5.attrs.get("format") != s.FORMAT:
             h5.close()
             raise InputError(f"{p}: not a labctl campaign file")
+        if h5.attrs.get("format_version") != s.FORMAT_VERSION:
+            version = h5.attrs.get("format_version")
+            h5.close()
+            raise InputError(f"{p}: written with campaign format {version}; --resume continues only format "
+                             f"{s.FORMAT_VERSION} files (process, report and export still read it)")
         writer = cls(h5)
         writer._drop_incomplete()
         h5.attrs["status"] = "running"
@@ -114,6 +157,13 @@ class CampaignWriter:
     def config_text(self, name: str) -> str | None:
         return s.stored_text(self.h5, name)
 
+    @property
+    def attrs(self) -> dict[str, Any]:
+        return attrs_of(self.h5)
+
+    def has_series(self) -> bool:
+        return any(k.startswith("series_") for k in self.h5)
+
     def _group(self, *names: str, attrs: Mapping[str, Any] | None = None) -> h5py.Group:
         g = self.h5
         for n in names:
@@ -123,67 +173,155 @@ class CampaignWriter:
             self.h5.flush()
         return g
 
-    def series(self, series: int, specimen: Mapping[str, Any]) -> h5py.Group:
-        return self._group(s.series_name(series), attrs=specimen)
+    def _step_group(self, series: int, run: int, step: int) -> h5py.Group | None:
+        return self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}/{s.step_name(step)}")
 
-    def run(self, series: int, run: int) -> h5py.Group:
-        return self._group(s.series_name(series), s.run_name(run), attrs={"repetition": run})
+    def series(self, series: int, specimen: Mapping[str, Any]) -> None:
+        """The specimen's group; its attributes are set when it is first created."""
+        self._group(s.series_name(series), attrs=specimen)
 
-    def step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> h5py.Group:
+    def is_mounted(self, series: int) -> bool:
+        g = self.h5.get(s.series_name(series))
+        return bool(g is not None and g.attrs.get("mounted", False))
+
+    def mark_mounted(self, series: int) -> None:
+        self.h5[s.series_name(series)].attrs["mounted"] = True
+        self.h5.flush()
+
+    def complete_runs(self, series: int) -> set[int]:
+        g = self.h5.get(s.series_name(series))
+        return set() if g is None else {s.number(r) for r in s.children(g, "run_") if r.attrs.get(s.COMPLETE)}
+
+    def run_started(self, series: int, run: int) -> bool:
+        return f"{s.series_name(series)}/{s.run_name(run)}" in self.h5
+
+    def run(self, series: int, run: int) -> None:
+        self._group(s.series_name(series), s.run_name(run), attrs={"repetition": run})
+
+    def step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
         """The step's group; its attributes (knob angle, load) are set when it is first created."""
-        return self._group(s.series_name(series), s.run_name(run), s.step_name(step), attrs={"step": step, **attrs})
+        self._group(s.series_name(series), s.run_name(run), s.step_name(step), attrs={"step": step, **attrs})
+
+    def step_load(self, series: int, run: int, step: int, *, complete_only: bool = False) -> float | None:
+        """The recorded load per roller of a step (None: not recorded yet, or not complete when asked)."""
+        g = self._step_group(series, run, step)
+        if g is None or "load_n" not in g.attrs or (complete_only and not g.attrs.get(s.COMPLETE, False)):
+            return None
+        return float(g.attrs["load_n"])
 
     def update_step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
         _attrs(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)], attrs)
         self.h5.flush()
 
-    def write_impact(self, series: int, run: int, step: int, attempt: int, data: ImpactData) -> None:
+    def impact_infos(self, series: int, run: int, step: int) -> list[ImpactInfo]:
+        g = self._step_group(series, run, step)
+        return [] if g is None else [impact_info(ig) for ig in complete_impacts(g)]
+
+    def impacts(self, series: int, run: int, step: int) -> list[ImpactRecord]:
+        """The step's complete impacts as stored (read back, so live processing sees what reprocessing will)."""
+        g = self._step_group(series, run, step)
+        return [] if g is None else [impact_record(ig) for ig in complete_impacts(g)]
+
+    def accepted_count(self) -> int:
+        """Impacts accepted so far over the whole campaign (what progress counts)."""
+        if self._accepted is None:
+            self._accepted = sum(bool(ig.attrs.get("accepted")) for st in s.all_steps(self.h5)
+                                 for ig in complete_impacts(st))
+        return self._accepted
+
+    def write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> None:
         """Store one blow (accepted or not) and flush; ``complete`` is written last."""
-        g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].create_group(s.impact_name(attempt))
-        f = g.create_dataset(s.FORCE, data=np.asarray(data.force_n, dtype=np.float32))
-        _attrs(f, {"unit": "N", **data.force_calibration})
-        a = g.create_dataset(s.ACCEL, data=np.asarray(data.accel_m_per_s2, dtype=np.float32),
-                             chunks=(1, data.accel_m_per_s2.shape[-1]))
-        _attrs(a, {"unit": "m/s^2", "channels": list(data.channels), **data.channel_calibration})
-        _attrs(g, {"attempt": attempt, "accepted": bool(data.accepted), "reasons": list(data.reasons),
-                   "peak_force_n": data.peak_force_n, "pulse_width_s": data.pulse_width_s,
-                   "sample_rate_hz": data.sample_rate_hz, "trigger_index": data.trigger_index,
-                   "timestamp_utc": datetime.fromtimestamp(data.timestamp_s, UTC).isoformat(timespec="milliseconds"),
-                   "clipped": list(data.clipped)})
+        g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].create_group(
+            s.impact_name(record.attempt))
+        cal, info = record.calibration, record.info
+        f = _write_trace(g, s.FORCE, record.force_n, [cal.force_range_n])
+        _attrs(f, {"unit": "N", "sensitivity_v_per_unit": cal.force_sensitivity_v_per_n,
+                   "range_units": cal.force_range_n})
+        n_ch = len(record.channels)
+        a = _write_trace(g, s.ACCEL, record.accel_m_per_s2, list(cal.accel_range_m_per_s2 or [None] * n_ch))
+        _attrs(a, {"unit": "m/s^2", "channels": list(record.channels),
+                   "sensitivity_v_per_unit": cal.accel_sensitivity_v_per_m_per_s2,
+                   "range_units": cal.accel_range_m_per_s2})
+        if self._accepted is not None:
+            self._accepted += int(info.verdict.accepted)
+        _attrs(g, {"attempt": record.attempt, "sample_rate_hz": info.sample_rate_hz,
+                   "trigger_index": info.trigger_index, "timestamp_utc": info.timestamp_utc,
+                   "clipped": list(info.clipped), "check_accepted": bool(info.checks.accepted),
+                   "peak_force_n": info.checks.peak_force_n, "pulse_width_s": info.checks.pulse_width_s,
+                   "accepted": bool(info.verdict.accepted), "verdict_source": info.verdict.source,
+                   "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)})
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
 
-    def write_step_result(self, series: int, run: int, step: int, summary: Mapping[str, Any],
-                          frequencies_hz: np.ndarray | None = None, h1: np.ndarray | None = None,
-                          coherence: np.ndarray | None = None) -> None:
-        """Store a step's modal result (and its FRF up to ``FRF_MAX_HZ``), then mark the step complete."""
+    def _verdict(self, g: h5py.Group, verdict: Verdict) -> None:
+        if self._accepted is not None:
+            self._accepted += int(verdict.accepted) - int(bool(g.attrs.get("accepted", False)))
+        g.attrs["accepted"] = bool(verdict.accepted)
+        g.attrs["verdict_source"] = verdict.source
+        g.attrs["verdict_reason"] = verdict.reason
+        g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
+
+    def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
+        """Record the operator's (or the checks') verdict on a stored impact and flush."""
+        self._verdict(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)],
+                      verdict)
+        self.h5.flush()
+
+    def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
+        """Store a step's result (and its FRF up to ``FRF_MAX_HZ``), then mark the step complete."""
         stg = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
         if s.RESULT in stg:
             del stg[s.RESULT]
         g = stg.create_group(s.RESULT)
-        if frequencies_hz is not None and h1 is not None:
-            keep = frequencies_hz <= s.FRF_MAX_HZ
-            g.create_dataset("frequencies_hz", data=frequencies_hz[keep])
-            g.create_dataset("h1", data=np.asarray(h1)[..., keep].astype(np.complex64))
-            if coherence is not None:
-                g.create_dataset("coherence", data=np.asarray(coherence)[..., keep].astype(np.float32))
-        _attrs(g, dict(summary))
+        frf = result.frf
+        if frf is not None:
+            keep = frf.frequencies_hz <= s.FRF_MAX_HZ
+            g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep], **COMPRESS)
+            g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
+            g.create_dataset("coherence", data=np.asarray(frf.coherence)[..., keep].astype(np.float32), **COMPRESS)
+        _attrs(g, {f.name: getattr(result, f.name) for f in fields(result) if f.name != "frf"})
+        if result.error:
+            stg.attrs["failed"] = result.error
         g.attrs[s.COMPLETE] = True
         stg.attrs[s.COMPLETE] = True
         self.h5.flush()
 
-    def write_curve(self, series: int, run: int, columns: Mapping[str, np.ndarray]) -> None:
-        """Store a repetition's stiffness-vs-load table and mark the run complete."""
+    def step_results(self, series: int, run: int) -> list[tuple[int, float, float, StepResult]]:
+        """(step, load, knob angle, result) of a repetition's processed steps, in step order."""
+        rg = self.h5[s.series_name(series)][s.run_name(run)]
+        out = []
+        for g in s.children(rg, "step_"):
+            info = step_info(series, run, g)
+            if info.result is not None:
+                out.append((info.step, info.load_n, info.knob_angle_deg, info.result))
+        return out
+
+    def store_curve(self, series: int, run: int) -> RepetitionCurve:
+        """Build a repetition's stiffness-vs-load table from its stored step results, store it, return it."""
+        label = str(self.h5[s.series_name(series)].attrs.get("label", ""))
+        curve = curve_from_steps(series, run, label, self.step_results(series, run))
         rg = self.h5[s.series_name(series)][s.run_name(run)]
         if s.CURVE in rg:
             del rg[s.CURVE]
         g = rg.create_group(s.CURVE)
-        for name, values in columns.items():
-            g.create_dataset(name, data=np.asarray(values, dtype=float))
+        for name, values in curve.columns().items():
+            g.create_dataset(name, data=values)
         g.attrs[s.COMPLETE] = True
         rg.attrs[s.COMPLETE] = True
         rg.attrs["finished_utc"] = utc_now()
         self.h5.flush()
+        return curve
+
+    def curves(self) -> list[RepetitionCurve]:
+        """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
+        out = []
+        for sg in s.children(self.h5, "series_"):
+            label = str(sg.attrs.get("label", ""))
+            for rg in s.children(sg, "run_"):
+                curve = curve_of(rg, s.number(sg), label)
+                if curve is not None:
+                    out.append(curve)
+        return out
 
     def set_status(self, status: str, message: str = "") -> None:
         self.h5.attrs["status"] = status

@@ -30,12 +30,11 @@ BrowserScreen .panel { border: round $primary; width: 1fr; height: 1fr; }
 
 def step_label(step: StepInfo) -> str:
     """One line per step: load, bounce frequency, stiffness and accepted impacts."""
-    r = step.result or {}
-    bounce, k = r.get("bounce_hz"), r.get("roller_stiffness_n_per_m")
+    r = step.result
     text = f"step {step.step}: {step.load_n:.1f} N"
-    if bounce is not None and k is not None:
-        text += f" · {float(bounce):.2f} Hz · k {float(k):.3e} N/m"
-    elif "failed" in r or (step.complete and step.result is None):
+    if r is not None and r.identified:
+        text += f" · {r.bounce_hz:.2f} Hz · k {r.roller_stiffness_n_per_m:.3e} N/m"
+    elif r is not None or step.complete:
         text += " · not identified"
     elif not step.complete:
         text += " · unfinished"
@@ -93,7 +92,7 @@ class BrowserScreen(Screen):
                     snode = rnode.add(step_label(step), data=("step", series, run.run, step.step))
                     for imp in step.impacts:
                         verdict = "ok" if imp.accepted else f"rejected: {reason_text(imp.reasons)}"
-                        snode.add_leaf(f"impact {imp.attempt}: {float(imp.attrs.get('peak_force_n', math.nan)):.0f} N"
+                        snode.add_leaf(f"impact {imp.attempt}: {imp.peak_force_n:.0f} N"
                                        f" · {verdict}", data=("impact", series, run.run, step.step, imp.attempt))
         tree.focus()
         if self.reader.series_indices():
@@ -121,10 +120,11 @@ class BrowserScreen(Screen):
         for run in self.reader.runs(series):
             curve = self.reader.curve(series, run.run)
             if curve is None:  # unfinished run: its identified steps so far
-                pts = [(s.load_n, float(s.result["roller_stiffness_n_per_m"])) for s in run.steps
-                       if s.result and "roller_stiffness_n_per_m" in s.result]
-                curve = {"load_n": np.array([p[0] for p in pts]), "stiffness_n_per_m": np.array([p[1] for p in pts])}
-            runs[f"run {run.run}"] = (curve["load_n"], curve["stiffness_n_per_m"])
+                pts = [(s.load_n, s.result.roller_stiffness_n_per_m) for s in run.steps
+                       if s.result is not None and s.result.identified]
+                runs[f"run {run.run}"] = (np.array([p[0] for p in pts]), np.array([p[1] for p in pts]))
+            else:
+                runs[f"run {run.run}"] = (curve.load_n, curve.stiffness_n_per_m)
         plot.set_runs(runs)
         if self.protocol is not None and series <= len(self.protocol.specimens):
             spec = self.protocol.specimens[series - 1]
@@ -133,21 +133,20 @@ class BrowserScreen(Screen):
 
     def show_step(self, series: int, run: int, step: int, attempt: int | None) -> None:
         info = next(s for r in self.reader.runs(series) if r.run == run for s in r.steps if s.step == step)
-        r = info.result or {}
+        r = info.result
         lines = [step_label(info)]
-        if r:
-            lines.append(f"bounce {float(r.get('bounce_hz', math.nan)):.2f} Hz · "
-                         f"tilt {tilt_text(r.get('tilt_hz', []))} Hz · "
-                         f"damping {float(r.get('bounce_damping_ratio', math.nan)):.4f} · "
-                         f"coherence {float(r.get('coherence_at_bounce', math.nan)):.3f}")
-            if r.get("warnings"):
-                lines.append("warnings: " + "; ".join(map(str, r["warnings"])))
+        if r is not None and r.identified:
+            lines.append(f"bounce {r.bounce_hz:.2f} Hz · tilt {tilt_text(list(r.tilt_hz))} Hz · "
+                         f"damping {r.bounce_damping_ratio:.4f} · coherence {r.coherence_at_bounce:.3f}")
+            if r.warnings:
+                lines.append("warnings: " + "; ".join(r.warnings))
+        elif r is not None and r.error:
+            lines.append(f"not identified: {r.error}")
         self.query_one("#detail", Static).update("\n".join(lines))
         frf = self.reader.step_frf(series, run, step)
-        if frf is not None:
-            channels = tuple(r.get("channels", ()))
-            self.frf.show(frf[0], np.abs(frf[1]), frf[2], channels, float(r.get("bounce_hz", math.nan)),
-                          [float(t) for t in r.get("tilt_hz", [])], f"step {step} FRF")
+        if frf is not None and r is not None:
+            self.frf.show(frf[0], np.abs(frf[1]), frf[2], tuple(r.channels), r.bounce_hz,
+                          [float(t) for t in r.tilt_hz], f"step {step} FRF")
         data = self.reader.impact_arrays(series, run, step)
         if not data.attempts:
             return

@@ -221,13 +221,13 @@ class MonitorScreen(Screen):
             for series in reader.series_indices():
                 for run in reader.runs(series):
                     for step in run.steps:
-                        r = step.result or {}
-                        if "bounce_hz" not in r:
+                        r = step.result
+                        if r is None or not r.identified:
                             continue
-                        tilt = tuple(float(t) for t in r.get("tilt_hz", [math.nan, math.nan]))[:2]
-                        row = StepRow(series, run.run, step.step, step.load_n, float(r["bounce_hz"]),
-                                      (tilt + (math.nan, math.nan))[:2], float(r["roller_stiffness_n_per_m"]),
-                                      float(r.get("coherence_at_bounce", math.nan)))
+                        tilt = tuple(float(t) for t in r.tilt_hz)[:2]
+                        row = StepRow(series, run.run, step.step, step.load_n, r.bounce_hz,
+                                      (tilt + (math.nan, math.nan))[:2], r.roller_stiffness_n_per_m,
+                                      r.coherence_at_bounce)
                         self.state.add_row(row)
                         self.query_one("#steps", DataTable).add_row(*row_cells(row))
         self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file")

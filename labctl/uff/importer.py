@@ -18,10 +18,10 @@ from typing import Any
 from labctl.engine.sequencer import specimen_attrs
 from labctl.errors import InputError
 from labctl.physics.rig_config import RigConfig, load_rig
-from labctl.processing import CheckConfig, Identification, ProcessingError, check_impact, identify
+from labctl.processing import CheckConfig
 from labctl.protocol import SpecimenSpec
-from labctl.recording import store_curve, store_step_result
-from labctl.storage import CampaignWriter, ImpactData
+from labctl.recording import Delivered, check_record, process_step
+from labctl.storage import CampaignWriter, StepResult
 from labctl.uff import mapping as m
 from labctl.uff.manifest import ManifestRow, read_manifest
 from labctl.uff.reader import ImpactPlan, UffFile, UffImpacts, plan_uff_impacts
@@ -189,7 +189,7 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
                 writer.series(i, {**specimen_attrs(spec), "mounted": True})
                 summary.series.append({"series": i, "label": spec.label, "roller_type": spec.roller_type,
                                        "rail_ra_m": spec.rail_ra_m})
-            runs: dict[tuple[int, int], list[tuple[PlannedStep, Identification | str]]] = defaultdict(list)
+            runs: dict[tuple[int, int], list[tuple[PlannedStep, StepResult]]] = defaultdict(list)
             for p in plan:
                 writer.run(p.series, p.run)
                 data = impacts[id(p)].read()
@@ -197,7 +197,7 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
                 runs[(p.series, p.run)].append((p, ident))
                 summary.steps.append(_step_summary(p, data, ident))
             for s, r in runs:
-                store_curve(writer, s, r)
+                writer.store_curve(s, r)
             writer.set_status("complete", f"imported from {len(opened)} UFF file(s)")
     except BaseException:
         out.unlink(missing_ok=True)
@@ -206,40 +206,29 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
 
 
 def _store_step(writer: CampaignWriter, p: PlannedStep, imp: UffImpacts, rig: RigConfig, opts: ImportOptions
-                ) -> Identification | str:
-    """Store a step's impacts with their checks, then its identification (or why it failed)."""
+                ) -> StepResult:
+    """Store a step's impacts with their checks, then its result through the one step pipeline."""
     fs = opts.sample_rate_hz or imp.fs_hz
     load = p.row.load_n
     writer.step(p.series, p.run, p.step, {"knob_angle_deg": p.row.knob_angle_deg, "load_n": load,
                                           "load_total_n": load * rig.roller_count, "load_stable": True,
                                           "source_file": str(p.file), "load_cases": list(imp.load_cases)})
-    accepted = []
     for i in range(len(imp.load_cases)):
-        check = check_impact(imp.force_n[i], imp.accel_m_per_s2[i], fs, index=i + 1, config=opts.checks)
-        writer.write_impact(p.series, p.run, p.step, i + 1, ImpactData(
-            fs, imp.force_n[i], imp.accel_m_per_s2[i], imp.channels, int(check.pulse_start),
-            _timestamp(imp.ids[i]), bool(check.accepted), tuple(check.reasons), float(check.peak_force_n),
-            float(check.pulse_width_s), (), {}, {}))
-        if check.accepted:
-            accepted.append(i)
-    try:
-        if not accepted:
-            raise ProcessingError("no accepted impact in this step")
-        ident: Identification | str = identify(imp.force_n[accepted], imp.accel_m_per_s2[accepted], fs,
-                                               imp.channels, rig, config=opts.checks)
-    except ProcessingError as exc:
-        ident = str(exc)
-    store_step_result(writer, p.series, p.run, p.step, ident, [i + 1 for i in accepted])
-    return ident
+        record = check_record(Delivered(fs, imp.force_n[i], imp.accel_m_per_s2[i], imp.channels, 0,
+                                        _timestamp(imp.ids[i])), i + 1, opts.checks)
+        writer.write_impact(p.series, p.run, p.step, record)
+    result = process_step(writer.impacts(p.series, p.run, p.step), rig, opts.checks)
+    writer.write_step_result(p.series, p.run, p.step, result)
+    return result
 
 
-def _step_summary(p: PlannedStep, imp: UffImpacts, ident: Identification | str) -> dict[str, Any]:
+def _step_summary(p: PlannedStep, imp: UffImpacts, ident: StepResult) -> dict[str, Any]:
     out: dict[str, Any] = {"series": p.series, "run": p.run, "step": p.step, "load_n": p.row.load_n,
                            "file": str(p.file), "load_cases": list(imp.load_cases), "impacts": len(imp.load_cases)}
-    if isinstance(ident, str):
-        out["error"] = ident
+    if not ident.identified:
+        out["error"] = ident.error
         return out
-    out.update({"accepted": len(ident.accepted), "bounce_hz": ident.bounce_hz,
+    out.update({"accepted": len(ident.used_attempts), "bounce_hz": ident.bounce_hz,
                 "roller_stiffness_n_per_m": ident.roller_stiffness_n_per_m,
                 "coherence_at_bounce": ident.coherence_at_bounce})
     return out

@@ -12,6 +12,7 @@ to loads and repetitions for ``labctl import``.
 from __future__ import annotations
 
 import csv
+import json
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -169,15 +170,15 @@ def _write_impacts(writer: _Out, reader: CampaignReader, series: int, run: int, 
     data = reader.impact_arrays(series, run, step, accepted_only=not sel.all_impacts)
     if not data.attempts:
         return
-    group = reader.step_group(series, run, step)
+    infos = {i.attempt: i for i in reader.impact_infos(series, run, step)}
     targets = [nodes.node_dir(c) for c in data.channels]
     dt = 1.0 / data.sample_rate_hz
     for i, attempt in enumerate(data.attempts):
         summary.impacts += 1
         lc = summary.impacts
-        attrs = group[f"impact_{attempt:03d}"].attrs
-        verdict = "accepted" if data.accepted[i] else "rejected: " + str(attrs.get("reasons", ""))
-        line = (ids[0], f"{ids[1]} impact {attempt}", str(attrs.get("timestamp_utc", "")),
+        info = infos[attempt]
+        verdict = "accepted" if data.accepted[i] else "rejected: " + json.dumps(list(info.reasons))
+        line = (ids[0], f"{ids[1]} impact {attempt}", info.timestamp_utc,
                 f"{ids[2]}; {verdict}")
         writer.write(_dataset(m.TIME_RESPONSE, nodes.hammer, m.HAMMER_DIR, data.force_n[i], 0.0, dt, load_case=lc,
                               ids=line, ordinate=m.ORDINATE_FORCE, units="N", binary=binary, nodes=nodes,
@@ -195,7 +196,7 @@ def _write_frf(writer: _Out, reader: CampaignReader, series: int, run: int, step
     if frf is None:
         return
     freqs, h1, coherence = frf
-    channels = (step.result or {}).get("channels") or list(
+    channels = (list(step.result.channels) if step.result is not None else []) or list(
         reader.impact_arrays(series, run, step.step, accepted_only=True).channels)
     if len(channels) != h1.shape[0] or len(freqs) < 2:
         raise InputError(f"{reader.path}: {ids[1]}: the stored FRF has {h1.shape[0]} rows for "

@@ -1,0 +1,309 @@
+"""The typed records of a campaign file: one impact as the DAQ delivered it, one step's result, one curve.
+
+Every reader and writer of campaign files speaks these types; nothing outside ``labctl.storage`` reads
+HDF5 attributes by name. ``StepResult`` is built from the processing's ``Identification`` in one place
+(``step_result``): a field whose name matches an ``Identification`` attribute is copied from it, so adding a
+result field is one line here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Literal
+
+import numpy as np
+
+VerdictSource = Literal["checks", "operator"]
+CHECKS: VerdictSource = "checks"
+OPERATOR: VerdictSource = "operator"
+NAN = math.nan
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Whether an impact is used, and who decided: the automatic checks, or the operator (with a reason)."""
+
+    accepted: bool
+    source: VerdictSource = CHECKS
+    reason: str = ""
+
+    @property
+    def forced(self) -> bool | None:
+        """The operator's decision for identification (None: the checks decide)."""
+        return self.accepted if self.source == OPERATOR else None
+
+
+@dataclass(frozen=True)
+class CheckSummary:
+    """The automatic checks of one impact at the blow: verdict, reasons and the force pulse."""
+
+    accepted: bool
+    reasons: tuple[str, ...] = ()
+    peak_force_n: float = NAN
+    pulse_width_s: float = NAN
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The DAQ channels' transducer sensitivities and ranges (physical units) when the backend gave them."""
+
+    force_sensitivity_v_per_n: float | None = None
+    force_range_n: float | None = None
+    accel_sensitivity_v_per_m_per_s2: tuple[float, ...] | None = None
+    accel_range_m_per_s2: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class ImpactInfo:
+    """One stored blow without its traces: timing, checks and verdict (what lists and reports need)."""
+
+    attempt: int
+    sample_rate_hz: float
+    trigger_index: int
+    timestamp_utc: str
+    checks: CheckSummary
+    verdict: Verdict
+    clipped: tuple[str, ...] = ()
+
+    @property
+    def accepted(self) -> bool:
+        return self.verdict.accepted
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        """The checks' reasons, then the operator's verdict when they overruled or confirmed them."""
+        extra = () if self.verdict.source == CHECKS else (
+            "operator_accepted" if self.verdict.accepted else "operator_rejected",)
+        return (*self.checks.reasons, *extra)
+
+    @property
+    def peak_force_n(self) -> float:
+        return self.checks.peak_force_n
+
+
+@dataclass(frozen=True)
+class ImpactRecord:
+    """One blow as stored: the traces in physical units (bit-exact as delivered), calibration, checks, verdict."""
+
+    info: ImpactInfo
+    channels: tuple[str, ...]
+    force_n: np.ndarray = field(repr=False)  # (n_samples,)
+    accel_m_per_s2: np.ndarray = field(repr=False)  # (n_channels, n_samples)
+    calibration: Calibration = Calibration()
+
+    @property
+    def attempt(self) -> int:
+        return self.info.attempt
+
+    @property
+    def accepted(self) -> bool:
+        return self.info.accepted
+
+    @property
+    def verdict(self) -> Verdict:
+        return self.info.verdict
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return self.info.sample_rate_hz
+
+    def with_verdict(self, verdict: Verdict) -> ImpactRecord:
+        return replace(self, info=replace(self.info, verdict=verdict))
+
+
+@dataclass(frozen=True)
+class ModeResult:
+    """One identified contact mode of a step."""
+
+    kind: str
+    frequency_hz: float
+    frequency_std_hz: float
+    damping_ratio: float
+    damping_ratio_std: float
+    coherence: float
+    bounce_mac: float = NAN
+    tilt_fraction: float = NAN
+
+
+@dataclass(frozen=True)
+class ImpactOutcome:
+    """How identification used one stored impact (numbered by its attempt)."""
+
+    attempt: int
+    used: bool
+    reasons: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class StepFrf:
+    """The step's averaged FRF as stored (up to the storage band)."""
+
+    frequencies_hz: np.ndarray
+    h1: np.ndarray  # (n_channels, n_f) m/s² per N
+    coherence: np.ndarray  # (n_channels, n_f)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """One load step's identification (or why it failed); every field has a default so old files read."""
+
+    bounce_hz: float = NAN
+    """Bounce (vertical) contact mode frequency, Hz."""
+    bounce_hz_std: float = NAN
+    """1-σ of the bounce frequency, Hz."""
+    bounce_damping_ratio: float = NAN
+    """Bounce mode damping ratio (exponential window removed), dimensionless."""
+    bounce_damping_ratio_std: float = NAN
+    """1-σ of the bounce damping ratio."""
+    tilt_hz: tuple[float, ...] = (NAN, NAN)
+    """The two tilt (rocking) mode frequencies, Hz."""
+    tilt_hz_std: tuple[float, ...] = (NAN, NAN)
+    """1-σ of the tilt frequencies, Hz."""
+    tilt_pair_resolved: bool = False
+    """Whether the data resolve the two tilt modes (else one degenerate frequency is reported twice)."""
+    roller_stiffness_n_per_m: float = NAN
+    """Contact stiffness per roller from the bounce frequency (rig model), N/m."""
+    roller_stiffness_std_n_per_m: float = NAN
+    """1-σ of the roller stiffness, N/m."""
+    roller_only_stiffness_n_per_m: float | None = None
+    """Stiffness with the rig's setup compliance removed when a contact model was given, N/m."""
+    roller_only_stiffness_std_n_per_m: float | None = None
+    """1-σ of the roller-only stiffness, N/m."""
+    coherence_at_bounce: float = NAN
+    """Coherence at the bounce over the used impacts, 0..1."""
+    channels: tuple[str, ...] = ()
+    """Response channels of the FRF, in row order."""
+    dead_channels: tuple[str, ...] = ()
+    """Channels left out because they carried no signal."""
+    classified_by_shape: bool = True
+    """Whether bounce and tilt were told apart by mode shape (else by frequency order)."""
+    fs_hz: float = NAN
+    """Sample rate of the processed records, Hz."""
+    window_decay_rate_per_s: float = NAN
+    """Decay rate of the exponential window, 1/s."""
+    fit_band_hz: tuple[float, ...] = (NAN, NAN)
+    """Frequency band of the modal fit, Hz."""
+    modes: tuple[ModeResult, ...] = ()
+    """The identified contact modes: bounce first, then tilt."""
+    impacts: tuple[ImpactOutcome, ...] = ()
+    """Every stored impact of the step and whether identification used it."""
+    warnings: tuple[str, ...] = ()
+    """What the identification could not vouch for."""
+    error: str = ""
+    """Why the step could not be identified ("" when it was)."""
+    frf: StepFrf | None = field(default=None, compare=False, repr=False)
+    """The averaged FRF (not compared; stored as datasets)."""
+
+    @property
+    def identified(self) -> bool:
+        return not self.error and math.isfinite(self.roller_stiffness_n_per_m)
+
+    @property
+    def used_attempts(self) -> tuple[int, ...]:
+        """The attempts of the impacts identification averaged."""
+        return tuple(i.attempt for i in self.impacts if i.used)
+
+    @property
+    def rejected_count(self) -> int:
+        return sum(1 for i in self.impacts if not i.used)
+
+
+# Fields written as datasets or as nested JSON, not as plain attributes.
+STRUCTURED_FIELDS = frozenset({"modes", "impacts", "frf"})
+
+
+def step_result(ident: Any, attempts: Sequence[int]) -> StepResult:
+    """The StepResult of a processing ``Identification`` whose impact ``i`` is stored as ``attempts[i]``.
+
+    Plain fields are copied from the attribute of the same name when the identification has one.
+    """
+    plain = {f.name: _plain(getattr(ident, f.name), f.default) for f in fields(StepResult)
+             if f.name not in STRUCTURED_FIELDS and f.name != "error" and hasattr(ident, f.name)}
+    modes = tuple(ModeResult(m.kind, float(m.frequency_hz), float(m.frequency_std_hz), float(m.damping_ratio),
+                             float(m.damping_ratio_std), float(m.coherence), float(m.bounce_mac),
+                             float(m.tilt_fraction)) for m in ident.modes)
+    impacts = tuple(ImpactOutcome(int(attempts[c.index]), bool(c.accepted), tuple(c.reasons)) for c in ident.impacts)
+    frf = StepFrf(np.asarray(ident.frequencies_hz), np.asarray(ident.h1), np.asarray(ident.coherence))
+    return StepResult(**plain, modes=modes, impacts=impacts, frf=frf)
+
+
+def failed_step(reason: str, impacts: Sequence[ImpactOutcome] = ()) -> StepResult:
+    """The result of a step that could not be identified."""
+    return StepResult(error=reason, impacts=tuple(impacts))
+
+
+def _plain(value: Any, default: Any) -> Any:
+    """A result value as a plain Python value of the field's kind (tuples for sequences)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(default, tuple) or isinstance(value, list | tuple):
+        return tuple(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def result_from_mapping(values: Mapping[str, Any], frf: StepFrf | None = None) -> StepResult:
+    """A StepResult from stored attributes (unknown keys ignored, missing ones default): for old files."""
+    kwargs: dict[str, Any] = {}
+    for f in fields(StepResult):
+        if f.name in STRUCTURED_FIELDS or f.name not in values:
+            continue
+        kwargs[f.name] = _plain(values[f.name], f.default)
+    modes = tuple(ModeResult(str(m["kind"]), float(m["frequency_hz"]), float(m.get("frequency_std_hz", NAN)),
+                             float(m.get("damping_ratio", NAN)), float(m.get("damping_ratio_std", NAN)),
+                             float(m.get("coherence", NAN)), float(m.get("bounce_mac", NAN)),
+                             float(m.get("tilt_fraction", NAN)))
+                  for m in values.get("modes", []) if isinstance(m, Mapping))
+    impacts = tuple(ImpactOutcome(int(i.get("attempt", i.get("index", 0))), bool(i.get("accepted", i.get("used"))),
+                                  tuple(i.get("reasons", ())))
+                    for i in values.get("impacts", []) if isinstance(i, Mapping))
+    return StepResult(**kwargs, modes=modes, impacts=impacts, frf=frf)
+
+
+CURVE_COLUMNS = ("step", "load_n", "stiffness_n_per_m", "stiffness_std_n_per_m", "bounce_hz", "bounce_damping_ratio",
+                 "tilt_a_hz", "tilt_b_hz", "coherence_at_bounce", "knob_angle_deg")
+
+
+@dataclass(frozen=True)
+class RepetitionCurve:
+    """One repetition's stiffness-vs-load table: one entry per identified step, in step order."""
+
+    series: int
+    run: int
+    specimen: str
+    step: np.ndarray
+    load_n: np.ndarray
+    stiffness_n_per_m: np.ndarray
+    stiffness_std_n_per_m: np.ndarray
+    bounce_hz: np.ndarray
+    bounce_damping_ratio: np.ndarray
+    tilt_a_hz: np.ndarray
+    tilt_b_hz: np.ndarray
+    coherence_at_bounce: np.ndarray
+    knob_angle_deg: np.ndarray
+
+    def columns(self) -> dict[str, np.ndarray]:
+        return {c: getattr(self, c) for c in CURVE_COLUMNS}
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        """Column access kept for scripts written against the earlier dict curves (``curve["load_n"]``)."""
+        if column not in CURVE_COLUMNS:
+            raise KeyError(column)
+        return getattr(self, column)
+
+    def __len__(self) -> int:
+        return int(self.load_n.size)
+
+
+def curve_from_steps(series: int, run: int, specimen: str, steps: Sequence[tuple[int, float, float, StepResult]]
+                     ) -> RepetitionCurve:
+    """The curve of a repetition from its (step, load, knob angle, result) of identified steps."""
+    rows = [(n, load, r.roller_stiffness_n_per_m, r.roller_stiffness_std_n_per_m, r.bounce_hz, r.bounce_damping_ratio,
+             *(tuple(r.tilt_hz) + (NAN, NAN))[:2], r.coherence_at_bounce, angle)
+            for n, load, angle, r in steps if r.identified]
+    cols = [np.array([row[i] for row in rows], dtype=float) for i in range(len(CURVE_COLUMNS))]
+    cols[0] = cols[0].astype(int)
+    return RepetitionCurve(series, run, specimen, *cols)
