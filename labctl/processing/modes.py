@@ -41,6 +41,8 @@ class ModalFit:
     converged: bool
     channel_rms: np.ndarray  # (n_ch,) residual RMS per channel, in the FRF's units
     significance: np.ndarray  # (M,) rise of the cost (in σ² units) if the mode's constants were dropped
+    force_covariance: np.ndarray | None = None  # (2M, 2M) over (f_r, ln ζ_r): the force noise's share
+    constants_std: np.ndarray | None = None  # (M, n_ch) 1-σ of the modal constants (response noise)
 
 
 def _stack(z: np.ndarray) -> np.ndarray:
@@ -98,13 +100,17 @@ class _Problem:
         low, scale = self.gram
         return np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0) * scale**2
 
-    def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
-        """JᵀJ and Jᵀr at the last solved point."""
+    def projected_derivatives(self) -> np.ndarray:
+        """∂(mode columns)/∂θ at the last solved point, projected off the residual terms and the mode columns."""
         s, d = self.s[:, None], self.d
         deriv = np.empty((2 * len(self.s), 2 * d.shape[1]))
         deriv[:, 0::2] = _stack(-(s**2) * (2.0 * self.zeta * s + 2.0 * self.omega) / d**2 * TWO_PI)
         deriv[:, 1::2] = _stack(-(s**2) * (2.0 * self.omega * s) * self.zeta / d**2)
-        pdb = self.project_out(deriv)
+        return self.project_out(deriv)
+
+    def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
+        """JᵀJ and Jᵀr at the last solved point."""
+        pdb = self.projected_derivatives()
         c = np.repeat(self.coef, 2, axis=0)  # mode r's constants for both its parameters
         jtj = (pdb.T @ pdb) * (c @ c.T)
         jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
@@ -185,7 +191,9 @@ def fit_modes(
     except np.linalg.LinAlgError:
         std = np.full(len(x), np.inf)
     zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
-    significance = np.sum(prob.coef**2, axis=1) / prob.inverse_gram_diagonal() / max(sigma2, 1e-300)
+    inv_diag = prob.inverse_gram_diagonal()
+    significance = np.sum(prob.coef**2, axis=1) / inv_diag / max(sigma2, 1e-300)
+    constants_std = np.sqrt(np.outer(inv_diag * sigma2 * noise_inflation, 1.0 / weights**2))
     return ModalFit(
         frequencies_hz=x[0::2].copy(),
         damping_ratios=zeta,
@@ -199,7 +207,57 @@ def fit_modes(
         converged=converged,
         channel_rms=np.sqrt(2.0 * np.mean(prob.resid**2, axis=0)) / weights,
         significance=significance,
+        constants_std=constants_std,
     )
+
+
+@dataclass(frozen=True)
+class ForceNoise:
+    """What the force channel's noise does to the FRF: per used impact, its force spectrum on the band lines,
+    the force window's samples (index, value incl. the exponential window) and the noise σ (N)."""
+
+    spectra: np.ndarray  # (n_imp, n_lines) complex force spectra F_i on the band
+    line_index: np.ndarray  # (n_lines,) the band's FFT line numbers k
+    n_fft: int
+    windows: tuple[tuple[np.ndarray, np.ndarray], ...]  # per impact: (sample indices, window values)
+    sigma_n: np.ndarray  # (n_imp,)
+
+
+def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, noise: ForceNoise, *,
+                           decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None) -> np.ndarray:
+    """Covariance (2M × 2M, over (f_r, ln ζ_r) pairs) of the fitted poles caused by the force channel's noise.
+
+    H1 = Σ X F*/Σ|F|² with F_i = F_i° + δF_i gives δH = -H·Σ F_i* δF_i / Σ|F_i|² (first order): the same
+    smooth relative error on every channel, correlated over many lines, which the residuals cannot reveal.
+    Each noise sample in a force window perturbs the data by a known vector; the linearised variable-
+    projection estimate maps it to the poles: cov = (JᵀJ)⁻¹ (Σ σ² g gᵀ) (JᵀJ)⁻¹ with g = Jᵀ δy.
+    """
+    weights = np.ones(h.shape[0]) if channel_weights is None else np.asarray(channel_weights, float)
+    prob = _Problem(np.asarray(freqs_hz), h, decay_rate_per_s, weights)
+    x = np.array([v for f, z in zip(fit.frequencies_hz, fit.damping_ratios, strict=True)
+                  for v in (f, math.log(max(z, 1e-12)))])
+    prob.solve(x)
+    pdb = prob.projected_derivatives()
+    n = len(freqs_hz)
+    p_c = pdb[:n] + 1j * pdb[n:]  # (n_lines, 2M) complex
+    m = len(fit.frequencies_hz)
+    jtj = (pdb.T @ pdb) * (np.repeat(prob.coef, 2, axis=0) @ np.repeat(prob.coef, 2, axis=0).T)
+    total_ff = np.sum(np.abs(noise.spectra) ** 2, axis=0)
+    hw = h * weights[:, None]  # (n_ch, n_lines)
+    # Σ_c C_rc · w_c H_c(ω): one row per mode, repeated for its two parameters
+    mix = np.repeat(prob.coef @ hw, 2, axis=0).T  # (n_lines, 2M)
+    outer = np.zeros((2 * m, 2 * m))
+    for i, (idx, vals) in enumerate(noise.windows):
+        a = -noise.spectra[i].conj() / np.where(total_ff > 0, total_ff, np.inf)  # (n_lines,)
+        q = np.conj(p_c) * mix * a[:, None]  # (n_lines, 2M)
+        phase = np.exp(-2j * math.pi * np.outer(idx, noise.line_index) / noise.n_fft)  # (n_w, n_lines)
+        g = vals[:, None] * np.real(phase @ q)  # (n_w, 2M)
+        outer += noise.sigma_n[i] ** 2 * (g.T @ g)
+    try:
+        inv = np.linalg.inv(jtj)
+    except np.linalg.LinAlgError:
+        return np.full((2 * m, 2 * m), np.inf)
+    return inv @ outer @ inv
 
 
 def lscf_poles(freqs_hz: np.ndarray, h: np.ndarray, n_modes: int, *, decay_rate_per_s: float = 0.0,

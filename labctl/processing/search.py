@@ -105,7 +105,7 @@ def _valid(fit: ModalFit, require_convergence: bool = True) -> bool:
                 and np.all(np.isfinite(fit.frequency_std_hz)))
 
 
-def _channel_weights(noise: np.ndarray) -> np.ndarray:
+def channel_weights(noise: np.ndarray) -> np.ndarray:
     """1/σ per channel from each channel's noise floor: a noisier channel counts less."""
     sigma = np.maximum(noise, 1e-3 * float(np.median(noise)) + 1e-300)
     w = 1.0 / sigma
@@ -116,7 +116,11 @@ def _widen(fit: ModalFit, live: np.ndarray, n_channels: int) -> ModalFit:
     """The fit with its constants spread back over all channels (dead ones 0)."""
     constants = np.zeros((len(fit.frequencies_hz), n_channels))
     constants[:, live] = fit.constants
-    return replace(fit, constants=constants)
+    std = None
+    if fit.constants_std is not None:
+        std = np.full((len(fit.frequencies_hz), n_channels), np.inf)
+        std[:, live] = fit.constants_std
+    return replace(fit, constants=constants, constants_std=std)
 
 
 def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
@@ -156,7 +160,7 @@ def fit_contact_modes(
     f, hb = freqs_hz[band], hl[:, band]
     if len(f) < 4 * (N_CONTACT_MODES + 2):
         raise ProcessingError(f"the fit band {f[0]:.0f}-{f[-1]:.0f} Hz holds too few frequency lines")
-    weights = np.ones(hb.shape[0]) if channel_noise is None else _channel_weights(channel_noise[live])
+    weights = np.ones(hb.shape[0]) if channel_noise is None else channel_weights(channel_noise[live])
     kw = {"decay_rate_per_s": decay_rate_per_s, "noise_inflation": noise_inflation, "channel_weights": weights}
     n_ch = h.shape[0]
     fit = _widen(fit_modes(f, hb, _start_poles(f, hb, decay_rate_per_s, zeta), **kw), live, n_ch)
