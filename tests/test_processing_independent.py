@@ -11,7 +11,7 @@ from scipy.stats import binom
 
 from labctl.processing import identify
 from tests.cli_util import labctl_here_json
-from tests.impact_generator import generate
+from tests.impact_generator import contact_truth, generate
 from tests.synth_impacts import load_rig
 
 RIG = load_rig()
@@ -100,3 +100,22 @@ def test_a_clip_of_two_samples_is_seen_without_a_stated_range():
     g.accel_m_per_s2[0, c] = np.clip(x, -top, top)
     r = run(g, accel_ranges=10 * float(np.abs(x).max()))  # the stated range is far above: the data tell
     assert "overload" in r.impacts[0].reasons if not r.dropped_channels else r.dropped_channels == ("A1Z",)
+
+
+@pytest.mark.parametrize("stiffening, nonlinear", [(0.0, False), (0.002, True)])
+def test_linearity_across_the_impacts_of_a_step(stiffening, nonlinear):
+    """Blows of 100/250/400 N; with a contact that stiffens by `stiffening` per 100 N of blow the bounce
+    frequency climbs ~0.7 Hz per 100 N: the check must say so and warn; a linear contact must pass."""
+    peaks = [100.0, 250.0, 400.0]
+    k_each = [[K * (1 + stiffening * p / 100.0)] * 3 for p in peaks]
+    g = generate(RIG, K, n_samples=N, seed=12, peak_n=peaks, k_per_impact=k_each, force_snr_db=50.0)
+    r = run(g)
+    lin = r.linearity
+    assert lin is not None and lin["peak_force_n"] == pytest.approx(peaks, rel=0.05)
+    assert lin["nonlinear"] is nonlinear
+    warned = any("hammer level is too high for the preload" in w for w in r.warnings)
+    assert warned is nonlinear
+    if nonlinear:
+        truth = [contact_truth(RIG, k_i)["bounce_hz"] for k_i in k_each]
+        true_slope = np.polyfit(peaks, truth, 1)[0]
+        assert lin["slope_hz_per_n"] == pytest.approx(true_slope, abs=4 * lin["slope_std_hz_per_n"])

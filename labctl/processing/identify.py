@@ -27,7 +27,8 @@ from labctl.processing.frf import (
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.modes import ForceNoise, force_noise_covariance
+from labctl.processing.linearity import Linearity, linearity_check
+from labctl.processing.modes import ForceNoise, force_noise_covariance, impact_shifts
 from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
 from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
@@ -234,9 +235,7 @@ def with_force_noise(modes: ContactModes, frf: FrfEstimate, spectra: Spectra, us
     fit, band = modes.fit, modes.band
     if not spectra.force_windows or not np.any(sigma_f[used] > 0):
         return modes
-    lines = np.arange(spectra.frequencies_hz.shape[0])[band]
-    fn = ForceNoise(spectra=spectra.force[used][:, band].astype(complex), line_index=lines, n_fft=spectra.n_samples,
-                    windows=tuple(spectra.force_windows[i] for i in used), sigma_n=sigma_f[used])
+    fn = _force_noise(spectra, used, sigma_f, band)
     cov = force_noise_covariance(fit, frf.frequencies_hz[band], frf.h1[live][:, band].astype(complex), fn,
                                  decay_rate_per_s=spectra.decay_rate_per_s,
                                  channel_weights=channel_weights(noise[live]))
@@ -244,6 +243,38 @@ def with_force_noise(modes: ContactModes, frf: FrfEstimate, spectra: Spectra, us
     f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
     z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
     return replace(modes, fit=replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov))
+
+
+def _force_noise(spectra: Spectra, used: list[int], sigma_f: np.ndarray, band: slice) -> ForceNoise:
+    lines = np.arange(spectra.frequencies_hz.shape[0])[band]
+    return ForceNoise(spectra=spectra.force[used][:, band].astype(complex), line_index=lines,
+                      n_fft=spectra.n_samples, windows=tuple(spectra.force_windows[i] for i in used),
+                      sigma_n=sigma_f[used])
+
+
+def _linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks: list[float], sigma_f: np.ndarray,
+               live: np.ndarray, noise: np.ndarray) -> Linearity | None:
+    """Each used impact's bounce frequency (first order from the step's fit) against its peak force."""
+    if len(used) < 2 or not spectra.force_windows:
+        return None
+    fit, band, b = modes.fit, modes.band, modes.classes.bounce
+    f_band = spectra.force[used][:, band].astype(complex)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_each = spectra.response[used][:, live][:, :, band] / f_band[:, None, :]
+    if not np.all(np.isfinite(h_each)):
+        return None
+    h_step = np.sum(spectra.response[used][:, live][:, :, band] * f_band.conj()[:, None, :], axis=0) / np.sum(
+        np.abs(f_band) ** 2, axis=0)
+    try:
+        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each,
+                                     _force_noise(spectra, used, sigma_f, band),
+                                     decay_rate_per_s=spectra.decay_rate_per_s,
+                                     channel_weights=channel_weights(noise[live]),
+                                     noise_inflation=spectra.noise_inflation)
+    except np.linalg.LinAlgError:
+        return None
+    f_b = float(fit.frequencies_hz[b])
+    return linearity_check(peaks, f_b + shifts[:, 2 * b], stds[:, 2 * b])
 
 
 def saturated_channels(checks: Sequence[ImpactCheck], names: Sequence[str]) -> tuple[str, ...]:
@@ -336,8 +367,12 @@ def identify(
     if dropped:
         warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
+    lin = _linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise)
+    if lin is not None and lin.warning():
+        warnings.append(lin.warning())
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
                      dropped)
+    result.linearity = lin.to_dict() if lin is not None else None
     return result
 
 

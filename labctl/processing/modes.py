@@ -223,6 +223,51 @@ class ForceNoise:
     sigma_n: np.ndarray  # (n_imp,)
 
 
+class _Linearised:
+    """The fitted step's variable-projection problem frozen at its solution: maps data perturbations to poles."""
+
+    def __init__(self, fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, decay_rate_per_s: float,
+                 channel_weights: np.ndarray | None) -> None:
+        self.weights = np.ones(h.shape[0]) if channel_weights is None else np.asarray(channel_weights, float)
+        self.prob = _Problem(np.asarray(freqs_hz), h, decay_rate_per_s, self.weights)
+        x = np.array([v for f, z in zip(fit.frequencies_hz, fit.damping_ratios, strict=True)
+                      for v in (f, math.log(max(z, 1e-12)))])
+        self.prob.solve(x)
+        pdb = self.prob.projected_derivatives()
+        n = len(freqs_hz)
+        self.n = n
+        self.pdb = pdb
+        self.p_c = pdb[:n] + 1j * pdb[n:]  # (n_lines, 2M)
+        c2 = np.repeat(self.prob.coef, 2, axis=0)
+        self.c2 = c2
+        jtj = (pdb.T @ pdb) * (c2 @ c2.T)
+        self.inv = np.linalg.inv(jtj)
+        self.h = h
+
+    def shift(self, h_other: np.ndarray) -> np.ndarray:
+        """First-order change of the poles if the data were ``h_other`` (n_ch, n_lines) instead."""
+        dy = _stack(((h_other - self.h) * self.weights[:, None]).T)
+        jtr = -np.sum((self.pdb.T @ dy) * self.c2, axis=1)
+        return -self.inv @ jtr
+
+    def force_outer(self, noise: ForceNoise, impacts: Sequence[int], per_impact: bool) -> np.ndarray:
+        """Σ σ² g gᵀ over the noise samples of the force windows of ``impacts``: for the average over all
+        of them (H1 of the step), or for one impact's own FRF (``per_impact``)."""
+        total_ff = np.sum(np.abs(noise.spectra) ** 2, axis=0)
+        mix = np.repeat(self.prob.coef @ (self.h * self.weights[:, None]), 2, axis=0).T  # (n_lines, 2M)
+        m2 = mix.shape[1]
+        outer = np.zeros((m2, m2))
+        for i in impacts:
+            idx, vals = noise.windows[i]
+            ff = np.abs(noise.spectra[i]) ** 2 if per_impact else total_ff
+            a = -noise.spectra[i].conj() / np.where(ff > 0, ff, np.inf)
+            q = np.conj(self.p_c) * mix * a[:, None]
+            phase = np.exp(-2j * math.pi * np.outer(idx, noise.line_index) / noise.n_fft)
+            g = vals[:, None] * np.real(phase @ q)
+            outer += noise.sigma_n[i] ** 2 * (g.T @ g)
+        return outer
+
+
 def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, noise: ForceNoise, *,
                            decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None) -> np.ndarray:
     """Covariance (2M × 2M, over (f_r, ln ζ_r) pairs) of the fitted poles caused by the force channel's noise.
@@ -232,32 +277,30 @@ def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, n
     Each noise sample in a force window perturbs the data by a known vector; the linearised variable-
     projection estimate maps it to the poles: cov = (JᵀJ)⁻¹ (Σ σ² g gᵀ) (JᵀJ)⁻¹ with g = Jᵀ δy.
     """
-    weights = np.ones(h.shape[0]) if channel_weights is None else np.asarray(channel_weights, float)
-    prob = _Problem(np.asarray(freqs_hz), h, decay_rate_per_s, weights)
-    x = np.array([v for f, z in zip(fit.frequencies_hz, fit.damping_ratios, strict=True)
-                  for v in (f, math.log(max(z, 1e-12)))])
-    prob.solve(x)
-    pdb = prob.projected_derivatives()
-    n = len(freqs_hz)
-    p_c = pdb[:n] + 1j * pdb[n:]  # (n_lines, 2M) complex
     m = len(fit.frequencies_hz)
-    jtj = (pdb.T @ pdb) * (np.repeat(prob.coef, 2, axis=0) @ np.repeat(prob.coef, 2, axis=0).T)
-    total_ff = np.sum(np.abs(noise.spectra) ** 2, axis=0)
-    hw = h * weights[:, None]  # (n_ch, n_lines)
-    # Σ_c C_rc · w_c H_c(ω): one row per mode, repeated for its two parameters
-    mix = np.repeat(prob.coef @ hw, 2, axis=0).T  # (n_lines, 2M)
-    outer = np.zeros((2 * m, 2 * m))
-    for i, (idx, vals) in enumerate(noise.windows):
-        a = -noise.spectra[i].conj() / np.where(total_ff > 0, total_ff, np.inf)  # (n_lines,)
-        q = np.conj(p_c) * mix * a[:, None]  # (n_lines, 2M)
-        phase = np.exp(-2j * math.pi * np.outer(idx, noise.line_index) / noise.n_fft)  # (n_w, n_lines)
-        g = vals[:, None] * np.real(phase @ q)  # (n_w, 2M)
-        outer += noise.sigma_n[i] ** 2 * (g.T @ g)
     try:
-        inv = np.linalg.inv(jtj)
+        lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
     except np.linalg.LinAlgError:
         return np.full((2 * m, 2 * m), np.inf)
-    return inv @ outer @ inv
+    outer = lin.force_outer(noise, range(len(noise.windows)), per_impact=False)
+    return lin.inv @ outer @ lin.inv
+
+
+def impact_shifts(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, h_each: np.ndarray, noise: ForceNoise, *,
+                  decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None,
+                  noise_inflation: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Each impact's own poles, to first order from the step's fit: (n_imp, 2M) shifts from the step's
+    poles and their 1-σ (response noise scaled by the impact's share of the force energy, plus its own
+    force noise). ``h_each``: (n_imp, n_ch, n_lines) single-impact FRFs X_i/F_i on the band."""
+    lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
+    response = np.clip(np.diag(lin.inv), 0.0, None) * fit.sigma2 * noise_inflation
+    energy = np.sum(np.abs(noise.spectra) ** 2, axis=1)
+    shifts, stds = [], []
+    for i in range(h_each.shape[0]):
+        shifts.append(lin.shift(h_each[i]))
+        force = np.diag(lin.inv @ lin.force_outer(noise, [i], per_impact=True) @ lin.inv)
+        stds.append(np.sqrt(response * float(energy.sum() / max(energy[i], 1e-300)) + np.clip(force, 0.0, None)))
+    return np.array(shifts), np.array(stds)
 
 
 def lscf_poles(freqs_hz: np.ndarray, h: np.ndarray, n_modes: int, *, decay_rate_per_s: float = 0.0,
