@@ -28,7 +28,7 @@ from labctl.processing.frf import (
     response_buffer,
 )
 from labctl.processing.linearity import Linearity, linearity_check
-from labctl.processing.modes import ForceNoise, force_noise_covariance, impact_shifts
+from labctl.processing.modes import ForceNoise, ModalFit, force_noise_covariance, impact_shifts
 from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
 from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
@@ -229,20 +229,31 @@ def _live_channels(frf: FrfEstimate) -> np.ndarray:
     return live
 
 
-def with_force_noise(modes: ContactModes, frf: FrfEstimate, spectra: Spectra, used: list[int], sigma_f: np.ndarray,
-                     live: np.ndarray, noise: np.ndarray) -> ContactModes:
-    """The fit with its uncertainties widened by the force channel's noise (errors in both channels)."""
-    fit, band = modes.fit, modes.band
-    if not spectra.force_windows or not np.any(sigma_f[used] > 0):
-        return modes
-    fn = _force_noise(spectra, used, sigma_f, band)
-    cov = force_noise_covariance(fit, frf.frequencies_hz[band], frf.h1[live][:, band].astype(complex), fn,
-                                 decay_rate_per_s=spectra.decay_rate_per_s,
-                                 channel_weights=channel_weights(noise[live]))
-    var = np.clip(np.diag(cov), 0.0, None)
-    f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
-    z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
-    return replace(modes, fit=replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov))
+class ForceNoiseWidener:
+    """Adds the force channel's noise to a fit's uncertainties (errors in both channels): used by the tilt
+    pair's resolution test and on the final fit. One per FRF (impacts used, live channels)."""
+
+    def __init__(self, frf: FrfEstimate, spectra: Spectra, used: list[int], sigma_f: np.ndarray, live: np.ndarray,
+                 noise: np.ndarray) -> None:
+        self.frf, self.spectra, self.used, self.sigma_f, self.live = frf, spectra, used, sigma_f, live
+        self.weights = channel_weights(noise[live])
+        self.active = bool(spectra.force_windows) and bool(np.any(sigma_f[used] > 0))
+        self._noise: dict[tuple[int, int], ForceNoise] = {}
+
+    def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
+        if not self.active:
+            return fit
+        key = (band.start, band.stop)
+        fn = self._noise.get(key)
+        if fn is None:
+            fn = self._noise[key] = _force_noise(self.spectra, self.used, self.sigma_f, band)
+        cov = force_noise_covariance(fit, self.frf.frequencies_hz[band],
+                                     self.frf.h1[self.live][:, band].astype(complex), fn,
+                                     decay_rate_per_s=self.spectra.decay_rate_per_s, channel_weights=self.weights)
+        var = np.clip(np.diag(cov), 0.0, None)
+        f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
+        z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
+        return replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
 
 
 def _force_noise(spectra: Spectra, used: list[int], sigma_f: np.ndarray, band: slice) -> ForceNoise:
@@ -299,10 +310,12 @@ def _without_overload_of(check: ImpactCheck, dropped: tuple[str, ...]) -> Impact
 
 
 def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
-         zeta: float, cfg: IdentifyConfig, noise: np.ndarray) -> ContactModes:
-    return fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
-                             decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
-                             zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise)
+         zeta: float, cfg: IdentifyConfig, noise: np.ndarray, widen: ForceNoiseWidener) -> ContactModes:
+    """The contact modes, their uncertainties including the force noise."""
+    modes = fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
+                              decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
+                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise, widen=widen)
+    return replace(modes, fit=widen(modes.fit, modes.band))
 
 
 def identify(
@@ -352,8 +365,9 @@ def identify(
     noise = _channel_noise(accel, accepted)
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
-    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
     sigma_f = np.array([checks[i].force_noise_n for i in accepted])
+    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
+                 ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
     warnings: list[str] = []
     drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence)
     if drop is not None:
@@ -362,8 +376,8 @@ def identify(
                                            f"{cfg.checks.min_coherence:g} without this impact")
         used.remove(drop)
         frf = estimate_frf(spectra, used)
-        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
-    modes = with_force_noise(modes, frf, spectra, used, sigma_f, live, noise)
+        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
+                     ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
     if dropped:
         warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
@@ -382,17 +396,25 @@ def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: Co
     with a warning naming the rollers that differ beyond their uncertainty."""
     fit, cls = modes.fit, modes.classes
     t_std = float(np.mean(fit.frequency_std_hz[list(cls.tilt)]))
+    hidden = modes.split_std_hz if modes.split_std_hz is not None else math.sqrt(2.0) * t_std
     if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, t_std)
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     b, (t1, t2) = cls.bounce, cls.tilt
     idx = [b, t1, t2]
+    split_std = None
+    fc = fit.force_covariance
+    if fc is not None and np.all(np.isfinite(fc)):  # the force noise moves both tilt poles alike
+        force_var = np.diag(fc)[0::2]
+        response_var = np.clip(fit.frequency_std_hz**2 - force_var, 0.0, None)
+        split_std = math.sqrt(max(response_var[t1] + response_var[t2] + fc[2 * t1, 2 * t1] + fc[2 * t2, 2 * t2]
+                                  - 2.0 * fc[2 * t1, 2 * t2], 0.0))
     try:
         out = solve_rollers(rig, names, live, fit.frequencies_hz[idx], fit.frequency_std_hz[idx],
                             fit.constants[[t1, t2]], None if fit.constants_std is None else fit.constants_std[[t1, t2]],
-                            k_eq.value_n_per_m)
+                            k_eq.value_n_per_m, split_std)
     except (ModelDomainError, np.linalg.LinAlgError, ValueError) as exc:
         warnings.append(f"per-roller stiffness not solved ({exc}): equal rollers assumed")
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, t_std)
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
     if out.differing:
         mean = out.mean_n_per_m
         worst = max(out.differing, key=lambda i: abs(out.z[i]))

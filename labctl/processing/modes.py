@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -221,6 +221,15 @@ class ForceNoise:
     n_fft: int
     windows: tuple[tuple[np.ndarray, np.ndarray], ...]  # per impact: (sample indices, window values)
     sigma_n: np.ndarray  # (n_imp,)
+    _phases: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def phase(self, i: int) -> np.ndarray:
+        """exp(-2πi k t / N) for impact i's window samples t and the band's lines k (kept: reused by every fit)."""
+        out = self._phases.get(i)
+        if out is None:
+            idx = self.windows[i][0]
+            out = self._phases[i] = np.exp(-2j * math.pi * np.outer(idx, self.line_index) / self.n_fft)
+        return out
 
 
 class _Linearised:
@@ -262,8 +271,7 @@ class _Linearised:
             ff = np.abs(noise.spectra[i]) ** 2 if per_impact else total_ff
             a = -noise.spectra[i].conj() / np.where(ff > 0, ff, np.inf)
             q = np.conj(self.p_c) * mix * a[:, None]
-            phase = np.exp(-2j * math.pi * np.outer(idx, noise.line_index) / noise.n_fft)
-            g = vals[:, None] * np.real(phase @ q)
+            g = vals[:, None] * np.real(noise.phase(i) @ q)
             outer += noise.sigma_n[i] ** 2 * (g.T @ g)
         return outer
 

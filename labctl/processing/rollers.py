@@ -131,11 +131,11 @@ def _differing(values: np.ndarray, cov: np.ndarray, model_rel: float) -> tuple[t
     return tuple(float(v) for v in z), tuple(i for i in range(3) if abs(z[i]) > limit)
 
 
-def equal_rollers(rig: RigConfig, k: float, k_std: float, tilt_std_hz: float) -> RollerStiffnesses:
+def equal_rollers(rig: RigConfig, k: float, k_std: float, split_std_hz: float) -> RollerStiffnesses:
     """Unresolved tilt pair: all three at the equal-roller value; each roller's 1-σ adds the deviation that
-    a split of √2·σ_tilt (one σ of an undetected split) would mean."""
+    a split of ``split_std_hz`` (one σ of a split the data could hide) would mean."""
     slope = abs(_split_per_deviation(rig, k))
-    dev = k * math.sqrt(2.0) * tilt_std_hz / slope if slope > 0 and math.isfinite(tilt_std_hz) else math.inf
+    dev = k * split_std_hz / slope if slope > 0 and math.isfinite(split_std_hz) else math.inf
     a = np.eye(3) - 1.0 / 3.0
     cov = np.full((3, 3), k_std**2) + dev**2 * a
     return RollerStiffnesses((k, k, k), cov, False, None, (0.0, 0.0, 0.0), ())
@@ -150,11 +150,13 @@ def solve_rollers(
     tilt_constants: np.ndarray,
     tilt_constants_std: np.ndarray | None,
     k_equal: float,
+    split_std_hz: float | None = None,
 ) -> RollerStiffnesses:
-    """Three roller stiffnesses from (bounce, tilt lo, tilt hi) with 1-σ and the two tilt shapes (2, n_ch)."""
+    """Three roller stiffnesses from (bounce, tilt lo, tilt hi) with 1-σ and the two tilt shapes (2, n_ch);
+    ``split_std_hz``: the tilt split's 1-σ when known better than from the two stds (correlated errors)."""
     measured = np.asarray(freqs_hz, float)
     sig = np.maximum(np.asarray(freqs_std_hz, float), 1e-9 * measured)
-    sig_split = math.hypot(sig[1], sig[2])
+    sig_split = math.hypot(sig[1], sig[2]) if split_std_hz is None else max(split_std_hz, 1e-9 * measured[1])
     model = ContactModeModel(rig)
     sensors = _sensor_map(rig, names)[live]
     basis = _tilt_basis(rig, sensors, k_equal)
