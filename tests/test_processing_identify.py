@@ -37,9 +37,17 @@ def test_paper_case_bounce_tilt_pair_damping_and_stiffness(paper_case):
     assert r.tilt_pair_resolved
     assert r.tilt_hz[0] == pytest.approx(580.0, abs=0.3) and r.tilt_hz[1] == pytest.approx(582.0, abs=0.3)
     assert r.bounce_damping_ratio == pytest.approx(0.018, rel=0.002)  # the window's damping removed
-    assert r.roller_stiffness_n_per_m == pytest.approx(roller_stiffness_from_bounce(RIG, 745.0), rel=2e-5)
+    # a 2 Hz tilt split: slightly unequal rollers, whose mean sits within 1e-4 of the equal-roller value
+    assert r.roller_stiffness_n_per_m == pytest.approx(roller_stiffness_from_bounce(RIG, 745.0), rel=1e-4)
+    assert r.roller_stiffnesses_resolved and len(r.roller_stiffnesses_n_per_m) == 3
+    assert np.mean(r.roller_stiffnesses_n_per_m) == pytest.approx(r.roller_stiffness_n_per_m, rel=1e-12)
+    budget = r.roller_stiffness_budget_n_per_m
+    assert set(budget) == {"modal_fit", "disc_mass", "setup_stiffness", "rig_model"}
     k_hi = roller_stiffness_from_bounce(RIG, r.bounce_hz + r.bounce_hz_std)
-    assert r.roller_stiffness_std_n_per_m == pytest.approx(k_hi - r.roller_stiffness_n_per_m, rel=0.01)
+    assert 0 < budget["modal_fit"] < 2 * (k_hi - r.roller_stiffness_n_per_m)
+    # the rig file's uncertainties (1 % mass, 10 % K_setup, 0.3 % model) dominate: about 1.5 % in all
+    assert r.roller_stiffness_std_n_per_m == pytest.approx(np.sqrt(sum(v**2 for v in budget.values())), rel=1e-9)
+    assert 0.01 < r.roller_stiffness_std_n_per_m / r.roller_stiffness_n_per_m < 0.02
     assert r.coherence_at_bounce > 0.99
     kinds = [m.kind for m in r.modes]
     assert kinds == ["bounce", "tilt", "tilt"]

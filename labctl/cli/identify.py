@@ -82,6 +82,17 @@ def _text(r: dict[str, Any]) -> str:
         + ("" if r["tilt_pair_resolved"] else "   (pair not resolved)"),
         f"roller stiffness {r['roller_stiffness_n_per_m']:.5e} ± {r['roller_stiffness_std_n_per_m']:.2e} N/m",
     ]
+    budget = r.get("roller_stiffness_budget_n_per_m") or {}
+    if budget:
+        names = {"modal_fit": "modal fit", "disc_mass": "disc mass", "setup_stiffness": "K_setup",
+                 "rig_model": "rig model"}
+        lines.append("  1-σ budget: " + ", ".join(f"{names.get(k, k)} {v:.2e}" for k, v in budget.items()) + " N/m")
+    ks, kstd = r.get("roller_stiffnesses_n_per_m") or [], r.get("roller_stiffnesses_fit_std_n_per_m") or []
+    if ks:
+        how = ("from the bounce, the tilt split and the tilt shapes" if r.get("roller_stiffnesses_resolved")
+               else "tilt pair unresolved: the rollers cannot be told apart")
+        lines.append("  per roller: " + ", ".join(f"{i + 1}: {k:.4e} ± {s:.1e}" for i, (k, s)
+                                                 in enumerate(zip(ks, kstd, strict=True))) + f" N/m ({how})")
     if "roller_only_stiffness_n_per_m" in r:
         lines.append(f"roller alone     {r['roller_only_stiffness_n_per_m']:.5e} ± "
                      f"{r['roller_only_stiffness_std_n_per_m']:.2e} N/m (rails' Tripp compliance removed)")

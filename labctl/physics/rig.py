@@ -95,8 +95,8 @@ def _contact_rows(config: RigConfig) -> np.ndarray:
     return rows
 
 
-def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigModes:
-    """Eigen-analysis for three (possibly unequal) roller stiffnesses; one value means all three equal."""
+def rig_matrices(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness and (diagonal) mass matrices over DOF for three (possibly unequal) roller stiffnesses."""
     k = np.broadcast_to(np.asarray(roller_stiffness_n_per_m, dtype=float), (3,))
     if np.any(~np.isfinite(k)) or np.any(k <= 0):
         raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
@@ -109,13 +109,24 @@ def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigMode
     stiff[5, 5] += 0.5 * ks * rs**2
     up, lo = config.upper, config.lower
     mass = np.diag([up.mass_kg, up.inertia_kg_m2, up.inertia_kg_m2, lo.mass_kg, lo.inertia_kg_m2, lo.inertia_kg_m2])
+    return stiff, mass
+
+
+def _bounce_of(config: RigConfig, shapes: np.ndarray, contact_modes: list[int]) -> int:
+    """The contact mode whose roller approaches are most alike (the bounce)."""
+    approach = _contact_rows(config) @ shapes[:, contact_modes]
+    rms = np.sqrt(np.mean(approach**2, axis=0))
+    bounce_score = np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)
+    return contact_modes[int(np.argmax(bounce_score))]
+
+
+def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigModes:
+    """Eigen-analysis for three (possibly unequal) roller stiffnesses; one value means all three equal."""
+    stiff, mass = rig_matrices(config, roller_stiffness_n_per_m)
     omega2, shapes = eigh(stiff, mass)
     freqs = np.sqrt(np.clip(omega2, 0.0, None)) / (2.0 * math.pi)
     contact_modes = [3, 4, 5]
-    approach = rows @ shapes[:, contact_modes]
-    rms = np.sqrt(np.mean(approach**2, axis=0))
-    bounce_score = np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)
-    bounce = contact_modes[int(np.argmax(bounce_score))]
+    bounce = _bounce_of(config, shapes, contact_modes)
     tilt = tuple(m for m in contact_modes if m != bounce)
     damping = np.array([config.support_damping_ratio] * 3 + [config.modal_damping_ratio] * 3)
     return RigModes(freqs, shapes, damping, bounce, (tilt[0], tilt[1]), (0, 1, 2), config)
@@ -144,3 +155,81 @@ def roller_stiffness_from_bounce(config: RigConfig, bounce_frequency_hz: float) 
     log_k = brentq(lambda lk: bounce_hz(config, 10.0**lk) - bounce_frequency_hz, math.log10(lo_k),
                    math.log10(hi_k), xtol=1e-12, rtol=1e-13)
     return float(10.0**log_k)
+
+
+def with_disc_mass_scaled(config: RigConfig, factor: float) -> RigConfig:
+    """The rig with both discs' mass (and, the shape unchanged, their inertia) scaled by ``factor``."""
+    from dataclasses import replace
+
+    def scaled(d):
+        return replace(d, mass_kg=d.mass_kg * factor, inertia_kg_m2=d.inertia_kg_m2 * factor)
+
+    return replace(config, upper=scaled(config.upper), lower=scaled(config.lower))
+
+
+@dataclass(frozen=True)
+class BounceSensitivity:
+    """How the bounce frequency moves with the roller stiffness and the rig parameters (Hz per unit)."""
+
+    per_roller_stiffness: float  # Hz per N/m, all three rollers together
+    per_disc_mass: float  # Hz per kg
+    per_setup_stiffness: float  # Hz per N/m of K_setup
+
+
+def bounce_sensitivity(config: RigConfig, roller_stiffness_n_per_m: float) -> BounceSensitivity:
+    """Derivatives of the bounce frequency (forward differences of the rig model) for the uncertainty budget."""
+    k = float(roller_stiffness_n_per_m)
+    f0 = bounce_hz(config, k)
+    h = 1e-5
+    dk = (bounce_hz(config, k * (1 + h)) - f0) / (k * h)
+    dm = (bounce_hz(with_disc_mass_scaled(config, 1 + h), k) - f0) / (config.upper.mass_kg * h)
+    ks = config.setup_stiffness_n_per_m
+    dks = (bounce_hz(config.with_setup_stiffness(ks * (1 + h)), k) - f0) / (ks * h)
+    return BounceSensitivity(dk, dm, dks)
+
+
+class ContactModeModel:
+    """The rig model prepared for many evaluations at different roller stiffnesses (the per-roller inverse):
+    the contact geometry, support and mass scaling are computed once; each call is one 6 × 6 eigenproblem."""
+
+    def __init__(self, config: RigConfig) -> None:
+        self.config = config
+        self.rows = _contact_rows(config)
+        base, mass = rig_matrices(config, 1e300)  # rollers' share vanishes (1/k_path → 3/K_setup aside)
+        k_path0 = roller_path_stiffness(np.full(3, 1e300), config.setup_stiffness_n_per_m)
+        self.support = base - self.rows.T @ np.diag(k_path0) @ self.rows
+        self.scale = 1.0 / np.sqrt(np.diag(mass))
+        self.outer = np.outer(self.scale, self.scale)
+        self.inv_setup = 3.0 / config.setup_stiffness_n_per_m
+
+    def __call__(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3)."""
+        k = np.asarray(roller_stiffness_n_per_m, dtype=float)
+        if np.any(~np.isfinite(k)) or np.any(k <= 0):
+            raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
+        k_path = 1.0 / (1.0 / k + self.inv_setup)
+        stiff = self.support + (self.rows.T * k_path) @ self.rows
+        omega2, v = np.linalg.eigh(stiff * self.outer)
+        shapes = v[:, 3:] * self.scale[:, None]
+        freqs = np.sqrt(np.clip(omega2[3:], 0.0, None)) / (2.0 * math.pi)
+        approach = self.rows @ shapes
+        rms = np.sqrt(np.mean(approach**2, axis=0))
+        b = int(np.argmax(np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)))
+        t = [i for i in range(3) if i != b]
+        if freqs[t[0]] > freqs[t[1]]:
+            t.reverse()
+        order = [b, *t]
+        return freqs[order], shapes[:, order]
+
+
+def contact_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3) for three roller
+    stiffnesses (the same model as ``rig_modes``)."""
+    k = np.broadcast_to(np.asarray(roller_stiffness_n_per_m, dtype=float), (3,))
+    return ContactModeModel(config)(k)
+
+
+def contact_modes_hz(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[float, float, float]:
+    """(bounce, lower tilt, upper tilt) frequencies for three roller stiffnesses."""
+    f, _ = contact_modes(config, roller_stiffness_n_per_m)
+    return float(f[0]), float(f[1]), float(f[2])

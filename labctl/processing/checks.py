@@ -23,6 +23,8 @@ LOW_FORCE = "low_force"
 LOW_COHERENCE = "low_coherence"
 REASONS = (DOUBLE_HIT, OVERLOAD, PULSE_WIDTH, LOW_FORCE, LOW_COHERENCE)
 PULSE_SEARCH_S = 5e-3  # the blow's extent is searched this far either side of its peak
+FURTHER_PULSE_SIGMAS = 4.5  # a matched-filter peak this far above the force noise is a further pulse whose
+# force joins the force window (however small: its response is in the responses); ≥ double_hit_ratio rejects
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,7 @@ class ImpactCheck:
     force_noise_n: float = 0.0
     polarity: float = 1.0  # -1 when the force channel reads blows as negative
     notes: tuple[str, ...] = field(default=())
+    further_pulses: tuple[tuple[int, int], ...] = ()  # (first, last sample) of smaller second hits kept in the force
 
     def rejected_for(self, reason: str, note: str = "") -> ImpactCheck:
         """The same check with one more rejection reason."""
@@ -163,6 +166,33 @@ def second_hit(pulse: Pulse, fs_hz: float, window_s: float) -> tuple[float, floa
     return best
 
 
+def further_pulses(pulse: Pulse, fs_hz: float, window_s: float,
+                   sigmas: float = FURTHER_PULSE_SIGMAS) -> tuple[tuple[int, int], ...]:
+    """Every other pulse the matched filter sees above ``sigmas`` × its noise within ``window_s`` of the blow:
+    (first, last sample) each, for the force window to keep."""
+    from scipy.signal import find_peaks
+
+    g = pulse.force_n
+    tpl = g[pulse.start:pulse.end + 1]
+    n_t = len(tpl)
+    lo = max(0, pulse.start - n_t - int(window_s * fs_hz))
+    hi = min(len(g), pulse.end + n_t + int(window_s * fs_hz))
+    if hi - lo < 3 * n_t + 2 or n_t < 1:
+        return ()
+    kernel = np.concatenate([np.zeros(n_t), tpl, np.zeros(n_t)])
+    kernel -= kernel.mean()
+    main = float(kernel @ kernel)
+    if not main > 0:
+        return ()
+    ratio = np.correlate(g[lo:hi], kernel, mode="valid") / main
+    j0 = pulse.start - n_t - lo
+    guard = n_t + max(2, n_t // 2)
+    ratio[max(0, j0 - guard + 1):max(0, j0 + guard)] = 0.0
+    level = sigmas * pulse.noise_n / math.sqrt(main)
+    peaks, _ = find_peaks(ratio, height=level, distance=max(1, n_t))
+    return tuple((lo + int(j) + n_t, lo + int(j) + 2 * n_t - 1) for j in peaks)
+
+
 def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None:
     if ranges is None:
         return None
@@ -171,18 +201,25 @@ def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None
 
 
 def _plateau_clipped(x: np.ndarray) -> bool:
-    """Clipping without a known range: the record's extreme value hit three times or more (two of them in a
-    row), far above the data's quantisation step (a small quantised signal may repeat its peak value)."""
+    """Clipping without a known range: the record's extreme value reached more than once, where an analogue
+    signal's peaks (a decaying, noisy oscillation) would not repeat to the last digit. Quantised data repeat
+    values legitimately: there two hits suffice only far above the quantisation step (> 4096 steps); a
+    plateau (three hits, two in a row) needs > 256 steps. A flat (dead) channel is not an overload."""
     top, bottom = x.max(), x.min()
-    if top == bottom:  # a flat (dead) channel is not an overload
+    if top == bottom:
         return False
+    quantum = -1.0
     for value in (top, bottom):
         at = np.flatnonzero(x == value)
-        if len(at) < 3 or not np.any(np.diff(at) == 1):
+        if len(at) < 2:
             continue
-        steps = np.abs(np.diff(x[: min(len(x), 4096)]))
-        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-        if quantum == 0.0 or abs(value) / quantum > 256:
+        if quantum < 0:
+            steps = np.abs(np.diff(x[: min(len(x), 4096)]))
+            quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+        steps_to_value = abs(value) / quantum if quantum > 0 else math.inf
+        if steps_to_value > 4096:
+            return True
+        if len(at) >= 3 and np.any(np.diff(at) == 1) and steps_to_value > 256:
             return True
     return False
 
@@ -205,14 +242,11 @@ def overloaded_channels(
         top, bottom = extremes if extremes is not None else (accel_m_per_s2.max(axis=-1), accel_m_per_s2.min(axis=-1))
         peaks = np.maximum(top, -bottom)
     for c, name in enumerate(names):
-        if ranges is not None and np.isfinite(ranges[c]):
-            if peaks[c] >= fraction * ranges[c]:
-                out.append(name)
-        elif _plateau_clipped(accel_m_per_s2[c]):
+        near_full_scale = ranges is not None and np.isfinite(ranges[c]) and peaks[c] >= fraction * ranges[c]
+        if near_full_scale or _plateau_clipped(accel_m_per_s2[c]):  # below a stated range an amplifier may clip
             out.append(name)
     f_peak = float(np.max(np.abs(force_n)))
-    if force_range_n is not None and f_peak >= fraction * force_range_n or force_range_n is None and \
-            _plateau_clipped(force_n):
+    if force_range_n is not None and f_peak >= fraction * force_range_n or _plateau_clipped(force_n):
         out.append("force")
     return tuple(out)
 
@@ -250,6 +284,10 @@ def check_impact(
     if ratio >= threshold:
         reasons.append(DOUBLE_HIT)
         notes.append(f"second pulse {ratio:.0%} of the first at {1e3 * (delay or 0.0):+.1f} ms")
+    extra = further_pulses(pulse, fs_hz, config.double_hit_window_s)
+    if extra and ratio < threshold:
+        at = ", ".join(f"{1e3 * (a - pulse.start) / fs_hz:+.1f}" for a, _ in extra[:5])
+        notes.append(f"smaller pulse(s) at {at} ms (largest {ratio:.1%} of the blow) kept in the force window")
     over = overloaded_channels(f, a, accel_ranges=accel_ranges, force_range_n=force_range_n,
                                fraction=config.overload_fraction, names=names, extremes=extremes)
     if over:
@@ -276,4 +314,5 @@ def check_impact(
         force_noise_n=pulse.noise_n,
         polarity=pulse.polarity,
         notes=tuple(notes),
+        further_pulses=extra,
     )

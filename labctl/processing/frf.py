@@ -54,6 +54,9 @@ class Spectra:
     response: np.ndarray
     decay_rate_per_s: float
     noise_inflation: float  # variance factor for fitted parameters from the window's bin-to-bin correlation
+    force_windows: tuple[tuple[np.ndarray, np.ndarray], ...] = ()  # per impact: (sample indices, force window
+    # × exponential window) — where the force channel's noise enters the force spectrum
+    n_samples: int = 0
 
 
 @dataclass(frozen=True)
@@ -69,10 +72,27 @@ class FrfEstimate:
 
 
 def force_window(force_n: np.ndarray, fs_hz: float, start: int, end: int, noise_n: float,
-                 cfg: WindowConfig) -> tuple[int, np.ndarray]:
+                 cfg: WindowConfig, segments: tuple[tuple[int, int], ...] = ()) -> tuple[int, np.ndarray]:
     """The force window's support: (first sample, values) — 1 over the pulse and the samples around it that
-    stand above ``force_noise_sigmas`` × the noise (within pre/post), cosine tapers outside."""
+    stand above ``force_noise_sigmas`` × the noise (within pre/post), cosine tapers outside. ``segments``
+    (first, last sample) are further pulses (second hits): each is kept the same way, so their force is
+    in the force spectrum as their response is in the responses; the noise between them is left out."""
+    lo, w = _one_window(force_n, fs_hz, start, end, noise_n, cfg)
+    for a, b in segments:
+        lo2, w2 = _one_window(force_n, fs_hz, a, b, noise_n, cfg)
+        new_lo, new_hi = min(lo, lo2), max(lo + len(w), lo2 + len(w2))
+        merged = np.zeros(new_hi - new_lo)
+        merged[lo - new_lo:lo - new_lo + len(w)] = w
+        part = merged[lo2 - new_lo:lo2 - new_lo + len(w2)]
+        np.maximum(part, w2, out=part)
+        lo, w = new_lo, merged
+    return lo, w
+
+
+def _one_window(force_n: np.ndarray, fs_hz: float, start: int, end: int, noise_n: float,
+                cfg: WindowConfig) -> tuple[int, np.ndarray]:
     n = len(force_n)
+    start, end = max(0, min(start, n - 1)), max(0, min(end, n - 1))
     taper = max(1, int(round(cfg.taper_s * fs_hz)))
     level = cfg.force_noise_sigmas * noise_n
     lo_max = max(0, start - int(round(cfg.force_pre_s * fs_hz)))
@@ -114,10 +134,12 @@ def impact_spectra(
     cfg: WindowConfig = WindowConfig(),  # noqa: B008 - frozen
     use: list[int] | None = None,
     buffer: np.ndarray | None = None,
+    segments: list[tuple[tuple[int, int], ...]] | None = None,
 ) -> Spectra:
     """Window and transform the impacts ``use`` (default all); ``pulses`` holds (first sample, last sample,
-    force noise N) of each of them. Sensor offsets (the record before each blow) are removed. A
-    ``response_buffer`` of the same data may be passed: it is overwritten."""
+    force noise N) of each of them, ``segments`` their further pulses (second hits) kept in the force
+    window. Sensor offsets (the record before each blow) are removed. A ``response_buffer`` of the same
+    data may be passed: it is overwritten."""
     everything = list(range(accel_m_per_s2.shape[0]))
     use = everything if use is None else list(use)
     n = accel_m_per_s2.shape[2]
@@ -132,6 +154,7 @@ def impact_spectra(
         buf = buffer if use == everything else buffer[use]
     expw32 = expw.astype(np.float32)
     buf[:, 1:] *= expw32
+    windows = []
     for i, (j, (start, end, noise)) in enumerate(zip(use, pulses, strict=True)):
         if start >= 16:
             pre = accel_m_per_s2[j, :, :start]
@@ -140,15 +163,18 @@ def impact_spectra(
             for c in np.flatnonzero(significant):
                 buf[i, 1 + c] -= np.float32(offset[c]) * expw32
         f_off = float(np.median(force_n[j, :start])) if start >= 16 else 0.0
-        lo, w = force_window(force_n[j] - f_off, fs_hz, start, end, noise, cfg)
+        extra = segments[i] if segments is not None else ()
+        lo, w = force_window(force_n[j] - f_off, fs_hz, start, end, noise, cfg, extra)
         buf[i, 0, lo:lo + len(w)] = (force_n[j, lo:lo + len(w)] - f_off) * expw[lo:lo + len(w)] * w
+        keep = np.flatnonzero(w > 0)
+        windows.append((lo + keep, w[keep] * expw[lo + keep]))
     spec = sfft.rfft(buf, axis=-1, workers=WORKERS, overwrite_x=True)[..., :n_f]
     big_f = spec[:, 0]
     big_x = spec[:, 1:]
     freqs = np.arange(n_f) * fs_hz / n
     w_at_blow = float(np.mean([expw[min(max(s, 0), n - 1)] for s, _, _ in pulses])) if pulses else 1.0
     inflation = n * w_at_blow**2 / float(np.sum(expw**2))
-    return Spectra(freqs, big_f, big_x, rate, inflation)
+    return Spectra(freqs, big_f, big_x, rate, inflation, tuple(windows), n)
 
 
 def estimate_frf(spectra: Spectra, used: tuple[int, ...] | list[int]) -> FrfEstimate:

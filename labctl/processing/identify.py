@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from labctl.errors import InputError
+from labctl.errors import InputError, ModelDomainError
 from labctl.physics import RigConfig, TrippContact
 from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
 from labctl.processing.errors import ProcessingError
@@ -27,9 +27,12 @@ from labctl.processing.frf import (
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.search import ContactModes, fit_contact_modes, search_range_hz
+from labctl.processing.linearity import Linearity, linearity_check
+from labctl.processing.modes import ForceNoise, ModalFit, force_noise_covariance, impact_shifts
+from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
+from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
-from labctl.processing.stiffness import Stiffness, roller_only, stiffness_from_bounce
+from labctl.processing.stiffness import Stiffness, roller_only, stiffness_budget, stiffness_from_bounce
 
 
 @dataclass(frozen=True)
@@ -82,10 +85,20 @@ class Identification:
     window_decay_rate_per_s: float  # the exponential window's rate; its damping is removed from the modes
     fit_band_hz: tuple[float, float]
     dead_channels: tuple[str, ...] = ()
+    dropped_channels: tuple[str, ...] = ()  # saturated in every impact: left out, the step goes on without them
     classified_by_shape: bool = True
     roller_only_stiffness_n_per_m: float | None = None
     roller_only_stiffness_std_n_per_m: float | None = None
     warnings: list[str] = field(default_factory=list)
+    # per roller, in the rig file's roller order; the mean is roller_stiffness_n_per_m
+    roller_stiffnesses_n_per_m: tuple[float, ...] = ()
+    roller_stiffnesses_std_n_per_m: tuple[float, ...] = ()  # total (modal fit and rig parameters)
+    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()  # the modal fit's share (what tells rollers apart)
+    roller_stiffnesses_resolved: bool = False  # False: the tilt pair could not tell the rollers apart
+    roller_stiffness_condition: float | None = None  # condition number of the per-roller inverse
+    rollers_differing: tuple[int, ...] = ()  # 1-based rollers whose stiffness differs beyond its uncertainty
+    roller_stiffness_budget_n_per_m: dict[str, float] = field(default_factory=dict)
+    linearity: dict | None = None  # bounce frequency against peak force over the step's impacts
 
     @property
     def accepted(self) -> list[int]:
@@ -119,12 +132,24 @@ class Identification:
             ],
             "channels": list(self.channels),
             "dead_channels": list(self.dead_channels),
+            "dropped_channels": list(self.dropped_channels),
             "classified_by_shape": self.classified_by_shape,
             "fs_hz": self.fs_hz,
             "window_decay_rate_per_s": self.window_decay_rate_per_s,
             "fit_band_hz": list(self.fit_band_hz),
             "warnings": list(self.warnings),
         }
+        out.update({
+            "roller_stiffnesses_n_per_m": list(self.roller_stiffnesses_n_per_m),
+            "roller_stiffnesses_std_n_per_m": list(self.roller_stiffnesses_std_n_per_m),
+            "roller_stiffnesses_fit_std_n_per_m": list(self.roller_stiffnesses_fit_std_n_per_m),
+            "roller_stiffnesses_mean_n_per_m": self.roller_stiffness_n_per_m,
+            "roller_stiffnesses_resolved": self.roller_stiffnesses_resolved,
+            "roller_stiffness_condition": self.roller_stiffness_condition,
+            "rollers_differing": list(self.rollers_differing),
+            "roller_stiffness_budget_n_per_m": dict(self.roller_stiffness_budget_n_per_m),
+            "linearity": self.linearity,
+        })
         if self.roller_only_stiffness_n_per_m is not None:
             out["roller_only_stiffness_n_per_m"] = self.roller_only_stiffness_n_per_m
             out["roller_only_stiffness_std_n_per_m"] = self.roller_only_stiffness_std_n_per_m
@@ -207,11 +232,93 @@ def _live_channels(frf: FrfEstimate) -> np.ndarray:
     return live
 
 
+class ForceNoiseWidener:
+    """Adds the force channel's noise to a fit's uncertainties (errors in both channels): used by the tilt
+    pair's resolution test and on the final fit. One per FRF (impacts used, live channels)."""
+
+    def __init__(self, frf: FrfEstimate, spectra: Spectra, used: list[int], sigma_f: np.ndarray, live: np.ndarray,
+                 noise: np.ndarray) -> None:
+        self.frf, self.spectra, self.used, self.sigma_f, self.live = frf, spectra, used, sigma_f, live
+        self.weights = channel_weights(noise[live])
+        self.active = bool(spectra.force_windows) and bool(np.any(sigma_f[used] > 0))
+        self._noise: dict[tuple[int, int], ForceNoise] = {}
+
+    def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
+        if not self.active:
+            return fit
+        key = (band.start, band.stop)
+        fn = self._noise.get(key)
+        if fn is None:
+            fn = self._noise[key] = _force_noise(self.spectra, self.used, self.sigma_f, band)
+        cov = force_noise_covariance(fit, self.frf.frequencies_hz[band],
+                                     self.frf.h1[self.live][:, band].astype(complex), fn,
+                                     decay_rate_per_s=self.spectra.decay_rate_per_s, channel_weights=self.weights)
+        var = np.clip(np.diag(cov), 0.0, None)
+        f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
+        z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
+        return replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
+
+
+def _force_noise(spectra: Spectra, used: list[int], sigma_f: np.ndarray, band: slice) -> ForceNoise:
+    lines = np.arange(spectra.frequencies_hz.shape[0])[band]
+    return ForceNoise(spectra=spectra.force[used][:, band].astype(complex), line_index=lines,
+                      n_fft=spectra.n_samples, windows=tuple(spectra.force_windows[i] for i in used),
+                      sigma_n=sigma_f[used])
+
+
+def _linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks: list[float], sigma_f: np.ndarray,
+               live: np.ndarray, noise: np.ndarray) -> Linearity | None:
+    """Each used impact's bounce frequency (first order from the step's fit) against its peak force."""
+    if len(used) < 2 or not spectra.force_windows:
+        return None
+    fit, band, b = modes.fit, modes.band, modes.classes.bounce
+    f_band = spectra.force[used][:, band].astype(complex)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_each = spectra.response[used][:, live][:, :, band] / f_band[:, None, :]
+    if not np.all(np.isfinite(h_each)):
+        return None
+    h_step = np.sum(spectra.response[used][:, live][:, :, band] * f_band.conj()[:, None, :], axis=0) / np.sum(
+        np.abs(f_band) ** 2, axis=0)
+    try:
+        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each,
+                                     _force_noise(spectra, used, sigma_f, band),
+                                     decay_rate_per_s=spectra.decay_rate_per_s,
+                                     channel_weights=channel_weights(noise[live]),
+                                     noise_inflation=spectra.noise_inflation)
+    except np.linalg.LinAlgError:
+        return None
+    f_b = float(fit.frequencies_hz[b])
+    return linearity_check(peaks, f_b + shifts[:, 2 * b], stds[:, 2 * b])
+
+
+def saturated_channels(checks: Sequence[ImpactCheck], names: Sequence[str]) -> tuple[str, ...]:
+    """Response channels overloaded in every impact: they carry no usable impact, the others still do."""
+    if not checks:
+        return ()
+    every = set(names)
+    for c in checks:
+        every &= set(c.overloaded)
+    return tuple(n for n in names if n in every)
+
+
+def _without_overload_of(check: ImpactCheck, dropped: tuple[str, ...]) -> ImpactCheck:
+    """The check with the dropped channels' overload forgiven (the impact may still fail for other reasons)."""
+    rest = tuple(n for n in check.overloaded if n not in dropped)
+    if rest or LOW_COHERENCE in check.reasons or "overload" not in check.reasons:
+        return check
+    reasons = tuple(r for r in check.reasons if r != "overload")
+    notes = tuple(n for n in check.notes if not n.startswith("near full scale"))
+    notes = (*notes, f"saturated channel(s) {', '.join(dropped)} dropped from the step")
+    return replace(check, accepted=not reasons, reasons=reasons, notes=notes)
+
+
 def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
-         zeta: float, cfg: IdentifyConfig, noise: np.ndarray) -> ContactModes:
-    return fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
-                             decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
-                             zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise)
+         zeta: float, cfg: IdentifyConfig, noise: np.ndarray, widen: ForceNoiseWidener) -> ContactModes:
+    """The contact modes, their uncertainties including the force noise."""
+    modes = fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
+                              decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
+                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise, widen=widen)
+    return replace(modes, fit=widen(modes.fit, modes.band))
 
 
 def identify(
@@ -242,6 +349,9 @@ def identify(
     checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
                            config=cfg.checks, channels=names, extremes=(top[i], bottom[i]))
               for i in range(force.shape[0])]
+    dropped = saturated_channels(checks, names)
+    if dropped:
+        checks = [_without_overload_of(c, dropped) for c in checks]
     if forced is not None:
         if len(forced) != len(checks):
             raise InputError(f"{len(forced)} operator verdicts for {len(checks)} impacts")
@@ -255,14 +365,20 @@ def identify(
     window = cfg.window
     if window.max_frequency_hz is not None and window.max_frequency_hz < 1.25 * pred.max_bounce_hz:
         window = replace(window, max_frequency_hz=1.25 * pred.max_bounce_hz)  # a stiff rig's modes stay in view
-    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted, buffer=buf)
+    segments = [checks[i].further_pulses for i in accepted]
+    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted, buffer=buf, segments=segments)
     used = list(range(len(accepted)))
     frf = estimate_frf(spectra, used)
-    live = _live_channels(frf)
+    live = _live_channels(frf) & np.array([n not in dropped for n in names])
+    if not live.any():
+        raise ProcessingError(f"no response channel left: {', '.join(dropped)} saturated in every impact, "
+                              "the others flat")
     noise = _channel_noise(accel, accepted)
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
-    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
+    sigma_f = np.array([checks[i].force_noise_n for i in accepted])
+    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
+                 ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
     warnings: list[str] = []
     protected = frozenset(k for k, i in enumerate(accepted) if forced is not None and forced[i])
     drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence, protected)
@@ -272,8 +388,54 @@ def identify(
                                            f"{cfg.checks.min_coherence:g} without this impact")
         used.remove(drop)
         frf = estimate_frf(spectra, used)
-        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise)
-    return _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings)
+        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
+                     ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
+    if dropped:
+        warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
+                        "with the other channels")
+    lin = _linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise)
+    if lin is not None and lin.warning():
+        warnings.append(lin.warning())
+    result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
+                     dropped)
+    result.linearity = lin.to_dict() if lin is not None else None
+    return result
+
+
+def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,
+             warnings: list[str]) -> RollerStiffnesses:
+    """Per-roller stiffnesses from the three contact modes (equal-roller values when the pair is unresolved),
+    with a warning naming the rollers that differ beyond their uncertainty."""
+    fit, cls = modes.fit, modes.classes
+    t_std = float(np.mean(fit.frequency_std_hz[list(cls.tilt)]))
+    hidden = modes.split_std_hz if modes.split_std_hz is not None else math.sqrt(2.0) * t_std
+    if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
+    b, (t1, t2) = cls.bounce, cls.tilt
+    idx = [b, t1, t2]
+    split_std = None
+    fc = fit.force_covariance
+    if fc is not None and np.all(np.isfinite(fc)):  # the force noise moves both tilt poles alike
+        force_var = np.diag(fc)[0::2]
+        response_var = np.clip(fit.frequency_std_hz**2 - force_var, 0.0, None)
+        split_std = math.sqrt(max(response_var[t1] + response_var[t2] + fc[2 * t1, 2 * t1] + fc[2 * t2, 2 * t2]
+                                  - 2.0 * fc[2 * t1, 2 * t2], 0.0))
+    try:
+        out = solve_rollers(rig, names, live, fit.frequencies_hz[idx], fit.frequency_std_hz[idx],
+                            fit.constants[[t1, t2]], None if fit.constants_std is None else fit.constants_std[[t1, t2]],
+                            k_eq.value_n_per_m, split_std)
+    except (ModelDomainError, np.linalg.LinAlgError, ValueError) as exc:
+        warnings.append(f"per-roller stiffness not solved ({exc}): equal rollers assumed")
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
+    if out.differing:
+        mean = out.mean_n_per_m
+        worst = max(out.differing, key=lambda i: abs(out.z[i]))
+        parts = ", ".join(f"roller {i + 1} at {math.degrees(rig.contact_angles_rad[i]):.0f}° "
+                          f"{100 * (out.values_n_per_m[i] / mean - 1):+.1f} % (z {out.z[i]:+.1f})"
+                          for i in sorted(out.differing, key=lambda i: -abs(out.z[i])))
+        warnings.append(f"roller stiffnesses differ beyond their uncertainty (test at level {DIFFER_LEVEL:g}): "
+                        f"{parts} from their mean; check how roller {worst + 1} is seated")
+    return out
 
 
 def _operator_verdict(check: ImpactCheck, accept: bool | None) -> ImpactCheck:
@@ -290,7 +452,8 @@ OPERATOR_REJECTED = "operator_rejected"
 
 def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, spectra: Spectra, used: list[int],
             names: tuple[str, ...], live: np.ndarray, rig: RigConfig, fs_hz: float, cfg: IdentifyConfig,
-            contact: TrippContact | None, load_n: float | None, warnings: list[str]) -> Identification:
+            contact: TrippContact | None, load_n: float | None, warnings: list[str],
+            dropped: tuple[str, ...] = ()) -> Identification:
     fit, cls = modes.fit, modes.classes
     coh = mode_coherence(frf, modes)
     order = [cls.bounce, *cls.tilt]
@@ -303,7 +466,15 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
     ]
     b = cls.bounce
     tilt = list(cls.tilt) * (2 if len(cls.tilt) == 1 else 1)
-    k = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
+    k_eq = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
+    rollers = _rollers(rig, names, live, modes, k_eq, warnings)
+    budget = stiffness_budget(rig, rollers.mean_n_per_m,
+                              rollers.mean_std_n_per_m if rollers.resolved else k_eq.std_n_per_m)
+    k = Stiffness(rollers.mean_n_per_m, budget.total_std_n_per_m)
+    rig_share2 = max(budget.total_std_n_per_m**2 - budget.terms["modal_fit"] ** 2, 0.0)
+    fit_std = rollers.std_n_per_m
+    total_std = tuple(math.hypot(s, v / k.value_n_per_m * math.sqrt(rig_share2))
+                      for s, v in zip(fit_std, rollers.values_n_per_m, strict=True))
     alone: Stiffness | None = roller_only(k, contact, load_n) if contact is not None and load_n is not None else None
     if coh[b] < cfg.checks.min_coherence:
         warnings.append(f"coherence at the bounce {coh[b]:.3f} is below {cfg.checks.min_coherence:g}")
@@ -311,7 +482,7 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
         warnings.append("the tilt pair is not resolved by the data: reported as one (degenerate) frequency")
     if not cls.by_shape:
         warnings.append("the live channels cannot separate bounce from tilt shapes: assigned by frequency order")
-    dead = tuple(n for n, ok in zip(names, live, strict=True) if not ok)
+    dead = tuple(n for n, ok in zip(names, live, strict=True) if not ok and n not in dropped)
     if dead:
         warnings.append(f"dead channel(s) left out: {', '.join(dead)}")
     return Identification(
@@ -336,8 +507,16 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
         window_decay_rate_per_s=spectra.decay_rate_per_s,
         fit_band_hz=fit.band_hz,
         dead_channels=dead,
+        dropped_channels=dropped,
         classified_by_shape=cls.by_shape,
         roller_only_stiffness_n_per_m=alone.value_n_per_m if alone else None,
         roller_only_stiffness_std_n_per_m=alone.std_n_per_m if alone else None,
         warnings=warnings,
+        roller_stiffnesses_n_per_m=rollers.values_n_per_m,
+        roller_stiffnesses_std_n_per_m=total_std,
+        roller_stiffnesses_fit_std_n_per_m=fit_std,
+        roller_stiffnesses_resolved=rollers.resolved,
+        roller_stiffness_condition=rollers.condition,
+        rollers_differing=tuple(i + 1 for i in rollers.differing),
+        roller_stiffness_budget_n_per_m=dict(budget.terms),
     )

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -41,6 +41,8 @@ class ModalFit:
     converged: bool
     channel_rms: np.ndarray  # (n_ch,) residual RMS per channel, in the FRF's units
     significance: np.ndarray  # (M,) rise of the cost (in σ² units) if the mode's constants were dropped
+    force_covariance: np.ndarray | None = None  # (2M, 2M) over (f_r, ln ζ_r): the force noise's share
+    constants_std: np.ndarray | None = None  # (M, n_ch) 1-σ of the modal constants (response noise)
 
 
 def _stack(z: np.ndarray) -> np.ndarray:
@@ -98,13 +100,17 @@ class _Problem:
         low, scale = self.gram
         return np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0) * scale**2
 
-    def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
-        """JᵀJ and Jᵀr at the last solved point."""
+    def projected_derivatives(self) -> np.ndarray:
+        """∂(mode columns)/∂θ at the last solved point, projected off the residual terms and the mode columns."""
         s, d = self.s[:, None], self.d
         deriv = np.empty((2 * len(self.s), 2 * d.shape[1]))
         deriv[:, 0::2] = _stack(-(s**2) * (2.0 * self.zeta * s + 2.0 * self.omega) / d**2 * TWO_PI)
         deriv[:, 1::2] = _stack(-(s**2) * (2.0 * self.omega * s) * self.zeta / d**2)
-        pdb = self.project_out(deriv)
+        return self.project_out(deriv)
+
+    def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
+        """JᵀJ and Jᵀr at the last solved point."""
+        pdb = self.projected_derivatives()
         c = np.repeat(self.coef, 2, axis=0)  # mode r's constants for both its parameters
         jtj = (pdb.T @ pdb) * (c @ c.T)
         jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
@@ -185,7 +191,9 @@ def fit_modes(
     except np.linalg.LinAlgError:
         std = np.full(len(x), np.inf)
     zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
-    significance = np.sum(prob.coef**2, axis=1) / prob.inverse_gram_diagonal() / max(sigma2, 1e-300)
+    inv_diag = prob.inverse_gram_diagonal()
+    significance = np.sum(prob.coef**2, axis=1) / inv_diag / max(sigma2, 1e-300)
+    constants_std = np.sqrt(np.outer(inv_diag * sigma2 * noise_inflation, 1.0 / weights**2))
     return ModalFit(
         frequencies_hz=x[0::2].copy(),
         damping_ratios=zeta,
@@ -199,7 +207,108 @@ def fit_modes(
         converged=converged,
         channel_rms=np.sqrt(2.0 * np.mean(prob.resid**2, axis=0)) / weights,
         significance=significance,
+        constants_std=constants_std,
     )
+
+
+@dataclass(frozen=True)
+class ForceNoise:
+    """What the force channel's noise does to the FRF: per used impact, its force spectrum on the band lines,
+    the force window's samples (index, value incl. the exponential window) and the noise σ (N)."""
+
+    spectra: np.ndarray  # (n_imp, n_lines) complex force spectra F_i on the band
+    line_index: np.ndarray  # (n_lines,) the band's FFT line numbers k
+    n_fft: int
+    windows: tuple[tuple[np.ndarray, np.ndarray], ...]  # per impact: (sample indices, window values)
+    sigma_n: np.ndarray  # (n_imp,)
+    _phases: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def phase(self, i: int) -> np.ndarray:
+        """exp(-2πi k t / N) for impact i's window samples t and the band's lines k (kept: reused by every fit)."""
+        out = self._phases.get(i)
+        if out is None:
+            idx = self.windows[i][0]
+            out = self._phases[i] = np.exp(-2j * math.pi * np.outer(idx, self.line_index) / self.n_fft)
+        return out
+
+
+class _Linearised:
+    """The fitted step's variable-projection problem frozen at its solution: maps data perturbations to poles."""
+
+    def __init__(self, fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, decay_rate_per_s: float,
+                 channel_weights: np.ndarray | None) -> None:
+        self.weights = np.ones(h.shape[0]) if channel_weights is None else np.asarray(channel_weights, float)
+        self.prob = _Problem(np.asarray(freqs_hz), h, decay_rate_per_s, self.weights)
+        x = np.array([v for f, z in zip(fit.frequencies_hz, fit.damping_ratios, strict=True)
+                      for v in (f, math.log(max(z, 1e-12)))])
+        self.prob.solve(x)
+        pdb = self.prob.projected_derivatives()
+        n = len(freqs_hz)
+        self.n = n
+        self.pdb = pdb
+        self.p_c = pdb[:n] + 1j * pdb[n:]  # (n_lines, 2M)
+        c2 = np.repeat(self.prob.coef, 2, axis=0)
+        self.c2 = c2
+        jtj = (pdb.T @ pdb) * (c2 @ c2.T)
+        self.inv = np.linalg.inv(jtj)
+        self.h = h
+
+    def shift(self, h_other: np.ndarray) -> np.ndarray:
+        """First-order change of the poles if the data were ``h_other`` (n_ch, n_lines) instead."""
+        dy = _stack(((h_other - self.h) * self.weights[:, None]).T)
+        jtr = -np.sum((self.pdb.T @ dy) * self.c2, axis=1)
+        return -self.inv @ jtr
+
+    def force_outer(self, noise: ForceNoise, impacts: Sequence[int], per_impact: bool) -> np.ndarray:
+        """Σ σ² g gᵀ over the noise samples of the force windows of ``impacts``: for the average over all
+        of them (H1 of the step), or for one impact's own FRF (``per_impact``)."""
+        total_ff = np.sum(np.abs(noise.spectra) ** 2, axis=0)
+        mix = np.repeat(self.prob.coef @ (self.h * self.weights[:, None]), 2, axis=0).T  # (n_lines, 2M)
+        m2 = mix.shape[1]
+        outer = np.zeros((m2, m2))
+        for i in impacts:
+            idx, vals = noise.windows[i]
+            ff = np.abs(noise.spectra[i]) ** 2 if per_impact else total_ff
+            a = -noise.spectra[i].conj() / np.where(ff > 0, ff, np.inf)
+            q = np.conj(self.p_c) * mix * a[:, None]
+            g = vals[:, None] * np.real(noise.phase(i) @ q)
+            outer += noise.sigma_n[i] ** 2 * (g.T @ g)
+        return outer
+
+
+def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, noise: ForceNoise, *,
+                           decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None) -> np.ndarray:
+    """Covariance (2M × 2M, over (f_r, ln ζ_r) pairs) of the fitted poles caused by the force channel's noise.
+
+    H1 = Σ X F*/Σ|F|² with F_i = F_i° + δF_i gives δH = -H·Σ F_i* δF_i / Σ|F_i|² (first order): the same
+    smooth relative error on every channel, correlated over many lines, which the residuals cannot reveal.
+    Each noise sample in a force window perturbs the data by a known vector; the linearised variable-
+    projection estimate maps it to the poles: cov = (JᵀJ)⁻¹ (Σ σ² g gᵀ) (JᵀJ)⁻¹ with g = Jᵀ δy.
+    """
+    m = len(fit.frequencies_hz)
+    try:
+        lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
+    except np.linalg.LinAlgError:
+        return np.full((2 * m, 2 * m), np.inf)
+    outer = lin.force_outer(noise, range(len(noise.windows)), per_impact=False)
+    return lin.inv @ outer @ lin.inv
+
+
+def impact_shifts(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, h_each: np.ndarray, noise: ForceNoise, *,
+                  decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None,
+                  noise_inflation: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Each impact's own poles, to first order from the step's fit: (n_imp, 2M) shifts from the step's
+    poles and their 1-σ (response noise scaled by the impact's share of the force energy, plus its own
+    force noise). ``h_each``: (n_imp, n_ch, n_lines) single-impact FRFs X_i/F_i on the band."""
+    lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
+    response = np.clip(np.diag(lin.inv), 0.0, None) * fit.sigma2 * noise_inflation
+    energy = np.sum(np.abs(noise.spectra) ** 2, axis=1)
+    shifts, stds = [], []
+    for i in range(h_each.shape[0]):
+        shifts.append(lin.shift(h_each[i]))
+        force = np.diag(lin.inv @ lin.force_outer(noise, [i], per_impact=True) @ lin.inv)
+        stds.append(np.sqrt(response * float(energy.sum() / max(energy[i], 1e-300)) + np.clip(force, 0.0, None)))
+    return np.array(shifts), np.array(stds)
 
 
 def lscf_poles(freqs_hz: np.ndarray, h: np.ndarray, n_modes: int, *, decay_rate_per_s: float = 0.0,

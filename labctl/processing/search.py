@@ -12,11 +12,12 @@ information criterion prefers it, otherwise the pair is reported as degenerate.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import find_peaks
+from scipy.stats import chi2, norm
 
 from labctl.physics import RigConfig
 from labctl.processing.errors import ProcessingError
@@ -29,6 +30,8 @@ MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is 
 PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond the rig's ratio is residue
 SHARPNESS = 0.1  # a real mode's frequency is known to better than this share of its half-power width
 SPLITS = (0.05, 0.15, 0.4)  # tilt-pair start separations, in half-power widths of the single tilt
+RESOLUTION_LEVEL = 0.001  # level of the one-pole-or-two test on the tilt pair (and of each mode's presence)
+Widen = Callable[[ModalFit], ModalFit]  # adds what the residuals cannot show (the force noise) to a fit's stds
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,7 @@ class ContactModes:
     classes: Classification
     pair_resolved: bool
     band: slice
+    split_std_hz: float | None = None  # unresolved pair: 1-σ of the split a three-mode fit gave (what could hide)
 
 
 def search_range_hz(rig: RigConfig, pred: PredictedShapes, f_top_hz: float) -> tuple[float, float]:
@@ -105,7 +109,7 @@ def _valid(fit: ModalFit, require_convergence: bool = True) -> bool:
                 and np.all(np.isfinite(fit.frequency_std_hz)))
 
 
-def _channel_weights(noise: np.ndarray) -> np.ndarray:
+def channel_weights(noise: np.ndarray) -> np.ndarray:
     """1/σ per channel from each channel's noise floor: a noisier channel counts less."""
     sigma = np.maximum(noise, 1e-3 * float(np.median(noise)) + 1e-300)
     w = 1.0 / sigma
@@ -116,7 +120,11 @@ def _widen(fit: ModalFit, live: np.ndarray, n_channels: int) -> ModalFit:
     """The fit with its constants spread back over all channels (dead ones 0)."""
     constants = np.zeros((len(fit.frequencies_hz), n_channels))
     constants[:, live] = fit.constants
-    return replace(fit, constants=constants)
+    std = None
+    if fit.constants_std is not None:
+        std = np.full((len(fit.frequencies_hz), n_channels), np.inf)
+        std[:, live] = fit.constants_std
+    return replace(fit, constants=constants, constants_std=std)
 
 
 def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
@@ -130,10 +138,14 @@ def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
     return bool(np.all(sharp & strong & (fit.significance > penalty)))
 
 
-def _apart(fit: ModalFit, tilt: Sequence[int]) -> bool:
+def _apart(fit: ModalFit, tilt: Sequence[int], widen: Widen | None = None) -> bool:
+    """The two tilt poles further apart than the test's limit in units of their difference's 1-σ (with the
+    force noise's share when ``widen`` gives it)."""
+    if widen is not None:
+        fit = widen(fit)
     a, b = tilt
     gap = abs(fit.frequencies_hz[a] - fit.frequencies_hz[b])
-    return bool(gap > 3.0 * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
+    return bool(gap > norm.isf(RESOLUTION_LEVEL / 2) * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
 
 
 def fit_contact_modes(
@@ -148,6 +160,7 @@ def fit_contact_modes(
     zeta: float,
     band_widths: float = 4.0,
     channel_noise: np.ndarray | None = None,
+    widen: Callable[[ModalFit, slice], ModalFit] | None = None,
 ) -> ContactModes:
     """Band, start poles, 3-mode fit; if the tilt pair is not clearly resolved, a 2-mode fit and split
     starts around its tilt, the best 3-mode fit kept only when the BIC prefers it."""
@@ -156,13 +169,18 @@ def fit_contact_modes(
     f, hb = freqs_hz[band], hl[:, band]
     if len(f) < 4 * (N_CONTACT_MODES + 2):
         raise ProcessingError(f"the fit band {f[0]:.0f}-{f[-1]:.0f} Hz holds too few frequency lines")
-    weights = np.ones(hb.shape[0]) if channel_noise is None else _channel_weights(channel_noise[live])
+    weights = np.ones(hb.shape[0]) if channel_noise is None else channel_weights(channel_noise[live])
     kw = {"decay_rate_per_s": decay_rate_per_s, "noise_inflation": noise_inflation, "channel_weights": weights}
     n_ch = h.shape[0]
     fit = _widen(fit_modes(f, hb, _start_poles(f, hb, decay_rate_per_s, zeta), **kw), live, n_ch)
-    penalty = (int(live.sum()) + 2) * math.log(fit.n_data)
+    n_live = int(live.sum())
+    # likelihood-ratio limits (in σ² units; the window's line-to-line correlation scales the statistic):
+    # a mode's constants on n_live channels; the second tilt pole: its frequency, damping and constants
+    penalty = float(chi2.isf(RESOLUTION_LEVEL, n_live)) * noise_inflation
+    pair_penalty = float(chi2.isf(RESOLUTION_LEVEL, n_live + 2)) * noise_inflation
+    wid = (lambda fit_: widen(fit_, band)) if widen is not None else None
     classes = classify(fit.constants, fit.frequencies_hz, pred, live)
-    if _trusted(fit, penalty, zeta) and _apart(fit, classes.tilt):
+    if _trusted(fit, penalty, zeta) and _apart(fit, classes.tilt, wid):
         return ContactModes(fit, classes, True, band)
     if _valid(fit):
         keep = sorted(np.argsort(fit.significance)[1:])
@@ -191,12 +209,24 @@ def fit_contact_modes(
     if candidates:
         best, best_classes = min(candidates, key=lambda c: c[0].cost)
         gain = (fit2.cost - best.cost) / max(best.sigma2, 1e-300)
-        if _apart(best, best_classes.tilt) and gain > penalty:
+        if _apart(best, best_classes.tilt, wid) and gain > pair_penalty:
             return ContactModes(best, best_classes, True, band)
     if not _valid(fit2, require_convergence=False):
         raise ProcessingError(f"no contact modes could be fitted between {f[0]:.0f} and {f[-1]:.0f} Hz "
                               "(poles left the band or came out undamped)")
-    return ContactModes(fit2, classes2, False, band)
+    return ContactModes(fit2, classes2, False, band, _hidden_split_std(fit, classes, fit2, classes2, wid))
+
+
+def _hidden_split_std(fit3: ModalFit, classes3: Classification, fit2: ModalFit, classes2: Classification,
+                      wid: Widen | None) -> float:
+    """How large a tilt split the data could hide: the 1-σ of the split in the three-mode fit (its poles'
+    spread when they sit together), or, without a usable three-mode fit, half the tilt's half-power width."""
+    if _valid(fit3, require_convergence=False) and len(classes3.tilt) == 2:
+        widened = wid(fit3) if wid is not None else fit3
+        a, b = classes3.tilt
+        return float(math.hypot(widened.frequency_std_hz[a], widened.frequency_std_hz[b]))
+    t = classes2.tilt[0]
+    return float(fit2.damping_ratios[t] * fit2.frequencies_hz[t])
 
 
 def _two_starts(f: np.ndarray, h: np.ndarray, rate: float, zeta: float,

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from labctl.errors import ModelDomainError
 from labctl.physics import RigConfig, TrippContact, bounce_hz, roller_stiffness_from_bounce
+from labctl.physics.rig import bounce_sensitivity
 
 
 @dataclass(frozen=True)
@@ -42,3 +43,29 @@ def roller_only(measured: Stiffness, contact: TrippContact, load_n: float) -> St
         )
     k = 1.0 / remaining
     return Stiffness(k, (k / measured.value_n_per_m) ** 2 * measured.std_n_per_m)
+
+
+BUDGET_TERMS = ("modal_fit", "disc_mass", "setup_stiffness", "rig_model")
+
+
+@dataclass(frozen=True)
+class StiffnessBudget:
+    """1-σ contributions to a roller stiffness (N/m), named, and their total (with the mass–K_setup correlation)."""
+
+    terms: dict[str, float]
+    total_std_n_per_m: float
+
+
+def stiffness_budget(rig: RigConfig, k_n_per_m: float, modal_std_n_per_m: float) -> StiffnessBudget:
+    """The stiffness's uncertainty budget: the modal fit's share and the rig file's parameter uncertainties
+    (disc mass, K_setup, their correlation, the rig model's relative error) carried through the rig model
+    at the measured bounce frequency (k moves so that the bounce stays where it was measured)."""
+    u = rig.uncertainty
+    sens = bounce_sensitivity(rig, k_n_per_m)
+    dk_dm = -sens.per_disc_mass / sens.per_roller_stiffness
+    dk_dks = -sens.per_setup_stiffness / sens.per_roller_stiffness
+    mass, setup = dk_dm * u.mass_std_kg, dk_dks * u.setup_stiffness_std_n_per_m
+    terms = {"modal_fit": float(modal_std_n_per_m), "disc_mass": abs(float(mass)),
+             "setup_stiffness": abs(float(setup)), "rig_model": float(u.model_rel * k_n_per_m)}
+    var = sum(v * v for v in terms.values()) + 2.0 * u.mass_setup_correlation * mass * setup
+    return StiffnessBudget(terms, math.sqrt(max(var, 0.0)))

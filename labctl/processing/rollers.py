@@ -1,0 +1,200 @@
+"""Per-roller stiffness: the three contact modes and the rig model solved for the three roller stiffnesses.
+
+The bounce frequency fixes (mostly) the rollers' mean stiffness, the tilt pair's split how unequal they
+are; which roller differs is in the tilt modes' orientation — frequencies alone are the same for any
+permutation of the rollers — so the inverse matches the rig model (``labctl.physics.rig_modes``, three
+stiffnesses) to the bounce frequency, the tilt split *and* the angle of each tilt mode's shape inside the
+model's tilt subspace over the live sensors. The tilt pair's mean frequency is not used: it depends on
+the discs' inertia, which the rig file's uncertainties do not cover, and would pull the mean stiffness
+away from the bounce (Eq. 4) on a rig whose inertia is off. Weighted least squares in ln k, from a few starts around the
+circle of deviations the split allows; the covariance comes from the weighted Jacobian at the solution,
+whose condition number is reported. An unresolved tilt pair cannot say which roller differs: the three
+values are then the equal-roller solution, their spread bounded by the split the data could have hidden.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import norm
+
+from labctl.physics import RigConfig, rig_modes
+from labctl.physics.rig import ContactModeModel, contact_modes_hz, point_displacement
+
+DIFFER_LEVEL = 0.001  # two-sided level of the "this roller differs from the others" test
+ANGLE_FALLBACK_RAD = 0.05
+
+
+@dataclass(frozen=True)
+class RollerStiffnesses:
+    """k per roller (rig-file order) with the modal part of their covariance, and what the data could tell."""
+
+    values_n_per_m: tuple[float, float, float]
+    covariance: np.ndarray  # (3, 3) N²/m² from the modal fit (rig parameters excluded: common to all)
+    resolved: bool  # False: tilt pair unresolved, equal-roller values with the spread the data could hide
+    condition: float | None  # of the weighted inverse (None when not solved)
+    z: tuple[float, float, float]  # each roller's deviation from the mean over its uncertainty
+    differing: tuple[int, ...]  # 0-based rollers whose deviation passes the test at DIFFER_LEVEL
+
+    @property
+    def std_n_per_m(self) -> tuple[float, float, float]:
+        d = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return (float(d[0]), float(d[1]), float(d[2]))
+
+    @property
+    def mean_n_per_m(self) -> float:
+        return float(np.mean(self.values_n_per_m))
+
+    @property
+    def mean_std_n_per_m(self) -> float:
+        return float(math.sqrt(max(float(np.ones(3) @ self.covariance @ np.ones(3)), 0.0)) / 3.0)
+
+
+def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
+    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own)."""
+    eye = np.eye(6)
+    by_channel: dict[str, np.ndarray] = {}
+    for s in rig.sensors:
+        cols = np.array([point_displacement(eye[j], s.disc, s.x_m, s.y_m, s.z_m, s.angle_rad) for j in range(6)]).T
+        for ch, row in zip(s.channels, cols, strict=True):
+            by_channel[ch] = row
+    return np.array([by_channel[c] for c in names])
+
+
+def _tilt_basis(rig: RigConfig, sensors: np.ndarray, k: float) -> np.ndarray:
+    """Orthonormal basis (n_live, 2) of the equal-roller model's tilt subspace over the live channels."""
+    m = rig_modes(rig, k)
+    rows = sensors @ m.shapes[:, list(m.tilt)]
+    u, _, _ = np.linalg.svd(rows, full_matrices=False)
+    return u[:, :2]
+
+
+def _model(model: ContactModeModel, k: np.ndarray, sensors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(bounce, tilt lo, tilt hi) Hz and the two tilt shapes (2, n_live) over the live channels."""
+    freqs, shapes = model(k)
+    return freqs, (sensors @ shapes[:, 1:]).T
+
+
+def _angle(basis: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray]:
+    p = basis.T @ v
+    return math.atan2(float(p[1]), float(p[0])), p
+
+
+def _wrap(d: float) -> float:
+    """An angle difference modulo π (a mode shape's sign is arbitrary), in (-π/2, π/2]."""
+    return (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+
+
+def _split_per_deviation(rig: RigConfig, k: float) -> float:
+    """d(tilt split)/dε for roller stiffnesses k·(1 + ε·(1, -½, -½)) at small ε (Hz per unit ε)."""
+    eps = 1e-3
+    _, lo, hi = contact_modes_hz(rig, k * (1.0 + eps * np.array([1.0, -0.5, -0.5])))
+    return (hi - lo) / eps
+
+
+def _jacobian(residual, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    return np.column_stack([(residual(u + h * e) - r0) / h for e in np.eye(len(u))])
+
+
+def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise |residual(u)|² (a few parameters, a good start): Gauss–Newton steps, halved when they do not
+    lower the cost; returns the solution and the Jacobian there."""
+    u = u0.copy()
+    r = residual(u)
+    jac = _jacobian(residual, u, r)
+    for _ in range(max_iter):
+        step = np.linalg.lstsq(jac, -r, rcond=None)[0]
+        cost = float(r @ r)
+        for _ in range(20):
+            r_new = residual(u + step)
+            if float(r_new @ r_new) <= cost:
+                break
+            step = 0.5 * step
+        else:
+            break
+        u, r = u + step, r_new
+        jac = _jacobian(residual, u, r)
+        if float(np.max(np.abs(step))) < 1e-9:
+            break
+    return u, jac
+
+
+def _differing(values: np.ndarray, cov: np.ndarray, model_rel: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    a = np.eye(3) - 1.0 / 3.0
+    cov_d = a @ (cov + np.diag((model_rel * values) ** 2)) @ a.T
+    d = a @ values
+    z = d / np.sqrt(np.maximum(np.diag(cov_d), 1e-300))
+    limit = norm.isf(DIFFER_LEVEL / 2)
+    return tuple(float(v) for v in z), tuple(i for i in range(3) if abs(z[i]) > limit)
+
+
+def equal_rollers(rig: RigConfig, k: float, k_std: float, split_std_hz: float) -> RollerStiffnesses:
+    """Unresolved tilt pair: all three at the equal-roller value; each roller's 1-σ adds the deviation that
+    a split of ``split_std_hz`` (one σ of a split the data could hide) would mean."""
+    slope = abs(_split_per_deviation(rig, k))
+    dev = k * split_std_hz / slope if slope > 0 and math.isfinite(split_std_hz) else math.inf
+    a = np.eye(3) - 1.0 / 3.0
+    cov = np.full((3, 3), k_std**2) + dev**2 * a
+    return RollerStiffnesses((k, k, k), cov, False, None, (0.0, 0.0, 0.0), ())
+
+
+def solve_rollers(
+    rig: RigConfig,
+    names: Sequence[str],
+    live: np.ndarray,
+    freqs_hz: Sequence[float],
+    freqs_std_hz: Sequence[float],
+    tilt_constants: np.ndarray,
+    tilt_constants_std: np.ndarray | None,
+    k_equal: float,
+    split_std_hz: float | None = None,
+) -> RollerStiffnesses:
+    """Three roller stiffnesses from (bounce, tilt lo, tilt hi) with 1-σ and the two tilt shapes (2, n_ch);
+    ``split_std_hz``: the tilt split's 1-σ when known better than from the two stds (correlated errors)."""
+    measured = np.asarray(freqs_hz, float)
+    sig = np.maximum(np.asarray(freqs_std_hz, float), 1e-9 * measured)
+    sig_split = math.hypot(sig[1], sig[2]) if split_std_hz is None else max(split_std_hz, 1e-9 * measured[1])
+    model = ContactModeModel(rig)
+    sensors = _sensor_map(rig, names)[live]
+    basis = _tilt_basis(rig, sensors, k_equal)
+    meas_angles, sig_angles = [], []
+    for r in range(2):
+        v = tilt_constants[r][live]
+        ang, p = _angle(basis, v)
+        norm_p = float(np.linalg.norm(p))
+        if tilt_constants_std is not None and norm_p > 0 and np.all(np.isfinite(tilt_constants_std[r][live])):
+            perp = np.array([-p[1], p[0]]) / norm_p
+            var = float(np.sum((basis @ perp) ** 2 * tilt_constants_std[r][live] ** 2))
+            sig_angles.append(max(math.sqrt(var) / norm_p, 1e-6))
+        else:
+            sig_angles.append(ANGLE_FALLBACK_RAD)
+        meas_angles.append(ang)
+
+    def residual(u: np.ndarray) -> np.ndarray:
+        f, shapes = _model(model, np.exp(u), sensors)
+        out = [(f[0] - measured[0]) / sig[0], ((f[2] - f[1]) - (measured[2] - measured[1])) / sig_split]
+        for r in range(2):
+            ang, _ = _angle(basis, shapes[r])
+            out.append(_wrap(ang - meas_angles[r]) / sig_angles[r])
+        return np.array(out)
+
+    split = measured[2] - measured[1]
+    eps0 = split / max(abs(_split_per_deviation(rig, k_equal)), 1e-300)
+    starts = []
+    for theta in np.radians(np.arange(0.0, 360.0, 30.0)):
+        e = np.cos(theta - np.radians([0.0, 120.0, 240.0]))
+        starts.append(np.log(k_equal * np.clip(1.0 + eps0 * e, 0.2, 5.0)))
+    best = min(starts, key=lambda u: float(np.sum(residual(u) ** 2)))
+    u, jac = _gauss_newton(residual, best)
+    k = np.exp(u)
+    try:
+        cov_u = np.linalg.inv(jac.T @ jac)
+        condition = float(np.linalg.cond(jac))
+    except np.linalg.LinAlgError:
+        cov_u, condition = np.full((3, 3), np.inf), math.inf
+    cov = cov_u * np.outer(k, k)
+    z, differing = _differing(k, cov, rig.uncertainty.model_rel)
+    return RollerStiffnesses((float(k[0]), float(k[1]), float(k[2])), cov, True, condition, z, differing)
