@@ -239,7 +239,7 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
             best = (0.0, x0)
             break
         sol = least_squares(lambda x: white(_residuals(data, spec, x, measured)), x0, bounds=(lo, hi),
-                            x_scale=1.0, diff_step=1e-6, xtol=1e-8, ftol=1e-8, max_nfev=200)
+                            x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7, max_nfev=200)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:
             best = (cost, sol.x)
