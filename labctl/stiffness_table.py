@@ -1,7 +1,8 @@
 """The stiffness-table CSV (DESIGN.md §4): one measured roller stiffness per row, read and written.
 
 Units live only in the column names (mm, µm, GPa at this edge; SI in :class:`StiffnessPoint`). Optional
-columns default to a bearing-steel roller (1.3505: 210 GPa, ν 0.29, HRC 60) between bearing-steel rails.
+columns default to a bearing-steel roller (1.3505: 210 GPa, ν 0.29, HRC 60) between bearing-steel rails; the
+optional ``rail_material`` column names the rails' catalogue material.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ GEOMETRY_MATCH = 0.01
 
 REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffness_n_per_m")
 OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
-            "repetition")
+            "repetition", "rail_material")
 COLUMNS = REQUIRED + OPTIONAL
 
 
@@ -44,6 +45,8 @@ class StiffnessPoint:
     poisson_ratio: float | None = None
     hardness_hrc: float | None = None
     repetition: int | None = None
+    rail_material: str | None = None
+    """Catalogue name of the rails' material (None: 1.3505 bearing steel)."""
 
     def roller_material(self) -> Material:
         """The roller's material: catalogue values for a known name, overridden by any explicit column."""
@@ -60,8 +63,16 @@ class StiffnessPoint:
             hardness_hrc=base.hardness_hrc if self.hardness_hrc is None else self.hardness_hrc,
         )
 
+    def rail(self) -> Material:
+        """The rails' catalogue material (bearing steel 1.3505 when the table does not say)."""
+        name = self.rail_material or BEARING_STEEL
+        known = materials()
+        if name not in known:
+            raise InputError(f"unknown rail material {name!r}: use one of {', '.join(sorted(known))}")
+        return known[name]
+
     def case(self) -> ContactCase:
-        """Roller between bearing-steel rails of the given Ra.
+        """Roller between rails of the given material (default bearing steel) and Ra.
 
         The roller's own Ra comes from the catalogue when ``roller_type`` names a catalogue roller of the same
         geometry (within 1 %), else the catalogue default 0.03 µm.
@@ -74,7 +85,7 @@ class StiffnessPoint:
             roughness_ra_m=_catalogue_roller_ra_m(self.roller_type, self.diameter_m, self.contact_length_m),
             type_id=self.roller_type,
         )
-        return ContactCase(roller=roller, rail=material(BEARING_STEEL), rail_ra_m=self.rail_ra_m)
+        return ContactCase(roller=roller, rail=self.rail(), rail_ra_m=self.rail_ra_m)
 
 
 def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:
@@ -130,6 +141,7 @@ _SPECS: dict[str, _Spec] = {
     "poisson_ratio": ("poisson_ratio", 0, _number, _poisson, "a Poisson ratio in (-1, 0.5)"),
     "hardness_hrc": ("hardness_hrc", 0, _number, _positive, "a positive Rockwell C hardness"),
     "repetition": ("repetition", 0, _integer, None, "an integer repetition number"),
+    "rail_material": ("rail_material", 0, str, None, "a rail material name"),
 }
 
 
@@ -159,6 +171,10 @@ def _row_point(path: Path, row: int, record: dict[str, str]) -> StiffnessPoint:
         point.roller_material()
     except InputError as exc:
         raise InputError(f"{path}: row {row}, column material: {exc}") from None
+    try:
+        point.rail()
+    except InputError as exc:
+        raise InputError(f"{path}: row {row}, column rail_material: {exc}") from None
     return point
 
 

@@ -47,7 +47,11 @@ def test_eq5_data_name_surface_roughness_and_close_the_gap():
     assert names(result) == ["surface_roughness"]
     assert doc["gap_before"] >= 0.15
     assert doc["gap_after"] <= 0.05
-    assert doc["consistent_with_noise"]
+    # Eq. 5 is a power law, not the asperity term: at 1 % noise and 231 points the lack-of-fit test sees the
+    # difference, and the verdict says so instead of calling the residuals noise.
+    assert doc["verdict"] == "partly_explained" and not doc["consistent_with_noise"]
+    assert doc["lack_of_fit_p"] < 0.01 and "NOT consistent" in doc["verdict_text"]
+    assert "closest library term surface_roughness explains 9" in doc["verdict_text"]
     # The default world's calibration (asperity scale 1.5 reproduces Eq. 5 within 1 %) is found again.
     assert doc["effects"][0]["parameters"]["asperity_scale"] == pytest.approx(1.5, rel=0.1)
     # Tripp is stiffer than the measurement at low load: there the disagreement is located.
@@ -141,8 +145,14 @@ INDEPENDENT = [
 @pytest.mark.parametrize(("truth", "expected"), INDEPENDENT, ids=[n for _, n in INDEPENDENT])
 def test_independent_formulation_gets_the_right_name(truth, expected):
     result = run_discrepancy(synthesize(truth, noise=NOISE, seed=4))
-    assert names(result) == [expected]
+    assert names(result)[:1] == [expected]
     assert result.final.gap < 0.6 * result.baseline.gap
+    doc = result.to_dict()
+    assert doc["measurement_effects"] == []
+    if len(names(result)) > 1:  # a second term is named only when it completes the explanation
+        assert doc["consistent_with_noise"]
+    if not doc["consistent_with_noise"]:
+        assert "NOT consistent" in doc["verdict_text"] and "still" in doc["verdict_text"]
 
 
 @pytest.mark.parametrize(("depth_m", "seed"), [(0.8e-3, 5), (3e-3, 6), (6e-3, 7)])
@@ -176,10 +186,11 @@ def test_without_repetitions_the_noise_comes_from_neighbouring_points_and_the_ef
     assert names(result) == ["misalignment"]
 
 
-def test_one_roller_type_holds_out_repetitions():
-    result = run_discrepancy(synthesize(eq5, types=[1], noise=NOISE, seed=11))
+def test_one_roller_type_holds_out_repetitions_and_says_the_check_is_weak():
+    result = run_discrepancy(synthesize(world(SurfaceRoughness(1.5)), types=[1], noise=NOISE, seed=11))
     assert names(result) == ["surface_roughness"]
-    assert result.steps[0].evidence["held_out"]["by"] == "repetition"
+    held = result.steps[0].evidence["held_out"]
+    assert held["by"] == "repetition" and held["weak"] and held["passed"]
 
 
 def test_other_baselines_and_limits():

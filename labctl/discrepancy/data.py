@@ -79,6 +79,44 @@ class Dataset:
     def subset(self, keep: Iterable[int]) -> Dataset:
         return Dataset(tuple(self.cases[i] for i in keep))
 
+    def run_ids(self) -> np.ndarray:
+        """Seating index per point: one per (roller case, repetition); a point without a repetition number is
+        its own seating. Points of one seating share its random offset in the statistical model."""
+        ids = np.empty(self.n_points, dtype=int)
+        next_id = 0
+        for c, sl in zip(self.cases, self.case_slices(), strict=True):
+            reps = c.repetition
+            known = np.unique(reps[reps >= 0])
+            lookup = {int(r): next_id + i for i, r in enumerate(known)}
+            next_id += known.size
+            local = np.empty(reps.size, dtype=int)
+            for i, r in enumerate(reps):
+                if r >= 0:
+                    local[i] = lookup[int(r)]
+                else:
+                    local[i] = next_id
+                    next_id += 1
+            ids[sl] = local
+        return ids
+
+    def roller_keys(self) -> list[tuple[float, float]]:
+        """Distinct roller geometries (D, L_we) in case order: the units a held-out check leaves out."""
+        keys: list[tuple[float, float]] = []
+        for c in self.cases:
+            key = (c.case.roller.diameter_m, c.case.roller.contact_length_m)
+            if key not in keys:
+                keys.append(key)
+        return keys
+
+    def drop_points(self, drop: np.ndarray) -> Dataset:
+        """The dataset without the points flagged in ``drop`` (a mask over the concatenated points)."""
+        out = []
+        for c, sl in zip(self.cases, self.case_slices(), strict=True):
+            keep = ~drop[sl]
+            if np.any(keep):
+                out.append(CaseData(c.case, c.load_n[keep], c.ln_stiffness[keep], c.repetition[keep]))
+        return Dataset(tuple(out))
+
     def repetitions(self) -> list[int]:
         """Distinct repetition numbers present (empty when the table gives none)."""
         reps = np.unique(np.concatenate([c.repetition for c in self.cases]))
@@ -141,3 +179,26 @@ def _campaign_points(path: Path) -> list[StiffnessPoint]:
     if not points:
         raise InputError(f"{path}: the campaign holds no processed stiffness points")
     return points
+
+
+def campaign_setup_stiffness(paths: Sequence[str | Path]) -> float | None:
+    """K_setup of the rig stored in the campaign files among ``paths`` (None when there are none).
+
+    Campaigns whose stored rigs disagree cannot share one setup term: that is refused (give ``--rig``).
+    """
+    values: dict[float, str] = {}
+    for path in paths:
+        if Path(path).suffix.lower() not in HDF5_SUFFIXES or not Path(path).is_file():
+            continue
+        from labctl.physics.rig_config import load_rig, rig_from_text
+        from labctl.storage import CampaignReader
+
+        with CampaignReader(path) as reader:
+            text = reader.config_text("rig.toml")
+        rig = rig_from_text(text, f"{path}:/config/rig.toml") if text else load_rig()
+        values.setdefault(rig.setup_stiffness_n_per_m, str(path))
+    if len(values) > 1:
+        listed = ", ".join(f"{f} ({k:.4g} N/m)" for k, f in values.items())
+        raise InputError(f"the campaigns were processed with different K_setup: {listed}; give --rig FILE to say "
+                         "which the setup term is relative to, or analyse them separately")
+    return next(iter(values), None)

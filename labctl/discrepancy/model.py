@@ -16,11 +16,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
+from labctl.discrepancy.noise import whiten
 from labctl.physics.effects import EFFECTS, Effect
 from labctl.physics.law import ContactLaw
 from labctl.physics.tripp import DEFAULT_DEPTH_M
 
 DEPTH_BOUNDS_M = (0.1e-3, 100e-3)
+"""The widest depths ever tried (to report what depth a free fit would want)."""
 BAD_RESIDUAL = 10.0
 """Stands in for ln-residuals where a trial parameter set makes the model non-physical."""
 
@@ -30,6 +33,9 @@ STARTS: dict[str, tuple[dict[str, float], ...]] = {
     "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5}),
     "misalignment": ({"tilt_rad": 2e-4}, {"tilt_rad": 1e-3}),
     "setup_compliance": ({"stiffness_factor": 0.8}, {"stiffness_factor": 1.3}),
+    "load_gain": ({"gain": 1.0},),
+    "load_offset": ({"offset_n": 0.0},),
+    "modulus_scale": ({"scale": 1.0},),
 }
 """Physically plausible starting points per effect; several where the term has a kink to cross."""
 
@@ -42,6 +48,10 @@ def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     return tuple(n for n in EFFECTS if n in names)
 
 
+def _terms(name: str) -> type:
+    return EFFECTS[name] if name in EFFECTS else MEASUREMENT[name]
+
+
 @dataclass(frozen=True)
 class ModelSpec:
     """Which baseline and effects a fit uses; effects the rig fixes (nominal K_setup) come in ``fixed``."""
@@ -49,17 +59,32 @@ class ModelSpec:
     baseline: str = "tripp"
     effects: tuple[str, ...] = ()
     fixed: dict[str, dict[str, float]] = field(default_factory=dict, compare=False, hash=False)
+    measurement: tuple[str, ...] = ()
+    """Measurement-side terms (``labctl.discrepancy.measurement``): applied to the model's inputs."""
+    depth_bounds_m: tuple[float, float] = TRIPP_DEPTH_RANGE_M
+    """Tripp's evaluation depth is fitted within its physical range (a depth outside it is no contact physics)."""
+
+    def depth_at_bound(self, depth_m: float | None) -> bool:
+        """A fitted depth pinned at an end of its range: the baseline cannot absorb what the data show."""
+        return depth_m is not None and any(abs(math.log(depth_m / b)) < 0.01 for b in self.depth_bounds_m)
 
     @property
     def fits_depth(self) -> bool:
         return self.baseline == "tripp"
 
+    @property
+    def terms(self) -> tuple[str, ...]:
+        return self.effects + self.measurement
+
     def with_effects(self, *names: str) -> ModelSpec:
-        return ModelSpec(self.baseline, canonical([*self.effects, *names]), self.fixed)
+        physical = [n for n in names if n not in MEASUREMENT]
+        chain = [*self.measurement, *(n for n in names if n in MEASUREMENT)]
+        return ModelSpec(self.baseline, canonical([*self.effects, *physical]), self.fixed,
+                         tuple(n for n in MEASUREMENT if n in chain), self.depth_bounds_m)
 
     def slots(self) -> list[tuple[str, str, float, float]]:
-        """(effect, parameter, lower, upper) per fitted effect parameter, in vector order after the depth."""
-        return [(n, k, lo, hi) for n in self.effects for k, (lo, hi) in EFFECTS[n].BOUNDS.items()]
+        """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
+        return [(n, k, lo, hi) for n in self.terms for k, (lo, hi) in _terms(n).BOUNDS.items()]
 
     def n_params(self) -> int:
         return int(self.fits_depth) + len(self.slots())
@@ -71,9 +96,14 @@ class ModelSpec:
         effects: list[Effect] = [EFFECTS[n](**values[n], **self.fixed.get(n, {})) for n in self.effects]
         return ContactLaw(self.baseline, depth, tuple(effects))
 
+    def chain(self, x: np.ndarray) -> tuple[Any, ...]:
+        """The measurement-side terms for a parameter vector."""
+        values = self.decode(x)
+        return tuple(MEASUREMENT[n](**values[n]) for n in self.measurement)
+
     def decode(self, x: np.ndarray) -> dict[str, dict[str, float]]:
-        """Physical effect parameters (SI) from the vector."""
-        out: dict[str, dict[str, float]] = {n: {} for n in self.effects}
+        """Term parameters (SI) from the vector."""
+        out: dict[str, dict[str, float]] = {n: {} for n in self.terms}
         for u, (n, k, lo, hi) in zip(x[int(self.fits_depth):], self.slots(), strict=True):
             out[n][k] = float(lo + u * (hi - lo))
         return out
@@ -84,15 +114,24 @@ class ModelSpec:
         return np.array(head + tail, dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = [math.log10(DEPTH_BOUNDS_M[0])] if self.fits_depth else []
-        hi = [math.log10(DEPTH_BOUNDS_M[1])] if self.fits_depth else []
+        lo = [math.log10(self.depth_bounds_m[0])] if self.fits_depth else []
+        hi = [math.log10(self.depth_bounds_m[1])] if self.fits_depth else []
         n = len(self.slots())
         return np.array(lo + [0.0] * n), np.array(hi + [1.0] * n)
 
 
-def predict_ln(data: Dataset, law: ContactLaw) -> np.ndarray:
-    """ln of the modelled stiffness at every measured point (cases concatenated)."""
-    return np.concatenate([np.log(law.stiffness_n_per_m(c.case, c.load_n)) for c in data.cases])
+def predict_ln(data: Dataset, law: ContactLaw, chain: tuple[Any, ...] = ()) -> np.ndarray:
+    """ln of the modelled stiffness at every measured point (cases concatenated), evaluated at the true load
+    and moduli the measurement-side terms ``chain`` infer from the recorded ones."""
+    out = []
+    for c in data.cases:
+        case, load = c.case, c.load_n
+        for term in chain:
+            case, load = term.transform(case, load)
+        bad = ~(load > 0)  # a load offset larger than the recorded load: no such model
+        value = np.log(law.stiffness_n_per_m(case, np.where(bad, 1.0, load)))
+        out.append(np.where(bad, np.nan, value))
+    return np.concatenate(out)
 
 
 @dataclass(frozen=True)
@@ -104,16 +143,26 @@ class Fit:
     law: ContactLaw
     residuals: np.ndarray
     sigma: np.ndarray
+    white: np.ndarray | None = None
+    """Residuals whitened with the noise model (seating offsets and point noise); None: residuals/σ."""
 
     @property
     def z(self) -> np.ndarray:
-        """Residuals in units of their noise."""
-        return self.residuals / self.sigma
+        """Residuals in units of their noise, whitened for shared seating offsets."""
+        return self.residuals / self.sigma if self.white is None else self.white
 
     @property
     def score(self) -> float:
         """rms of z: about 1 when the model explains all but the noise."""
         return math.sqrt(float(np.mean(self.z**2)))
+
+    @property
+    def chain(self) -> tuple[Any, ...]:
+        return self.spec.chain(self.x)
+
+    def predict(self, data: Dataset) -> np.ndarray:
+        """ln of this model's stiffness at the points of ``data``."""
+        return predict_ln(data, self.law, self.chain)
 
     @property
     def n_points(self) -> int:
@@ -139,7 +188,13 @@ class Fit:
         return 10.0 ** float(self.x[0]) if self.spec.fits_depth else None
 
     def effect_parameters(self) -> dict[str, dict[str, float]]:
-        return self.spec.decode(self.x)
+        """Physical effects' parameters (SI)."""
+        values = self.spec.decode(self.x)
+        return {n: values[n] for n in self.spec.effects}
+
+    def measurement_parameters(self) -> dict[str, dict[str, float]]:
+        values = self.spec.decode(self.x)
+        return {n: values[n] for n in self.spec.measurement}
 
     def baseline_parameters(self) -> dict[str, Any]:
         return {"depth_m": self.depth_m} if self.spec.fits_depth else {}
@@ -147,15 +202,15 @@ class Fit:
 
 def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray) -> np.ndarray:
     with np.errstate(all="ignore"):
-        r = predict_ln(data, spec.law(x)) - measured
+        r = predict_ln(data, spec.law(x), spec.chain(x)) - measured
     return np.where(np.isfinite(r), r, BAD_RESIDUAL)
 
 
 def _starts(spec: ModelSpec, warm: Fit | None, guess: dict[str, dict[str, float]]) -> list[np.ndarray]:
     depth = warm.depth_m if warm is not None and warm.depth_m else DEFAULT_DEPTH_M
-    known = {**(warm.effect_parameters() if warm is not None else {}), **guess}
-    fresh = [n for n in spec.effects if n not in known]
+    known = {**(warm.spec.decode(warm.x) if warm is not None else {}), **guess}
     out = []
+    fresh = [n for n in spec.terms if n not in known]
     for combo in itertools.product(*(STARTS[n] for n in fresh)):
         values = {**known, **dict(zip(fresh, combo, strict=True))}
         out.append(np.clip(spec.encode(depth, values), *spec.bounds()))
@@ -163,25 +218,32 @@ def _starts(spec: ModelSpec, warm: Fit | None, guess: dict[str, dict[str, float]
 
 
 def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None,
-              guess: dict[str, dict[str, float]] | None = None) -> Fit:
+              guess: dict[str, dict[str, float]] | None = None, seating_sigma: float = 0.0) -> Fit:
     """Noise-weighted least squares on ln k, started from the warm fit's values, any guessed effect
     parameters, and each remaining effect's start grid.
 
-    ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same.
+    ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same. ``seating_sigma`` is the
+    σ of the offset shared by one seating's points: residuals are whitened for it (generalised least squares).
     """
     measured = data.ln_stiffness
     sig = np.ones(measured.size) if sigma is None else np.asarray(sigma, dtype=float)
+    runs = data.run_ids()
+
+    def white(r: np.ndarray) -> np.ndarray:
+        return whiten(runs, r, sig, seating_sigma)
+
     lo, hi = spec.bounds()
     best: tuple[float, np.ndarray] | None = None
     for x0 in _starts(spec, warm, guess or {}):
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = least_squares(lambda x: _residuals(data, spec, x, measured) / sig, x0, bounds=(lo, hi),
-                            x_scale=1.0, diff_step=1e-6, xtol=1e-8, ftol=1e-8, max_nfev=200)
+        sol = least_squares(lambda x: white(_residuals(data, spec, x, measured)), x0, bounds=(lo, hi),
+                            x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7, max_nfev=200)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:
             best = (cost, sol.x)
     assert best is not None
     x = best[1]
-    return Fit(spec, x, spec.law(x), _residuals(data, spec, x, measured), sig)
+    r = _residuals(data, spec, x, measured)
+    return Fit(spec, x, spec.law(x), r, sig, white(r))

@@ -1,16 +1,24 @@
-"""The noise floor of the measurement: scatter of ln k between repetitions of the same load step.
+"""The statistical model of the measurement: how ln k scatters about the truth, as the data are taken.
 
-Points of one case are grouped into replicate sets (one per load step, one point per repetition); the
-pooled within-set scatter is the pure error of regression's lack-of-fit test. Scatter falls with load (a few %
-at the preload, < 1 % near C0), so it is pooled in bands of load per length and interpolated between them:
-each point gets its own σ, which weights the fits. Without repetitions each point's distance from the line
-through its two neighbours (in ln F) stands in, as one σ for all points.
+Every roller case is measured in repetitions; each repetition seats the roller anew, so its points share a
+**seating offset** (a random effect of σ_seat, the same for every load of that seating) on top of the
+**point noise** σ(F), which falls with load. Both are estimated from the repetitions with a two-way layout per
+case (load step × seating): the residuals of "step means + seating offsets" are pure point noise, pooled in up
+to four bands of load per length (gross outliers screened out first with a robust MAD scale); the scatter of
+the seating means beyond what the point noise explains is σ_seat². Without repetitions each point's distance
+from the line through its two neighbours (in ln F) stands in for the point noise (no seating term).
+
+Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened with this model: within one
+seating, r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by
+σ_i. "Consistent with the noise" is the lack-of-fit F test of generalised least squares at level
+``CONSISTENT_P``: the model's whitened misfit beyond the saturated model (one mean per load step and case)
+against the pure error.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -21,25 +29,46 @@ from labctl.errors import InputError
 SAME_STEP = 0.05
 """Loads of two repetitions' points within this relative distance count as the same step."""
 CONSISTENT_P = 0.01
-"""Lack-of-fit p-value above which the residuals count as noise."""
+"""Level of the lack-of-fit test: residuals count as noise when its p-value is at least this."""
 BAND_DOF = 12
 """Least degrees of freedom pooled in one load band."""
 MAX_BANDS = 4
+OUTLIER_Z = 5.0
+"""A point whose two-way residual exceeds this many robust σ of its load band is a gross outlier."""
+MAD_TO_SIGMA = 1.4826
+
+
+@dataclass(frozen=True)
+class LackOfFit:
+    """Lack-of-fit F test of a fitted model against the pure error (whitened residuals)."""
+
+    f: float
+    df_lack: int
+    df_pure: int
+    p: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {"f": self.f, "df_lack": self.df_lack, "df_pure": self.df_pure, "p": self.p}
 
 
 @dataclass(frozen=True)
 class NoiseFloor:
-    """Standard deviation of ln k of a single point (≈ relative scatter), with how it was found."""
+    """Point noise σ(F) of ln k and the seating offset σ_seat, with how they were found."""
 
     sigma: float
-    """Pooled over all points: the overall noise floor, comparable with the gap."""
+    """Point noise pooled over all points: the overall noise floor, comparable with the gap."""
     dof: int
     method: str
     groups: tuple[np.ndarray, ...]
-    """Replicate sets as index arrays into the dataset's concatenated points (singletons included)."""
+    """Replicate sets (load steps of a case) as index arrays into the dataset's points (singletons included)."""
     band_ln_p: tuple[float, ...] = ()
     """Centre of each load band as ln of load per length (N/m)."""
     band_sigma: tuple[float, ...] = ()
+    seating_sigma: float = 0.0
+    """σ of ln k shared by all points of one seating (repetition of a roller case)."""
+    seating_dof: int = 0
+    outliers: tuple[int, ...] = field(default=())
+    """Indices (into the dataset it was estimated on) of gross outliers: excluded from every fit."""
 
     def sigma_at(self, data: Dataset) -> np.ndarray:
         """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands."""
@@ -48,27 +77,68 @@ class NoiseFloor:
             return np.full(x.size, self.sigma)
         return np.exp(np.interp(x, self.band_ln_p, np.log(self.band_sigma)))
 
+    def whiten(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """Residuals (n or n×k) made independent with unit variance under the model (see the module doc)."""
+        return whiten(data.run_ids(), residuals, sigma, self.seating_sigma)
+
     def bands(self) -> list[dict[str, float]]:
         """The load bands at the user's edge: load per length in N/mm and σ."""
         return [{"load_per_length_n_per_mm": float(np.exp(x)) * 1e-3, "sigma": s}
                 for x, s in zip(self.band_ln_p, self.band_sigma, strict=True)]
 
-    def consistent(self, z: np.ndarray, n_params: int) -> bool:
-        """Residuals z (in noise units) show no lack of fit, or a systematic part no larger than the noise."""
-        p = self.lack_of_fit_p(z, n_params)
-        return (p is not None and p >= CONSISTENT_P) or float(np.mean(z**2)) <= 2.0
-
-    def lack_of_fit_p(self, residuals: np.ndarray, n_params: int) -> float | None:
-        """p-value of the lack-of-fit F test (None without replicates): small means the model misses structure."""
+    def lack_of_fit(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
+                    ) -> LackOfFit | None:
+        """F test of the model's misfit beyond the saturated model against the pure error; None if untestable."""
+        e = self.whiten(data, residuals, sigma)
+        s_model = float(e @ e)
+        n = e.size
         if self.method != "repetitions":
+            df = n - n_params
+            if df <= 0 or self.dof <= 0:
+                return None
+            f = s_model / df
+            return LackOfFit(f, df, self.dof, float(stats.f.sf(f, df, self.dof)))
+        m = len(self.groups)
+        cells = np.zeros((n, m))
+        for j, g in enumerate(self.groups):
+            cells[g, j] = 1.0
+        lx = self.whiten(data, cells, sigma)
+        ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
+        coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
+        s_pure = float(np.sum((ly - lx @ coef) ** 2))
+        df_lack, df_pure = m - n_params, n - m
+        if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
             return None
-        n, m = residuals.size, len(self.groups)
-        ss_pe = sum(float(np.sum((residuals[g] - residuals[g].mean()) ** 2)) for g in self.groups)
-        ss_lof = float(np.sum(residuals**2)) - ss_pe
-        df_lof, df_pe = m - n_params, n - m
-        if df_lof <= 0 or df_pe <= 0 or ss_pe <= 0:
-            return None
-        return float(stats.f.sf((ss_lof / df_lof) / (ss_pe / df_pe), df_lof, df_pe))
+        f = max(0.0, s_model - s_pure) / df_lack / (s_pure / df_pure)
+        return LackOfFit(f, df_lack, df_pure, float(stats.f.sf(f, df_lack, df_pure)))
+
+    def lack_of_fit_p(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
+                      ) -> float | None:
+        test = self.lack_of_fit(data, residuals, sigma, n_params)
+        return None if test is None else test.p
+
+    def consistent(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int) -> bool:
+        """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
+        p = self.lack_of_fit_p(data, residuals, sigma, n_params)
+        return p is not None and p >= CONSISTENT_P
+
+
+def whiten(run_ids: np.ndarray, residuals: np.ndarray, sigma: np.ndarray, seating_sigma: float) -> np.ndarray:
+    """Whitened residuals for points with seating ``run_ids``, point σ and seating σ (exact for that model)."""
+    r = np.asarray(residuals, dtype=float)
+    w = 1.0 / sigma**2
+    if seating_sigma <= 0:
+        return r / (sigma if r.ndim == 1 else sigma[:, None])
+    n_runs = int(run_ids.max()) + 1
+    wsum = np.bincount(run_ids, w, minlength=n_runs)
+    c = 1.0 - 1.0 / np.sqrt(1.0 + seating_sigma**2 * wsum)
+    if r.ndim == 1:
+        mean = np.bincount(run_ids, w * r, minlength=n_runs) / wsum
+        return (r - (c * mean)[run_ids]) / sigma
+    sums = np.zeros((n_runs, r.shape[1]))
+    np.add.at(sums, run_ids, w[:, None] * r)
+    mean = sums / wsum[:, None]
+    return (r - (c[:, None] * mean)[run_ids]) / sigma[:, None]
 
 
 def _case_groups(c: CaseData) -> list[np.ndarray]:
@@ -93,9 +163,36 @@ def _case_groups(c: CaseData) -> list[np.ndarray]:
     return [np.array(g) for g in groups]
 
 
+@dataclass(frozen=True)
+class _TwoWay:
+    """Per-point results of the two-way (load step + seating) fit of one case."""
+
+    residual: np.ndarray
+    leverage: np.ndarray
+
+
+def _two_way(y: np.ndarray, groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
+    """Least squares of y on step means plus seating offsets (points not in ``keep`` left out)."""
+    n = y.size
+    run_values = np.unique(runs)
+    x = np.zeros((n, len(groups) + run_values.size))
+    for j, g in enumerate(groups):
+        x[g, j] = 1.0
+    for j, r in enumerate(run_values):
+        x[runs == r, len(groups) + j] = 1.0
+    xk = x[keep]
+    pinv = np.linalg.pinv(xk)
+    coef = pinv @ y[keep]
+    residual = np.full(n, np.nan)
+    residual[keep] = y[keep] - xk @ coef
+    leverage = np.ones(n)
+    leverage[keep] = np.einsum("ij,ji->i", xk, pinv)
+    return _TwoWay(residual, np.clip(leverage, 0.0, 1.0))
+
+
 def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """Pool replicate sets into up to MAX_BANDS bands of load per length with at least BAND_DOF each."""
-    keep = dof > 0
+    """Pool per-point squared residuals into up to MAX_BANDS bands of load per length, ≥ BAND_DOF dof each."""
+    keep = dof > 1e-6
     x, ss, dof = x[keep], ss[keep], dof[keep]
     order = np.argsort(x)
     n_bands = int(min(MAX_BANDS, max(1, dof.sum() // BAND_DOF)))
@@ -129,21 +226,101 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
     return ss, n
 
 
+def _robust_outliers(x: np.ndarray, u: np.ndarray, informative: np.ndarray, groups: list[np.ndarray]
+                     ) -> list[int]:
+    """Worst point of each replicate set whose standardised residual exceeds OUTLIER_Z robust σ of its band."""
+    idx = np.flatnonzero(informative)
+    if idx.size < 2 * BAND_DOF:
+        return []
+    scale = np.empty(u.size)
+    for part in np.array_split(idx[np.argsort(x[idx])], max(1, min(MAX_BANDS, idx.size // (2 * BAND_DOF)))):
+        s = MAD_TO_SIGMA * float(np.median(np.abs(u[part])))
+        scale[part] = s if s > 0 else np.inf
+    out = []
+    for g in groups:
+        g = g[informative[g]]
+        if g.size == 0:
+            continue
+        ratio = np.abs(u[g]) / scale[g]
+        k = int(np.argmax(ratio))
+        if ratio[k] > OUTLIER_Z:
+            out.append(int(g[k]))
+    return out
+
+
 def estimate_noise(data: Dataset) -> NoiseFloor:
-    """Pooled scatter of replicate sets, or of a smooth per-case fit when the data have no repetitions."""
+    """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
     groups: list[np.ndarray] = []
-    for c, sl in zip(data.cases, data.case_slices(), strict=True):
-        groups.extend(g + sl.start for g in _case_groups(c))
+    case_groups: list[list[np.ndarray]] = []
+    for c in data.cases:
+        case_groups.append(_case_groups(c))
+    slices = data.case_slices()
+    for cg, sl in zip(case_groups, slices, strict=True):
+        groups.extend(g + sl.start for g in cg)
     y = data.ln_stiffness
-    ss = np.array([float(np.sum((y[g] - y[g].mean()) ** 2)) for g in groups])
-    dof = np.array([g.size - 1 for g in groups])
-    if dof.sum() > 0 and ss.sum() > 0:
-        x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
-        centre, sigma = _bands(np.array([x[g].mean() for g in groups]), ss, dof)
-        return NoiseFloor(math.sqrt(ss.sum() / dof.sum()), int(dof.sum()), "repetitions", tuple(groups),
-                          centre, sigma)
-    ss, dof = _pseudo_residual_scatter(data)
-    if dof <= 0 or ss <= 0:
+    runs = data.run_ids()
+    x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+    keep = np.ones(y.size, dtype=bool)
+    for _ in range(4):
+        resid = np.full(y.size, np.nan)
+        lev = np.ones(y.size)
+        for cg, sl in zip(case_groups, slices, strict=True):
+            tw = _two_way(y[sl], cg, runs[sl], keep[sl])
+            resid[sl], lev[sl] = tw.residual, tw.leverage
+        dof_pt = np.where(keep, 1.0 - lev, 0.0)
+        informative = keep & (dof_pt > 1e-6)
+        u = np.where(informative, np.nan_to_num(resid) / np.sqrt(np.where(informative, dof_pt, 1.0)), 0.0)
+        new = _robust_outliers(x, u, informative, groups)
+        if not new:
+            break
+        keep[new] = False
+    dof_total = float(dof_pt.sum())
+    if dof_total >= 1.0 and float(np.nansum(resid[informative] ** 2)) > 0:
+        ss = np.where(informative, np.nan_to_num(resid) ** 2, 0.0)
+        centre, sigma = _bands(x, ss, dof_pt)
+        pooled = math.sqrt(float(ss.sum()) / dof_total)
+        floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
+                           outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
+        tau, tau_dof = _seating_sigma(data, floor, case_groups, keep)
+        return NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma, tau, tau_dof,
+                          floor.outliers)
+    ss_p, dof = _pseudo_residual_scatter(data)
+    if dof <= 0 or ss_p <= 0:
         raise InputError("cannot estimate the measurement noise: give repetitions of the load steps or at least "
                          "three load steps per roller")
-    return NoiseFloor(math.sqrt(ss / dof), dof, "neighbour-differences", tuple(groups))
+    return NoiseFloor(math.sqrt(ss_p / dof), dof, "neighbour-differences", tuple(groups))
+
+
+def _seating_sigma(data: Dataset, floor: NoiseFloor, case_groups: list[list[np.ndarray]], keep: np.ndarray
+                   ) -> tuple[float, int]:
+    """σ_seat by moments: the spread of each seating's weighted mean residual about its load steps' means,
+    less what the point noise alone gives it."""
+    sigma = floor.sigma_at(data)
+    num, den = 0.0, 0
+    for c, cg, sl in zip(data.cases, case_groups, data.case_slices(), strict=True):
+        reps = np.unique(c.repetition[keep[sl]])
+        reps = reps[reps >= 0]
+        if reps.size < 2:
+            continue
+        y, k, s = c.ln_stiffness, keep[sl], sigma[sl]
+        e1 = np.full(y.size, np.nan)
+        for g in cg:
+            g = g[k[g]]
+            if g.size > 1:
+                e1[g] = y[g] - y[g].mean()
+        means, inv_w = [], []
+        for r in reps:
+            m = (c.repetition == r) & np.isfinite(e1)
+            if not np.any(m):
+                continue
+            w = 1.0 / s[m] ** 2
+            means.append(float(np.sum(w * e1[m]) / w.sum()))
+            inv_w.append(1.0 / float(w.sum()))
+        if len(means) < 2:
+            continue
+        mu = np.array(means)
+        num += float(np.sum((mu - mu.mean()) ** 2)) - (len(means) - 1) * float(np.mean(inv_w))
+        den += len(means) - 1
+    if den == 0:
+        return 0.0, 0
+    return math.sqrt(max(0.0, num / den)), den

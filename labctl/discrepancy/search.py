@@ -1,14 +1,26 @@
-"""Which physical effect does the model miss? Fit every candidate term and pair, rank by BIC, check held out.
+"""Which term does the model miss? Fit every candidate alone, rank by BIC, and name one only when it earns it.
 
-A candidate is named only when the evidence is decisive: its BIC beats the current model's by at least
-``DECISIVE_BIC`` (Kass & Raftery's "very strong"); it either accounts for at least twice the noise (rms,
-noise-weighted) or brings the residuals down to the noise; and it predicts roller cases it was not fitted
-on better than the current model does.
+Candidates are the physical effect terms (``labctl.physics.effects``) and the measurement-side terms
+(``labctl.discrepancy.measurement``). Every statistic uses the residuals whitened with the noise model (seating
+offsets and load-dependent point noise). A candidate is named only when, on its own:
+
+- its BIC beats the current model's by at least ``DECISIVE_BIC`` (Kass & Raftery's "very strong");
+- it explains at least ``MIN_SHARE`` of the discrepancy it is added to (the whitened misfit above the noise's
+  expectation, n − p);
+- when the residuals are still inconsistent with the noise after it (the effect's form may differ from the
+  library's, or something else is missing), it must dominate: explain at least ``PARTIAL_SHARE`` of the
+  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit; a further term (after the first)
+  must make the residuals consistent with the noise;
+- it predicts held-out data better by a margin: folds refitted from scratch (no start from the all-data fit)
+  leave out one roller geometry at a time when there are at least three, else one repetition at a time (then
+  the check is marked weak: it tests the seating scatter, not generalisation to other rollers); the held-out
+  whitened misfit must fall by at least ``HELD_OUT_MARGIN`` of itself and by at least ``DECISIVE_BIC``.
+
+Each step's evidence is that step's alone: its term against the model before it.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -16,163 +28,235 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
-from labctl.discrepancy.model import Fit, fit_model, predict_ln
+from labctl.discrepancy.measurement import MEASUREMENT
+from labctl.discrepancy.model import Fit, ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor
 from labctl.physics.effects import EFFECTS
 
 DECISIVE_BIC = 10.0
-MIN_EXPLAINED = 2.0
-"""A named term must account for at least this much misfit, in units of the noise."""
+MIN_SHARE = 0.5
+"""A named term must explain at least this share of the discrepancy it is added to."""
+HELD_OUT_MARGIN = 0.1
+"""The held-out whitened misfit must fall by at least this fraction of itself."""
+PARTIAL_SHARE = 0.85
+"""A term that leaves the residuals inconsistent with the noise is named only when it explains at least this
+share of the discrepancy ..."""
+PARTIAL_HELD_OUT = 0.5
+"""... and at most this fraction of the held-out misfit (rms, whitened) is left with it."""
+MIN_GEOMETRIES = 3
+"""Roller geometries needed to leave one out at a time (else repetitions are left out: a weak check)."""
 MAX_CHECKED = 3
 """Held-out checks run on at most this many eligible candidates per step."""
+SEARCHED_MEASUREMENT = ("load_offset",)
+DEPTH_ABSORBED = ("modulus_scale", "load_gain")
+"""A modulus scale or load gain changes Tripp's curve almost as its depth does: they show by shape only slightly,
+or when the depth is pinned at an end of its physical range."""
+
+
+def discrepancy(fit: Fit) -> float:
+    """The systematic part of the whitened misfit: its sum of squares above what the noise alone gives."""
+    return max(0.0, float(np.sum(fit.z**2)) - (fit.n_points - fit.spec.n_params()))
+
+
+def share(before: Fit, after: Fit) -> float:
+    """Share of ``before``'s discrepancy that ``after`` explains (0 when there is none)."""
+    d = discrepancy(before)
+    return 0.0 if d <= 0 else max(0.0, min(1.0, (d - discrepancy(after)) / d))
 
 
 def beyond(before: Fit, after: Fit) -> float:
-    """How much of the misfit ``after`` explains beyond ``before``, in units of the noise (≥ 1: above it)."""
+    """How much of the misfit ``after`` explains beyond ``before``, in units of the noise."""
     return math.sqrt(max(0.0, before.score**2 - after.score**2))
+
+
+def kind(name: str) -> str:
+    return "measurement" if name in MEASUREMENT else "physical"
 
 
 @dataclass(frozen=True)
 class Candidate:
-    """The current model plus one or two effect terms, fitted to all points."""
+    """The current model plus one term, fitted to all points."""
 
-    added: tuple[str, ...]
+    name: str
     fit: Fit
     delta_bic: float
     """BIC(current) - BIC(candidate): positive favours the candidate."""
+    share: float
     explained: float
-    """Noise-weighted misfit the term accounts for, in units of the noise."""
 
 
 @dataclass(frozen=True)
 class HeldOut:
-    """Fit without each roller case (or repetition) in turn, predict it: gap and noise-weighted score."""
+    """Fit without each left-out fold, refitted from scratch, and predict it: gaps and whitened misfits."""
 
     by: str
     folds: int
+    weak: bool
     gap_without: float
     gap_with: float
     score_without: float
     score_with: float
+    ss_without: float
+    ss_with: float
 
     @property
     def passed(self) -> bool:
-        return self.score_with < self.score_without
+        gain = self.ss_without - self.ss_with
+        return gain >= HELD_OUT_MARGIN * self.ss_without and gain >= DECISIVE_BIC
 
     def to_dict(self) -> dict[str, Any]:
-        return {"by": self.by, "folds": self.folds, "gap_without": self.gap_without, "gap_with": self.gap_with,
-                "score_without": self.score_without, "score_with": self.score_with}
+        return {"by": self.by, "folds": self.folds, "weak": self.weak, "gap_without": self.gap_without,
+                "gap_with": self.gap_with, "score_without": self.score_without, "score_with": self.score_with,
+                "passed": self.passed}
 
 
 @dataclass(frozen=True)
 class Step:
-    """One effect added to the model, with the evidence that named it."""
+    """One term added to the model, with the evidence that named it."""
 
     name: str
     fit: Fit
     before: Fit
     evidence: dict[str, Any]
 
-
-def _candidate(data: Dataset, current: Fit, added: tuple[str, ...],
-               guess: dict[str, dict[str, float]] | None = None) -> Candidate:
-    fit = fit_model(data, current.spec.with_effects(*added), warm=current, sigma=current.sigma, guess=guess)
-    return Candidate(added, fit, current.bic - fit.bic, beyond(current, fit))
+    @property
+    def kind(self) -> str:
+        return kind(self.name)
 
 
-def rank_candidates(data: Dataset, current: Fit, noise: NoiseFloor) -> list[Candidate]:
-    """Every missing effect alone and every pair of them; best BIC first.
+class Search:
+    """The candidate search on one dataset and noise model (caches held-out refits of unchanged models)."""
 
-    Pairs are skipped when the best single term already brings the residuals down to the noise: no pair could
-    then explain a further twice the noise, so none could be named.
-    """
-    remaining = [n for n in EFFECTS if n not in current.spec.effects]
-    singles = sorted((_candidate(data, current, (n,)) for n in remaining), key=lambda c: -c.delta_bic)
-    if singles and noise.consistent(singles[0].fit.z, singles[0].fit.spec.n_params()):
-        return singles
-    alone = {c.added[0]: c.fit.effect_parameters()[c.added[0]] for c in singles}
-    pairs = [_candidate(data, current, p, {n: alone[n] for n in p}) for p in itertools.combinations(remaining, 2)]
-    return sorted(singles + pairs, key=lambda c: -c.delta_bic)
+    def __init__(self, data: Dataset, noise: NoiseFloor) -> None:
+        self.data = data
+        self.noise = noise
+        self.sigma = noise.sigma_at(data)
+        self.folds = _folds(data)
+        self._fold_cache: dict[tuple[str, ...], list[tuple[Fit, np.ndarray]]] = {}
 
+    def fit(self, spec: ModelSpec, warm: Fit | None = None) -> Fit:
+        return fit_model(self.data, spec, warm=warm, sigma=self.sigma, seating_sigma=self.noise.seating_sigma)
 
-def _folds(data: Dataset) -> tuple[str, list[tuple[Dataset, Dataset]]]:
-    if len(data.cases) >= 3:
-        idx = range(len(data.cases))
-        return "roller case", [(data.subset(i for i in idx if i != k), data.subset([k])) for k in idx]
-    reps = data.repetitions()
-    if len(reps) >= 2:
-        return "repetition", [(data.select_repetitions(lambda r, k=k: r != k),
-                               data.select_repetitions(lambda r, k=k: r == k)) for k in reps]
-    return "none", []
+    def candidates(self, current: Fit, physical_only: bool = False) -> list[Candidate]:
+        """Every missing term alone, fitted to all points; best BIC first."""
+        names = [n for n in EFFECTS if n not in current.spec.effects]
+        if not physical_only:
+            chain = SEARCHED_MEASUREMENT + DEPTH_ABSORBED
+            names += [n for n in chain if n not in current.spec.measurement]
+        out = []
+        for n in names:
+            fit = self.fit(current.spec.with_effects(n), warm=current)
+            out.append(Candidate(n, fit, current.bic - fit.bic, share(current, fit), beyond(current, fit)))
+        return sorted(out, key=lambda c: -c.delta_bic)
 
+    def fold_fits(self, spec: ModelSpec) -> list[tuple[Fit, np.ndarray]]:
+        """Per fold: the model fitted from scratch to the training part, and its residuals on the left-out part."""
+        key = (spec.baseline, *spec.terms)
+        if key not in self._fold_cache:
+            res = []
+            for train, test in self.folds[2]:
+                fit = fit_model(train, spec, sigma=self.noise.sigma_at(train),
+                                seating_sigma=self.noise.seating_sigma)
+                res.append((fit, fit.predict(test) - test.ln_stiffness))
+            self._fold_cache[key] = res
+        return self._fold_cache[key]
 
-def held_out(data: Dataset, noise: NoiseFloor, without: Fit, with_: Fit) -> HeldOut | None:
-    """Leave-one-case-out (else leave-one-repetition-out) prediction of two models; None if no folds exist."""
-    by, folds = _folds(data)
-    if not folds:
-        return None
-    res: dict[str, list[np.ndarray]] = {"without": [], "with": []}
-    sig: list[np.ndarray] = []
-    for train, test in folds:
-        sig.append(noise.sigma_at(test))
-        for key, fit in (("without", without), ("with", with_)):
-            refit = fit_model(train, fit.spec, warm=fit, sigma=noise.sigma_at(train))
-            res[key].append(predict_ln(test, refit.law) - test.ln_stiffness)
-    s = np.concatenate(sig)
-    r = {k: np.concatenate(v) for k, v in res.items()}
-    gap = {k: float(np.sqrt(np.mean(v**2))) for k, v in r.items()}
-    score = {k: float(np.sqrt(np.mean((v / s) ** 2))) for k, v in r.items()}
-    return HeldOut(by, len(folds), gap["without"], gap["with"], score["without"], score["with"])
+    def held_out(self, without: ModelSpec, with_: ModelSpec) -> HeldOut | None:
+        """Held-out prediction of two models, every fold refitted from scratch; None if no folds exist."""
+        by, weak, folds = self.folds
+        if not folds:
+            return None
+        stats: dict[str, tuple[float, float, float]] = {}
+        for key, spec in (("without", without), ("with", with_)):
+            ss, sq, n = 0.0, 0.0, 0
+            for (_, test), (_, r) in zip(folds, self.fold_fits(spec), strict=True):
+                e = self.noise.whiten(test, r, self.noise.sigma_at(test))
+                ss += float(e @ e)
+                sq += float(r @ r)
+                n += r.size
+            stats[key] = (ss, math.sqrt(sq / n), math.sqrt(ss / n))
+        return HeldOut(by, len(folds), weak, stats["without"][1], stats["with"][1], stats["without"][2],
+                       stats["with"][2], stats["without"][0], stats["with"][0])
 
+    def consistent(self, fit: Fit) -> bool:
+        return self.noise.consistent(self.data, fit.residuals, fit.sigma, fit.spec.n_params())
 
-def _eligible(ranked: list[Candidate], noise: NoiseFloor) -> list[Candidate]:
-    """Decisive in BIC and either large (≥ MIN_EXPLAINED) or closing the gap down to the noise."""
+    def select(self, current: Fit, baseline: Fit) -> tuple[list[Step], list[Candidate]]:
+        """The term(s) to add next ([] when none earns it), and every single candidate as ranked.
 
-    def closes(fit: Fit) -> bool:
-        return noise.consistent(fit.z, fit.spec.n_params())
+        A further term (after the first) must also complete the explanation: with it the residuals are
+        consistent with the noise. Otherwise a flexible term would be named for the structure an imperfect first
+        term leaves (a real effect whose form differs from the library's). When no single term earns a name, two
+        terms may, together: only if the pair makes the residuals consistent with the noise and each term passes
+        its own held-out check (the first against the model before it, the second against the first alone).
+        """
+        ranked = self.candidates(current)
+        eligible = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE
+                    and (current is baseline or self.consistent(c.fit))]
+        for cand in eligible[:MAX_CHECKED]:
+            check = self.held_out(current.spec, cand.fit.spec)
+            if check is not None and not check.passed:
+                continue
+            if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
+                                                  or check.score_with > PARTIAL_HELD_OUT * check.score_without):
+                continue
+            return [self._step(current, baseline, cand, check, ranked)], ranked
+        return self._pair(current, baseline, ranked), ranked
 
-    ok = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and (c.explained >= MIN_EXPLAINED or closes(c.fit))]
-    singles = [c for c in ok if len(c.added) == 1]
-    if not singles:
-        return []
-    best = singles[0]
-    return [c for c in ok if len(c.added) == 1 or c.delta_bic - best.delta_bic >= DECISIVE_BIC
-            and (beyond(best.fit, c.fit) >= MIN_EXPLAINED or closes(c.fit) and not closes(best.fit))]
-
-
-def select_step(data: Dataset, current: Fit, noise: NoiseFloor) -> list[Step]:
-    """The effect(s) to add next, or [] when no candidate's evidence is decisive."""
-    ranked = rank_candidates(data, current, noise)
-    for cand in _eligible(ranked, noise)[:MAX_CHECKED]:
-        check = held_out(data, noise, current, cand.fit)
-        if check is not None and not check.passed:
-            continue
-        rivals = [c for c in ranked if not set(c.added) & set(cand.added)]
+    def _step(self, current: Fit, baseline: Fit, cand: Candidate, check: HeldOut | None,
+              ranked: list[Candidate]) -> Step:
+        rivals = [c for c in ranked if c.name != cand.name]
+        lof = self.noise.lack_of_fit(self.data, cand.fit.residuals, cand.fit.sigma, cand.fit.spec.n_params())
         evidence = {
+            "kind": kind(cand.name),
             "delta_bic": cand.delta_bic,
             "explained_noise_units": cand.explained,
-            "runner_up": "+".join(rivals[0].added) if rivals else None,
+            "explained_share": cand.share,
+            "explained_share_of_baseline": share(baseline, cand.fit),
+            "runner_up": rivals[0].name if rivals else None,
             "runner_up_delta_bic": cand.delta_bic - rivals[0].delta_bic if rivals else None,
             "held_out": None if check is None else check.to_dict(),
-            "candidates": {"+".join(c.added): c.delta_bic for c in ranked},
+            "lack_of_fit_after": None if lof is None else lof.to_dict(),
+            "candidates": {c.name: c.delta_bic for c in ranked},
         }
-        if len(cand.added) == 1:
-            return [Step(cand.added[0], cand.fit, current, evidence)]
-        return _pair_steps(data, noise, current, cand, ranked, evidence)
-    return []
+        return Step(cand.name, cand.fit, current, evidence)
+
+    def _pair(self, current: Fit, baseline: Fit, ranked: list[Candidate]) -> list[Step]:
+        """Two terms that complete the explanation together, each with its own evidence; [] if none."""
+        firsts = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE][:1]
+        for first in firsts:
+            check1 = self.held_out(current.spec, first.fit.spec)
+            if check1 is not None and not check1.passed:
+                continue
+            seconds = sorted((c for c in self.candidates(first.fit) if c.name != first.name),
+                             key=lambda c: -c.delta_bic)
+            for second in seconds[:2]:
+                if second.delta_bic < DECISIVE_BIC or second.share < MIN_SHARE or not self.consistent(second.fit):
+                    continue
+                check2 = self.held_out(first.fit.spec, second.fit.spec)
+                if check2 is not None and not check2.passed:
+                    continue
+                one = self._step(current, baseline, first, check1, ranked)
+                one.evidence["named_with"] = second.name
+                two = self._step(first.fit, baseline, second, check2, seconds)
+                two.evidence["named_with"] = first.name
+                return [one, two]
+        return []
 
 
-def _pair_steps(data: Dataset, noise: NoiseFloor, current: Fit, cand: Candidate, ranked: list[Candidate],
-                evidence: dict[str, Any]) -> list[Step]:
-    """A winning pair is added one term at a time; the second only if it also holds up on held-out data."""
-    singles = {c.added[0]: c for c in ranked if len(c.added) == 1}
-    first, second = sorted(cand.added, key=lambda n: -singles[n].delta_bic)
-    via = singles[first].fit
-    steps = [Step(first, via, current, {**evidence, "added_as_pair": [first, second]})]
-    check = held_out(data, noise, via, cand.fit)
-    if check is None or check.passed:
-        steps.append(Step(second, cand.fit, via, {**evidence, "added_as_pair": [first, second],
-                                                  "delta_bic": via.bic - cand.fit.bic,
-                                                  "explained_noise_units": beyond(via, cand.fit),
-                                                  "held_out": None if check is None else check.to_dict()}))
-    return steps
+def _folds(data: Dataset) -> tuple[str, bool, list[tuple[Dataset, Dataset]]]:
+    keys = data.roller_keys()
+    if len(keys) >= MIN_GEOMETRIES:
+        def geometry(c: Any) -> tuple[float, float]:
+            return (c.case.roller.diameter_m, c.case.roller.contact_length_m)
+
+        folds = []
+        for k in keys:
+            test = [i for i, c in enumerate(data.cases) if geometry(c) == k]
+            folds.append((data.subset(i for i in range(len(data.cases)) if i not in test), data.subset(test)))
+        return "roller type", False, folds
+    reps = data.repetitions()
+    if len(reps) >= 2:
+        return "repetition", True, [(data.select_repetitions(lambda r, k=k: r != k),
+                                     data.select_repetitions(lambda r, k=k: r == k)) for k in reps]
+    return "none", True, []

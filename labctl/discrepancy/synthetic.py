@@ -51,8 +51,12 @@ def protocol_loads(case: ContactCase, steps: int = 11) -> np.ndarray:
 
 def synthesize(truth: Truth, types: Iterable[int] = range(1, 8), *, rail_ra_m: float = 0.2e-6,
                repetitions: int = 3, steps: int = 11, noise: NoiseModel | None = None,
-               seed: int | None = 0) -> list[StiffnessPoint]:
-    """Points of a simulated campaign: each roller type, each repetition, each load step, with noise."""
+               seed: int | None = 0, seating_rel: float = 0.0) -> list[StiffnessPoint]:
+    """Points of a simulated campaign: each roller type, each repetition, each load step, with noise.
+
+    ``seating_rel``: σ of a load-independent factor shared by all points of one seating (repetition), as a
+    roller reseated on another contact spot gives.
+    """
     rng = np.random.default_rng(seed)
     noise = noise or NoiseModel()
     points: list[StiffnessPoint] = []
@@ -63,6 +67,8 @@ def synthesize(truth: Truth, types: Iterable[int] = range(1, 8), *, rail_ra_m: f
         for rep in range(1, repetitions + 1):
             loads = nominal * np.exp(noise.load_rel * rng.standard_normal(steps))
             k = truth(case, loads) * np.exp(noise.sigma(loads, nominal[-1]) * rng.standard_normal(steps))
+            if seating_rel > 0:
+                k = k * np.exp(seating_rel * rng.standard_normal())
             points.extend(
                 StiffnessPoint(r.diameter_m, r.contact_length_m, rail_ra_m, float(f), float(kk), roller_type=t,
                                roller_length_m=r.total_length_m, material=r.material.name, repetition=rep)

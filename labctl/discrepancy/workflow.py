@@ -1,28 +1,37 @@
-"""The discrepancy workflow: fit the baseline, measure the noise, locate the gap, add effects until it closes.
+"""The discrepancy workflow: screen the input, fit the baseline, model the noise, name what earns it.
 
-Steps (issue 7): (1) the baseline for every point with its nuisance parameters fitted (Tripp's depth);
-(2) the noise floor from the repetitions; (3) regions where residuals exceed the noise; (4) candidate effects
-ranked by BIC with a held-out check; (5) add the named effect and refit; (6) repeat until the residuals are
-consistent with the noise; (7) the gap before and after each step.
+Steps: (0) screen the rows (duplicates, conflicting duplicates, unit slips); (1) the noise model from the
+repetitions (load-dependent point noise, seating offsets, gross outliers set aside); (2) the baseline with its
+nuisance parameter fitted (Tripp's depth); (3) regions where residuals exceed the noise; (4) physical and
+measurement-side candidates, each named only when it earns it on its own (``labctl.discrepancy.search``);
+(5) repeat until the lack-of-fit test at level 0.01 finds no structure; (6) when structure remains, the closest
+library term and an unnamed empirical term (``labctl.discrepancy.empirical``); (7) the gap at each step.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from labctl.discrepancy.data import Dataset, build_dataset, load_points
+import numpy as np
+
+from labctl.discrepancy.data import Dataset, build_dataset, campaign_setup_stiffness, load_points
+from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
-from labctl.discrepancy.model import Fit, ModelSpec, fit_model
-from labctl.discrepancy.noise import NoiseFloor, estimate_noise
-from labctl.discrepancy.search import Step, select_step
+from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
+from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
+from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor, estimate_noise
+from labctl.discrepancy.screen import Screening, check_units, screen_points
+from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, share
 from labctl.errors import InputError
 from labctl.physics.effects import EFFECTS
 from labctl.physics.law import BASELINES
 from labctl.physics.rig_config import load_rig
 from labctl.stiffness_table import StiffnessPoint
+
+MAX_TERMS = len(EFFECTS) + len(MEASUREMENT)
 
 
 @dataclass(frozen=True)
@@ -39,14 +48,69 @@ class DiscrepancyResult:
     regions_after: list[dict[str, Any]]
     """Where the final model still does."""
     trends: list[dict[str, Any]]
+    screening: Screening
+    closest: Candidate | None = None
+    """When structure remains: the best library term not named (or the last named one's share)."""
+    empirical: EmpiricalTerm | None = None
+    nuisance: tuple[dict[str, Any], ...] = ()
+    trends_after: tuple[dict[str, Any], ...] = ()
 
     @property
     def consistent(self) -> bool:
-        return consistent_with_noise(self.final, self.noise)
+        return consistent_with_noise(self.final, self.noise, self.data)
+
+    @property
+    def physical_steps(self) -> list[Step]:
+        return [s for s in self.steps if s.kind == "physical"]
+
+    @property
+    def measurement_steps(self) -> list[Step]:
+        return [s for s in self.steps if s.kind == "measurement"]
+
+    @property
+    def verdict(self) -> str:
+        """consistent | explained | partly_explained | unexplained."""
+        if self.consistent:
+            return "explained" if self.steps else "consistent"
+        return "partly_explained" if self.steps else "unexplained"
+
+    def verdict_text(self) -> str:
+        """The verdict in words, stating any structure the named terms leave."""
+        named = ", ".join(s.name for s in self.physical_steps) or "no physical effect"
+        chain = ", ".join(s.name for s in self.measurement_steps)
+        chain_txt = f"; measurement side: {chain}" if chain else ""
+        level = f"lack-of-fit test at level {CONSISTENT_P:g}"
+        if self.verdict == "consistent":
+            return f"the baseline agrees with the data within the noise ({level})"
+        if self.verdict == "explained":
+            return f"{named}{chain_txt}: residuals consistent with the noise ({level})"
+        residual = _residual_words(list(self.trends_after))
+        parts = []
+        if self.steps:
+            last = self.steps[-1]
+            parts.append(f"closest library term {last.name} explains {_pct(share(self.baseline, self.final))} "
+                         f"of the discrepancy{chain_txt}")
+        elif self.closest is not None:
+            parts.append(f"no library term earns a name; closest library term {self.closest.name} would explain "
+                         f"{_pct(self.closest.share)} of the discrepancy")
+        else:
+            parts.append("no library term earns a name")
+        parts.append(f"the residual is NOT consistent with the noise ({level}) and still {residual}")
+        if self.empirical is not None:
+            gen = "generalises to left-out roller types" if self.empirical.generalises else \
+                "does not generalise on held-out data"
+            parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
+                         f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        return "; ".join(parts)
+
+    def _step_doc(self, s: Step) -> dict[str, Any]:
+        params = {**self.final.effect_parameters(), **self.final.measurement_parameters()}
+        return {"name": s.name, "parameters": params[s.name], "evidence": s.evidence,
+                "gap_before": s.before.gap, "gap_after": s.fit.gap}
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``labctl discrepancy --json``."""
-        params = self.final.effect_parameters()
+        lof = self.noise.lack_of_fit(self.data, self.final.residuals, self.final.sigma, self.final.spec.n_params())
         return {
             "baseline": self.baseline.spec.baseline,
             "baseline_parameters": self.baseline.baseline_parameters(),
@@ -57,50 +121,130 @@ class DiscrepancyResult:
             "gap_after": self.final.gap,
             "noise_floor": self.noise.sigma,
             "noise_method": self.noise.method,
+            "seating_sigma": self.noise.seating_sigma,
             "consistent_with_noise": self.consistent,
+            "consistency_test": {"test": "lack-of-fit F test (generalised least squares: seating offsets, "
+                                         "load-dependent point noise)", "level": CONSISTENT_P,
+                                 **({} if lof is None else lof.to_dict())},
+            "verdict": self.verdict,
+            "verdict_text": self.verdict_text(),
             "noise_by_load": self.noise.bands(),
-            "lack_of_fit_p": self.noise.lack_of_fit_p(self.final.z, self.final.spec.n_params()),
-            "effects": [
-                {"name": s.name, "parameters": params[s.name], "evidence": s.evidence,
-                 "gap_before": s.before.gap, "gap_after": s.fit.gap}
-                for s in self.steps
-            ],
+            "lack_of_fit_p": None if lof is None else lof.p,
+            "effects": [self._step_doc(s) for s in self.physical_steps],
+            "measurement_effects": [self._step_doc(s) for s in self.measurement_steps],
+            "closest_library_term": None if self.closest is None else
+            {"name": self.closest.name, "explained_share": self.closest.share, "delta_bic": self.closest.delta_bic},
+            "empirical_term": None if self.empirical is None else self.empirical.to_dict(),
+            "nuisance_warnings": list(self.nuisance),
+            "input_checks": self.screening.to_dict(),
             "regions": self.regions,
             "regions_after": self.regions_after,
             "trends": self.trends,
+            "trends_after": list(self.trends_after),
         }
 
 
-def consistent_with_noise(fit: Fit, noise: NoiseFloor) -> bool:
-    """No lack of fit beyond the pure error, or a systematic misfit no larger than the noise itself."""
-    return noise.consistent(fit.z, fit.spec.n_params())
+def _pct(fraction: float) -> str:
+    return f"{fraction * 100:.1f} %" if fraction >= 0.99 else f"{fraction * 100:.0f} %"
+
+
+def _residual_words(found: list[dict[str, Any]]) -> str:
+    words = []
+    for t in found:
+        if t["variable"] == "material":
+            words.append("differs between materials")
+        elif t.get("trend", "flat") != "flat":
+            what = {"load_n": "load", "contact_length_mm": "contact length", "diameter_mm": "diameter",
+                    "rail_ra_um": "rail Ra"}.get(t["variable"], t["variable"])
+            words.append(f"depends on {what} ({t['trend']}, {t['slope_per_decade']:+.3g} per decade)")
+    return "; ".join(words) if words else "shows structure within the load range of each roller case"
+
+
+def consistent_with_noise(fit: Fit, noise: NoiseFloor, data: Dataset) -> bool:
+    """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
+    return noise.consistent(data, fit.residuals, fit.sigma, fit.spec.n_params())
+
+
+def _clean(data: Dataset, screening: Screening) -> tuple[Dataset, NoiseFloor]:
+    """Estimate the noise, setting gross outliers aside (reported) until none is left."""
+    noise = estimate_noise(data)
+    for _ in range(3):
+        if not noise.outliers:
+            break
+        mask = np.zeros(data.n_points, dtype=bool)
+        mask[list(noise.outliers)] = True
+        labels = [(c, i) for c in data.cases for i in range(c.load_n.size)]
+        for k in noise.outliers:
+            c, i = labels[k]
+            screening.outliers.append({"case": c.label, "repetition": int(c.repetition[i]),
+                                       "load_n": float(c.load_n[i]),
+                                       "stiffness_n_per_m": float(np.exp(c.ln_stiffness[i]))})
+        data = data.drop_points(mask)
+        noise = estimate_noise(data)
+    return data, noise
+
+
+def _nuisance(search: Search, fits: list[Fit]) -> list[dict[str, Any]]:
+    """A depth pinned at an end of its physical range: what depth a free fit would want, and what that means."""
+    out = []
+    for fit in fits:
+        if not fit.spec.depth_at_bound(fit.depth_m) or any(w["model"] == fit.spec.terms for w in out):
+            continue
+        free = search.fit(replace(fit.spec, depth_bounds_m=DEPTH_BOUNDS_M), warm=fit)
+        lo, hi = TRIPP_DEPTH_RANGE_M
+        out.append({
+            "parameter": "depth_m", "model": fit.spec.terms, "value": fit.depth_m, "free_fit_value": free.depth_m,
+            "physical_range": [lo, hi], "free_fit_delta_bic": fit.bic - free.bic,
+            "message": f"Tripp's evaluation depth is pinned at {fit.depth_m * 1e3:.3g} mm, the end of its physical "
+                       f"range {lo * 1e3:g}-{hi * 1e3:g} mm (a free fit wants {free.depth_m * 1e3:.3g} mm): a sign "
+                       "of a measurement-side error (Young's modulus or its unit, load-cell gain), not of a "
+                       "physical effect"})
+    return out
 
 
 def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *,
-                    setup_stiffness_n_per_m: float | None = None, max_effects: int = len(EFFECTS)
+                    setup_stiffness_n_per_m: float | None = None, max_effects: int = MAX_TERMS
                     ) -> DiscrepancyResult:
     """Run the whole workflow on measured points; K_setup defaults to the shipped rig file's nominal value."""
     if baseline not in BASELINES:
         raise InputError(f"unknown baseline {baseline!r}; expected one of {', '.join(BASELINES)}")
-    data = build_dataset(points)
+    kept, screening = screen_points(points)
+    data = build_dataset(kept)
+    check_units(data)
+    data, noise = _clean(data, screening)
     k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
     spec = ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
-    noise = estimate_noise(data)
-    base = fit_model(data, spec, sigma=noise.sigma_at(data))
+    search = Search(data, noise)
+    base = search.fit(spec)
     current, steps = base, []
-    while len(steps) < max_effects and not consistent_with_noise(current, noise):
-        new = select_step(data, current, noise)
+    ranked: list[Candidate] = []
+    while len(steps) < max_effects and not consistent_with_noise(current, noise, data):
+        new, ranked = search.select(current, base)
         if not new:
             break
         steps.extend(new[: max_effects - len(steps)])
         current = steps[-1].fit
+    nuisance = _nuisance(search, [base, current])
+    closest = empirical = None
+    if not consistent_with_noise(current, noise, data) and discrepancy(current) > 0:
+        if not steps:
+            physical = [c for c in (ranked or search.candidates(current, physical_only=True)) if c.name in EFFECTS]
+            closest = physical[0] if physical else None
+        empirical = propose(search, current)
+    sigma = noise.sigma
     return DiscrepancyResult(
         data=data, baseline=base, final=current, noise=noise, steps=tuple(steps),
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
-        trends=trends(data, base.residuals, noise.sigma),
+        trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
+        nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
     )
 
 
-def run_files(paths: Sequence[str | Path], baseline: str = "tripp") -> DiscrepancyResult:
-    """The workflow on stiffness tables and campaign files: the entry point of ``labctl discrepancy``."""
-    return run_discrepancy(load_points(paths), baseline)
+def run_files(paths: Sequence[str | Path], baseline: str = "tripp", *, rig: str | Path | None = None,
+              max_effects: int = MAX_TERMS) -> DiscrepancyResult:
+    """The workflow on stiffness tables and campaign files: the entry point of ``labctl discrepancy``.
+
+    K_setup comes from ``rig`` when given, else from the rig stored in the campaign files, else the shipped rig.
+    """
+    k_setup = load_rig(rig).setup_stiffness_n_per_m if rig is not None else campaign_setup_stiffness(paths)
+    return run_discrepancy(load_points(paths), baseline, setup_stiffness_n_per_m=k_setup, max_effects=max_effects)

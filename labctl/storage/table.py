@@ -20,7 +20,7 @@ def specimen_point(specimen: dict[str, Any], repetition: int, load_n: float, sti
         roller_length_m=float(specimen["roller_length_m"]) if "roller_length_m" in specimen else None,
         material=specimen.get("material"), youngs_modulus_pa=specimen.get("youngs_modulus_pa"),
         poisson_ratio=specimen.get("poisson_ratio"), hardness_hrc=specimen.get("hardness_hrc"),
-        repetition=int(repetition))
+        repetition=int(repetition), rail_material=specimen.get("rail_material") or None)
 
 
 def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
