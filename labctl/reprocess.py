@@ -40,10 +40,10 @@ def rig_of(reader: CampaignReader) -> RigConfig:
     return rig_from_text(text, f"{reader.path}:/config/rig.toml") if text else load_rig()
 
 
-def process_campaign(path: str | Path) -> Processed:
-    """Identify every step of every run again from its stored impacts."""
+def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None) -> Processed:
+    """Identify every step of every run again from its stored impacts (with ``rig``: another rig description)."""
     with CampaignReader(path) as reader:
-        rig = rig_of(reader)
+        rig = rig_of(reader) if rig is None else rig if isinstance(rig, RigConfig) else load_rig(rig)
         proto_text = reader.config_text("protocol.toml")
         config = parse_protocol(proto_text, f"{path}:/config/protocol.toml").checks if proto_text else CheckConfig()
         out = Processed(str(path), str(reader.attrs.get("status", "")))
