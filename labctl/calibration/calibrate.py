@@ -27,6 +27,9 @@ ALWAYS_INSEPARABLE = (
 )
 UNITS = {"mass_kg": "kg", "setup_stiffness_n_per_m": "N/m", "inertia_kg_m2": "kg·m²",
          "support_stiffness_n_per_m": "N/m"}
+# Ground balls reseat far more repeatably than this (the paper: ball stiffness std below 3 %); more scatter
+# than this means the contacts are not Hertz (dirt, damage, wrong material) or the campaigns are not of one rig.
+PLAUSIBLE_SEATING_SCATTER = 0.03
 STD_KEYS = {"mass_kg": "mass_std_kg", "setup_stiffness_n_per_m": "setup_stiffness_std_n_per_m",
             "inertia_kg_m2": "inertia_std_kg_m2", "support_stiffness_n_per_m": "support_stiffness_std_n_per_m"}
 
@@ -54,17 +57,22 @@ class Calibration:
         out["correlation"] = {p: {q: c for q, c in row.items() if q in f.free}
                               for p, row in f.correlation.items() if p in f.free}
         out["nominal"] = rig_values(self.nominal)
-        out["not_determined"] = [{"parameter": p, "held_at": self.fit.values[p], "why": why}
-                                 for p, why in f.held.items()]
+        out["not_determined"] = [
+            {"parameter": p, "held_at": f.values[p], "why": why,
+             "fit_not_used": None if p not in f.unseparated_fit else
+             {"value": f.unseparated_fit[p][0], "std": f.unseparated_fit[p][1]}}
+            for p, why in f.held.items()]
         out["cannot_separate"] = [f"{p}: {why}" for p, why in f.held.items()] + list(ALWAYS_INSEPARABLE)
         resid = np.array([r["whitened"] for r in f.residuals])
         out["fit"] = {
             "chi2": f.chi2, "dof": f.dof, "chi2_per_dof": f.chi2 / f.dof if f.dof else None,
-            "seating_scatter_rel": f.seating_scatter_rel, "load_noise_n": f.load_noise_n,
+            "seating_scatter_rel": f.seating_scatter_rel, "frequency_scatter_rel": f.frequency_scatter_rel,
+            "error_scale": f.error_scale, "load_noise_n": f.load_noise_n,
             "max_abs_whitened_residual": float(np.max(np.abs(resid))) if resid.size else None,
             "rms_residual_rel": {mode: _rms_rel(f.residuals, mode) for mode in ("bounce", "tilt")},
             "determined_below_rel": DETERMINED_REL,
         }
+        out["warnings"] = self.warnings()
         out["ball_sizes_mm"] = f.ball_sizes_mm
         out["steps"] = len(self.steps)
         out["campaigns"] = self.campaigns
@@ -72,6 +80,16 @@ class Calibration:
         out["skipped"] = self.skipped
         out["residuals"] = f.residuals
         return out
+
+    def warnings(self) -> list[str]:
+        """Reasons not to trust the fit although it converged."""
+        s = self.fit.seating_scatter_rel
+        if s <= PLAUSIBLE_SEATING_SCATTER:
+            return []
+        return [f"the ball stiffness scatters by {100 * s:.3g} % per seating to explain the data, more than the "
+                f"{100 * PLAUSIBLE_SEATING_SCATTER:g} % Hertz contacts of ground balls allow: the balls are not "
+                "Hertz contacts (dirt, damage, another material) or the campaigns are not of one rig; "
+                "do not use this calibration"]
 
     def rig_text(self) -> str:
         """The calibrated rig file (the nominal file with the determined values, uncertainty and provenance)."""

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import brentq, least_squares
+from scipy.optimize import least_squares
 
 from labctl.calibration.data import BallStep
 from labctl.errors import InputError
@@ -26,6 +26,7 @@ from labctl.physics.rig_config import RigConfig
 
 PARAMETERS = ("mass_kg", "setup_stiffness_n_per_m", "inertia_kg_m2", "support_stiffness_n_per_m")
 DETERMINED_REL = 0.2  # a parameter the data fix to worse than 20 % (1σ) is reported as not determined
+MAX_SCATTER_REL = 0.3  # cap on the estimated seating scatter (beyond it the fit is meaningless anyway)
 SUPPORT_PRIOR_REL = 0.5  # the rubber tube's stiffness when the data do not determine it (the rig file gives none)
 _EPS = 1e-6
 
@@ -113,14 +114,17 @@ class FitResult:
     std: dict[str, float | None]  # 1σ of the determined parameters; None: not determined (held at nominal)
     total_std: dict[str, float]  # 1σ of every parameter: held ones at their nominal uncertainty
     correlation: dict[str, dict[str, float]]  # of the estimates' errors, held parameters included
-    free: tuple[str, ...]
-    held: dict[str, str]  # parameter -> why it is not determined
+    free: tuple[str, ...]  # the determined parameters (written to the calibrated rig)
+    held: dict[str, str]  # parameter -> why it is not determined (the rig keeps its nominal value)
     chi2: float
     dof: int
     seating_scatter_rel: float  # σ of the balls' stiffness factor per seating (estimated)
+    frequency_scatter_rel: float  # σ per measured frequency beyond its identification and load noise (estimated)
+    error_scale: float  # factor applied to every uncertainty where χ² still exceeded its degrees of freedom
     load_noise_n: float  # σ of one load reading per ball (estimated from repeat readings)
     ball_sizes_mm: list[float]
     residuals: list[dict] = field(default_factory=list)  # per observation: source, kind, measured, model, z
+    unseparated_fit: dict[str, tuple[float, float]] = field(default_factory=dict)  # fitted but not used: value, σ
 
 
 def _load_noise_n(steps: Sequence[BallStep]) -> float:
@@ -142,12 +146,37 @@ class _Problem:
         self.load_var = (self.g * load_noise_n / (3.0 * loads)) ** 2
         self.set_scatter(0.0)
 
-    def set_scatter(self, sigma_rel: float) -> None:
+    @property
+    def noise_var(self) -> np.ndarray:
+        """Variance of each frequency from its identification and the load reading."""
+        return np.maximum(self.obs.std_hz, 1e-9 * self.obs.hz) ** 2 + self.load_var
+
+    def set_scatter(self, seating_rel: float, step_rel: float = 0.0) -> None:
+        """Covariance: noise, plus a stiffness factor per seating (shared by its steps), plus per-frequency σ."""
         obs = self.obs
-        cov = np.diag(np.maximum(obs.std_hz, 1e-9 * obs.hz) ** 2 + self.load_var)
+        cov = np.diag(self.noise_var + (step_rel * obs.hz) ** 2)
         same_run = obs.run_of[:, None] == obs.run_of[None, :]
-        cov = cov + sigma_rel**2 * np.outer(self.g, self.g) * same_run
+        cov = cov + seating_rel**2 * np.outer(self.g, self.g) * same_run
         self.chol = np.linalg.cholesky(cov)
+
+    def scatter_moments(self, raw: np.ndarray, step_rel: float) -> tuple[float, float]:
+        """Seating and per-frequency scatter from residuals (Hz): each seating's common offset along the
+        stiffness-scale direction, and what remains once those offsets are removed."""
+        obs, g = self.obs, self.g
+        runs = obs.run_count
+        offsets, offset_noise = np.zeros(runs), np.zeros(runs)
+        rest = raw.copy()
+        for r in range(runs):
+            m = obs.run_of == r
+            a = float(g[m] @ raw[m] / (g[m] @ g[m]))
+            offsets[r] = a
+            rest[m] -= a * g[m]
+            var = self.noise_var[m] + (step_rel * obs.hz[m]) ** 2
+            offset_noise[r] = float(g[m] ** 2 @ var) / float(g[m] @ g[m]) ** 2
+        dof = max(obs.hz.size - runs - len(self.free), 1)
+        excess_step = (float(np.sum(rest**2 / obs.hz**2)) - float(np.sum(self.noise_var / obs.hz**2))) / dof
+        seating = float(np.mean(offsets**2 - offset_noise)) * runs / max(runs - 1, 1)
+        return math.sqrt(max(seating, 0.0)), math.sqrt(max(excess_step, 0.0))
 
     def config(self, x: np.ndarray) -> RigConfig:
         return rig_with(self.rig, {p: float(math.exp(v)) for p, v in zip(self.free, x, strict=True)})
@@ -173,14 +202,27 @@ class _Problem:
 
     def solve(self, x0: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         nominal = np.log([self.nominal[p] for p in self.free])
-        sol = least_squares(self.residuals, np.clip(x0, nominal - 2.0, nominal + 2.0), method="trf",
-                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-12, ftol=1e-12)
+        sol = least_squares(self.residuals, np.clip(x0, nominal - 2.0, nominal + 2.0), method="dogbox",
+                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-10, ftol=1e-10)
         j = sol.jac
         try:
             cov = np.linalg.inv(j.T @ j)
         except np.linalg.LinAlgError:
             cov = np.full((len(x0), len(x0)), np.inf)
         return sol.x, float(np.sum(sol.fun**2)), cov
+
+
+def expected_rel_std(rig: RigConfig, steps: Sequence[BallStep], *, seating_rel: float, load_noise_n: float,
+                     use_tilt: bool = True) -> dict[str, float]:
+    """Relative 1σ a fit of all parameters would reach on such steps (Fisher information at ``rig``): for
+    planning a calibration protocol without simulating it. The steps' measured frequencies are not used."""
+    obs = Observations.of(steps, use_tilt)
+    free = [p for p in PARAMETERS if use_tilt and obs.is_tilt.any() or p != "inertia_kg_m2"]
+    problem = _Problem(rig, obs, free, load_noise_n)
+    problem.set_scatter(seating_rel)
+    x = np.log([problem.nominal[p] for p in free])
+    j = problem.jacobian(x)
+    return dict(zip(free, np.sqrt(np.diag(np.linalg.inv(j.T @ j))).tolist(), strict=True))
 
 
 def _priors(rig: RigConfig) -> dict[str, float]:
@@ -192,62 +234,79 @@ def _priors(rig: RigConfig) -> dict[str, float]:
 
 
 def fit_rig(rig: RigConfig, steps: Sequence[BallStep], *, use_tilt: bool = True) -> FitResult:
-    """Fit the rig parameters the ball steps determine; hold the rest at nominal and say why."""
+    """Fit the rig parameters the ball steps determine; hold the rest at nominal and say why.
+
+    A parameter the data fix only through an assumption they cannot check (K_setup from one ball size) is
+    fitted alongside, so the others' uncertainty allows for it, but not reported or written: the rig keeps
+    its nominal value and nominal uncertainty.
+    """
     if not steps:
         raise InputError("no identified ball steps to calibrate from")
     obs = Observations.of(steps, use_tilt)
     held: dict[str, str] = {}
+    unseparated: dict[str, str] = {}
     if not obs.is_tilt.any():
         held["inertia_kg_m2"] = "no tilt frequencies identified, and the bounce mode does not depend on the inertia"
     sizes = sorted({round(s.ball_diameter_m * 1e3, 6) for s in steps})
     if len(sizes) < 2:
-        held["setup_stiffness_n_per_m"] = (
-            f"one ball size ({sizes[0]:g} mm) cannot separate K_setup from the ball contacts: a load-independent "
-            "compliance in series with the balls is then told apart only by Hertz's load exponent (k ∝ F^1/3); "
-            "a second ball size, whose contacts differ by (D1/D2)^1/3 at the same load, separates them")
+        unseparated["setup_stiffness_n_per_m"] = (
+            f"one ball size ({sizes[0]:g} mm) cannot separate K_setup from the ball contacts: K_setup then shows "
+            "only in how the frequencies bend with load, which is Hertz's load exponent (k ∝ F^1/3) assumed "
+            "exact, so any departure of the contacts from it (roughness, films) would be taken for K_setup; a "
+            "second ball size, whose contacts differ by (D1/D2)^1/3 at equal load, gives the independent lever")
     free = [p for p in PARAMETERS if p not in held]
     load_noise = _load_noise_n(steps)
+    start = {p: math.log(v) for p, v in rig_values(rig).items()}
     while True:
         if obs.hz.size <= len(free):
             raise InputError(f"{obs.hz.size} measured frequencies cannot determine {len(free)} rig parameters; "
                              "measure more load steps")
         problem = _Problem(rig, obs, free, load_noise)
-        x, chi2, cov, sigma = _fit_with_scatter(problem, obs)
+        x, chi2, cov, sigma, step_rel, scale = _fit_with_scatter(problem, obs, np.array([start[p] for p in free]))
+        start.update(zip(free, x, strict=True))
         rel = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         worst = int(np.argmax(rel))
         if not np.all(np.isfinite(rel)) or rel[worst] > DETERMINED_REL:
             name = free[worst]
             held[name] = (f"the data fix it only to ±{_pct(rel[worst])} (1σ), worse than the "
                           f"{DETERMINED_REL:.0%} needed to call it determined")
+            unseparated.pop(name, None)
             free.remove(name)
             if not free:
                 raise InputError("the ball steps determine none of the rig parameters")
             continue
         break
-    # parameters held at nominal carry their nominal uncertainty into the fitted ones (linearised)
+    fitted = dict(rig_values(rig))
+    for i, p in enumerate(free):
+        fitted[p] = float(math.exp(x[i]))
+    # held parameters carry their nominal uncertainty into the fitted ones (linearised); the written rig keeps
+    # held and unseparated parameters at nominal, whose errors are then independent of the fit's
     held_names = [p for p in PARAMETERS if p in held]
     prior = _priors(rig)
     s_h = np.diag([prior[p] ** 2 for p in held_names])
-    names = free + held_names
-    joint = np.zeros((len(names), len(names)))
-    joint[: len(free), : len(free)] = cov
+    n = len(free)
+    joint = np.zeros((n + len(held_names), n + len(held_names)))
+    joint[:n, :n] = cov
     if held_names:
-        j_f = problem.jacobian(x)
-        j_h = problem.held_jacobian(x, held_names)
-        a = cov @ j_f.T @ j_h
-        joint[: len(free), : len(free)] += a @ s_h @ a.T
-        joint[: len(free), len(free):] = -a @ s_h
-        joint[len(free):, : len(free)] = (-a @ s_h).T
-        joint[len(free):, len(free):] = s_h
-    values = dict(rig_values(rig))
+        a = cov @ problem.jacobian(x).T @ problem.held_jacobian(x, held_names)
+        joint[:n, :n] += a @ s_h @ a.T
+        joint[:n, n:] = -a @ s_h
+        joint[n:, :n] = (-a @ s_h).T
+        joint[n:, n:] = s_h
+    names = free + held_names
+    unused = {p: (fitted[p], fitted[p] * math.sqrt(joint[free.index(p), free.index(p)])) for p in unseparated}
     for i, p in enumerate(free):
-        values[p] = float(math.exp(x[i]))
+        if p in unseparated:
+            joint[i, :] = joint[:, i] = 0.0
+            joint[i, i] = prior[p] ** 2
+    reported = [p for p in free if p not in unseparated]
+    values = {p: fitted[p] if p in reported else v for p, v in rig_values(rig).items()}
     sd = np.sqrt(np.clip(np.diag(joint), 0.0, None))
     std: dict[str, float | None] = {p: None for p in PARAMETERS}
     total: dict[str, float] = {}
     for i, p in enumerate(names):
         total[p] = values[p] * float(sd[i])  # log-space σ → absolute (first order)
-        if p in free:
+        if p in reported:
             std[p] = total[p]
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = joint / np.outer(sd, sd)
@@ -259,31 +318,29 @@ def fit_rig(rig: RigConfig, steps: Sequence[BallStep], *, use_tilt: bool = True)
                   "load_n": obs.steps[i].load_n, "ball_diameter_m": obs.steps[i].ball_diameter_m,
                   "measured_hz": float(m), "model_hz": float(f), "whitened": float(r)}
                  for i, t, m, f, r in zip(obs.step_of, obs.is_tilt, obs.hz, model, z, strict=True)]
-    return FitResult(values, std, total, correlation, tuple(free), held, chi2, int(obs.hz.size - len(free)),
-                     sigma, load_noise, sizes, residuals)
+    return FitResult(values, std, total, correlation, tuple(reported), {**unseparated, **held}, chi2,
+                     int(obs.hz.size - len(free)), sigma, step_rel, scale, load_noise, sizes, residuals, unused)
 
 
-def _fit_with_scatter(problem: _Problem, obs: Observations) -> tuple[np.ndarray, float, np.ndarray, float]:
-    """Fit, with the seating scatter σ chosen so that χ² = dof (zero if the other errors already explain it)."""
-    x0 = np.log([problem.nominal[p] for p in problem.free])
+def _fit_with_scatter(problem: _Problem, obs: Observations, x0: np.ndarray
+                      ) -> tuple[np.ndarray, float, np.ndarray, float, float, float]:
+    """Fit with the scatter the data show: per seating and per frequency, estimated from the residuals.
+
+    The two scatter terms are estimated by moments and the fit repeated (three rounds); if χ² still exceeds
+    its degrees of freedom, every uncertainty is scaled up by sqrt(χ²/dof) (never down).
+    Returns parameters, χ², covariance, seating σ, per-frequency σ, the error scale applied.
+    """
     dof = obs.hz.size - len(problem.free)
-    problem.set_scatter(0.0)
+    seating = step = 0.0
+    problem.set_scatter(seating, step)
     x, chi2, cov = problem.solve(x0)
-    if chi2 <= dof:
-        return x, chi2, cov, 0.0
-    state = {"x": x}
-
-    def excess(log_sigma: float) -> float:
-        problem.set_scatter(10.0**log_sigma)
-        state["x"], c2, _ = problem.solve(state["x"])
-        return c2 - dof
-
-    lo, hi = -7.0, -0.5
-    log_sigma = hi if excess(hi) > 0 else brentq(excess, lo, hi, xtol=1e-3)
-    sigma = 10.0**log_sigma
-    problem.set_scatter(sigma)
-    x, chi2, cov = problem.solve(state["x"])
-    return x, chi2, cov, sigma
+    for _ in range(4 if chi2 > dof else 0):
+        seating, step = problem.scatter_moments(obs.hz - predict_hz(problem.config(x), obs), step)
+        seating = min(seating, MAX_SCATTER_REL)
+        problem.set_scatter(seating, step)
+        x, chi2, cov = problem.solve(x)
+    scale = math.sqrt(chi2 / dof) if chi2 > dof else 1.0
+    return x, chi2, cov * scale**2, seating, step, scale
 
 
 def _pct(rel: float) -> str:
