@@ -299,3 +299,18 @@ def test_read_ball_steps_uses_stored_results_loads_and_ball_attributes(twin):
     assert {round(s.ball_diameter_m, 9) for s in c.steps} == {0.009}
     assert len({s.run_key for s in c.steps}) == 2
     assert all(s.bounce_hz > 0 and s.tilt_hz and s.load_repeat_n for s in c.steps)
+
+
+def test_identify_with_the_calibrated_rig_matches_the_world(twin, calibrated, capsys, tmp_path):
+    _, rig_out = calibrated
+    npz = tmp_path / "impacts.npz"
+    proc = labctl_here(capsys, "simulate", "impacts", "--roller-type", "1", "--load-n", "200", "--impacts", "2",
+                       "--world", str(twin["roller_world"]), "--seed", "3", "--out", str(npz), "--json")
+    assert proc.returncode == 0, proc.stderr
+    truth = json.loads(proc.stdout)["roller_stiffness_n_per_m"][0]
+    got = {}
+    for label, extra in (("nominal", []), ("calibrated", ["--rig", str(rig_out)])):
+        proc = labctl_here(capsys, "identify", str(npz), *extra, "--json")
+        assert proc.returncode == 0, proc.stderr
+        got[label] = json.loads(proc.stdout)["roller_stiffness_n_per_m"] / truth - 1
+    assert abs(got["calibrated"]) < 0.003 < abs(got["nominal"])
