@@ -314,3 +314,17 @@ def test_identify_with_the_calibrated_rig_matches_the_world(twin, calibrated, ca
         assert proc.returncode == 0, proc.stderr
         got[label] = json.loads(proc.stdout)["roller_stiffness_n_per_m"] / truth - 1
     assert abs(got["calibrated"]) < 0.003 < abs(got["nominal"])
+
+
+def test_a_campaign_run_with_the_calibrated_rig_stores_it_with_its_provenance(twin, calibrated, capsys, tmp_path):
+    r, rig_out = calibrated
+    proto = tmp_path / "one_step.toml"
+    proto.write_text(_ball_protocol(9.0, 45.0, 1))  # the preload step only
+    out = tmp_path / "with_calibrated_rig.h5"
+    proc = labctl_here(capsys, "run", str(proto), "--world", str(twin["balls_world"]), "--rig", str(rig_out),
+                       "--seed", "9", "--out", str(out), "--json")
+    assert proc.returncode == 0, proc.stderr
+    stored = read_ball_steps(out).rig_text
+    rig = rig_from_text(stored, "stored")
+    assert rig.upper.mass_kg == pytest.approx(r["mass_kg"], rel=1e-12)
+    assert rig.calibration["campaigns"] == [str(twin["b6"]), str(twin["b9"])]

@@ -123,6 +123,7 @@ def calibrate(paths: Sequence[str | Path], rig: str | Path | None = None, *, use
         raise InputError("no campaign files given")
     campaigns = [read_ball_steps(p) for p in paths]
     if rig is not None:
+        load_rig(rig)  # names the file and the field of any error
         text, source = Path(rig).read_text(encoding="utf-8"), str(rig)
     else:
         stored = [(c.path, c.rig_text) for c in campaigns]
