@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from labctl.errors import InputError
-from labctl.physics.rig_config import RigConfig, rig_from_text
+from labctl.physics.rig_config import RigConfig, load_rig, rig_from_text
 from labctl.processing import CheckConfig
 from labctl.protocol import parse_protocol
 from labctl.recording import process_step
@@ -50,10 +50,10 @@ def checks_of(reader: CampaignReader) -> CheckConfig:
     return parse_protocol(text, f"{reader.path}:/config/protocol.toml").checks if text else CheckConfig()
 
 
-def process_campaign(path: str | Path) -> Processed:
-    """Identify every step of every run again from its stored impacts."""
+def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None) -> Processed:
+    """Identify every step of every run again from its stored impacts (with ``rig``: another rig description)."""
     with CampaignReader(path) as reader:
-        rig = rig_of(reader)
+        rig = rig_of(reader) if rig is None else rig if isinstance(rig, RigConfig) else load_rig(rig)
         checks = checks_of(reader)
         if reader.step_count() == 0:
             raise InputError(f"{path}: the campaign holds no load step yet (nothing was measured)")

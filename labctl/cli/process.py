@@ -11,6 +11,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("process", help="(re)process a campaign file; export the stiffness table as CSV")
     p.add_argument("file", metavar="FILE.h5", help="campaign file")
     p.add_argument("--csv", metavar="OUT", help="write the stiffness table (one row per identified step) to this CSV")
+    p.add_argument("--rig", help="rig TOML file to process with (e.g. a calibrated rig; default: the stored rig)")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -19,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
 
-    done = process_campaign(args.file)
+    done = process_campaign(args.file, rig=args.rig)
     if args.csv:
         write_stiffness_table(args.csv, done.points)
     steps = []

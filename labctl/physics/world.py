@@ -30,7 +30,7 @@ UNITS: dict[str, tuple[str, float]] = {
     "_mm": ("_m", 1e-3), "_um": ("_m", 1e-6), "_mrad": ("_rad", 1e-3), "_ms": ("_s", 1e-3), "_gpa": ("_pa", 1e9),
 }
 SI_SUFFIXES = ("_m", "_rad", "_s", "_pa")
-TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments"}
+TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments", "rig"}
 
 
 def to_si(key: str, value: float) -> tuple[str, float]:
@@ -95,9 +95,11 @@ class World:
     instruments: dict[str, float] = field(default_factory=dict)  # SI overrides of the simulator's settings
     source: str = ""
     description: str = ""
+    rig_overrides: tuple[tuple[str, str, float], ...] = ()  # (rig-file table, key, value in the file's units)
 
     def true_rig(self, rig: RigConfig) -> RigConfig:
-        """The rig as it really is in this world: its K_setup is the nominal one times the world's factor."""
+        """The rig as it really is in this world: the ``[rig]`` table's values, then K_setup times the factor."""
+        rig = override_rig(rig, self.rig_overrides)
         if self.setup_stiffness_factor == 1.0:
             return rig
         return rig.with_setup_stiffness(self.setup_stiffness_factor * rig.setup_stiffness_n_per_m)
@@ -155,7 +157,57 @@ def load_world(path: str | Path | None = None) -> World:
         instruments=_instruments(doc.get("instruments", {}), f"{where}: instruments"),
         source=where,
         description=str(doc.get("description", "")),
+        rig_overrides=rig_overrides(doc.get("rig", {}), f"{where}: rig"),
     )
+
+
+# The world's [rig] table: the true rig where it differs from the rig file, with the rig file's tables and keys.
+RIG_KEYS: dict[str, tuple[str, ...]] = {
+    "upper_disc": ("mass_kg", "inertia_kg_m2", "thickness_mm"),
+    "lower_disc": ("mass_kg", "inertia_kg_m2", "thickness_mm"),
+    "contacts": ("radius_mm", "setup_stiffness_n_per_m"),
+    "support": ("stiffness_n_per_m", "radius_mm", "damping_ratio"),
+    "damping": ("modal_damping_ratio",),
+}
+
+
+def rig_overrides(doc: Any, where: str) -> tuple[tuple[str, str, float], ...]:
+    """Validate a world's ``[rig]`` table: known rig-file tables and keys, positive finite numbers."""
+    if not isinstance(doc, dict):
+        raise InputError(f"{where} = {doc!r}: expected a table of rig-file tables")
+    out: list[tuple[str, str, float]] = []
+    for table, values in doc.items():
+        if table not in RIG_KEYS:
+            raise InputError(f"{where}.{table}: unknown rig table; expected one of {', '.join(RIG_KEYS)}")
+        if not isinstance(values, dict):
+            raise InputError(f"{where}.{table} = {values!r}: expected a table of rig-file keys")
+        for key in values:
+            if key not in RIG_KEYS[table]:
+                raise InputError(f"{where}.{table}.{key}: unknown key; expected one of {', '.join(RIG_KEYS[table])}")
+            value = require(values, key, float, f"{where}.{table}")
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"{where}.{table}.{key} = {value!r}: expected a positive finite number")
+            out.append((table, key, float(value)))
+    return tuple(out)
+
+
+def override_rig(rig: RigConfig, overrides: tuple[tuple[str, str, float], ...]) -> RigConfig:
+    """The rig with a world's ``[rig]`` values (rig-file units: mm converted to m) in place of the file's."""
+    discs = {"upper_disc": rig.upper, "lower_disc": rig.lower}
+    fields: dict[str, Any] = {}
+    for table, key, value in overrides:
+        si = value * 1e-3 if key.endswith("_mm") else value
+        if table in discs:
+            name = "thickness_m" if key == "thickness_mm" else key
+            discs[table] = replace(discs[table], **{name: si})
+        else:
+            name = {("contacts", "radius_mm"): "contact_radius_m", ("support", "stiffness_n_per_m"):
+                    "support_stiffness_n_per_m", ("support", "radius_mm"): "support_radius_m",
+                    ("support", "damping_ratio"): "support_damping_ratio"}.get((table, key), key)
+            fields[name] = si
+    if not overrides:
+        return rig
+    return replace(rig, upper=discs["upper_disc"], lower=discs["lower_disc"], **fields)
 
 
 def _law(
