@@ -1,0 +1,144 @@
+"""Reprocess many campaign files: in this process, on a local Dask cluster, or on an existing scheduler.
+
+Each file is one task that reads the raw impacts, identifies every step again and writes the results sidecar
+beside the file (labctl/storage/results.py). A task never raises: whatever goes wrong with one file becomes
+that file's outcome, so one corrupt file cannot stop the others. Dask is imported only here, and only when a
+cluster is asked for.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import socket
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+from labctl import __version__
+from labctl.archive.source import Reprocessed, reprocess
+from labctl.errors import InputError
+from labctl.storage.results import write_results
+
+
+@dataclass(frozen=True)
+class FileOutcome:
+    """How reprocessing one campaign file went."""
+
+    path: str
+    ok: bool
+    error: str = ""
+    steps: int = 0
+    identified: int = 0
+    written: bool = False
+    seconds: float = 0.0
+    worker: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def results_document(done: Reprocessed) -> dict[str, Any]:
+    """The sidecar's content: what was computed, from which file state, with which software and rig."""
+    return {
+        "software_version": __version__,
+        "source": {"file_name": Path(done.path).name, "size_bytes": done.size_bytes, "root_sha256": done.root_sha256},
+        "rig": asdict(done.rig),
+        "status": done.status,
+        "steps": done.steps,
+        "points": [asdict(p) for p in done.points],
+    }
+
+
+def reprocess_file(path: str) -> FileOutcome:
+    """Reprocess one campaign file and store its results beside it; failures are returned, never raised."""
+    t0 = time.perf_counter()
+    where = _where()
+    try:
+        done = reprocess(path)
+        written = write_results(path, results_document(done))
+    except Exception as exc:  # noqa: BLE001 — isolate every failure of one file from the others
+        msg = str(exc) if str(path) in str(exc) else f"{path}: {type(exc).__name__}: {exc}"
+        return FileOutcome(str(path), False, " ".join(msg.split()), seconds=time.perf_counter() - t0, worker=where)
+    identified = sum(1 for s in done.steps if s["result"] is not None)
+    return FileOutcome(str(path), True, "", len(done.steps), identified, written, time.perf_counter() - t0, where)
+
+
+def _where() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+@contextlib.contextmanager
+def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler``, or to a new local cluster of ``workers`` processes
+    with one thread each (processing is CPU-bound Python and NumPy: processes, not threads, scale)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("Dask is not installed: pip install 'dask[distributed]'") from None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=15)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = LocalCluster(n_workers=max(1, workers or 1), threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _progress(total: int, stream: TextIO | None) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=total, file=stream, unit="file", desc="reprocessing", disable=stream is None,
+                dynamic_ncols=True, leave=True)
+
+
+def process_files(paths: Sequence[str | Path], *, workers: int | None = None, scheduler: str | None = None,
+                  progress: TextIO | None = None, task: Callable[[str], FileOutcome] = reprocess_file
+                  ) -> list[FileOutcome]:
+    """Reprocess ``paths``: sequentially here when ``workers == 0`` and no scheduler, else with Dask.
+
+    Outcomes come back in the order of ``paths``. ``progress``: a stream for a progress bar (None: quiet).
+    """
+    names = [str(p) for p in paths]
+    bar = _progress(len(names), progress)
+    outcomes: dict[str, FileOutcome] = {}
+
+    def done(out: FileOutcome) -> None:
+        outcomes[out.path] = out
+        if not out.ok and progress is not None:
+            bar.write(f"failed: {out.error}", file=progress)
+        bar.update(1)
+
+    try:
+        if workers == 0 and not scheduler:
+            for name in names:
+                done(task(name))
+        else:
+            from distributed import as_completed
+
+            with dask_client(workers, scheduler) as client:
+                futures = client.map(task, names, pure=False)
+                path_of = {f.key: n for f, n in zip(futures, names, strict=True)}
+                for fut in as_completed(futures):
+                    try:
+                        done(fut.result())
+                    except Exception as exc:  # noqa: BLE001 — a worker lost or a task not runnable there
+                        name = path_of[fut.key]
+                        done(FileOutcome(name, False, f"{name}: {type(exc).__name__}: {exc}"))
+    finally:
+        bar.close()
+    return [outcomes[n] for n in names]
