@@ -23,6 +23,8 @@ from labctl.archive.source import Reprocessed, reprocess
 from labctl.errors import InputError
 from labctl.storage.results import write_results
 
+CONNECT_TIMEOUT_S = 15.0
+
 
 @dataclass(frozen=True)
 class FileOutcome:
@@ -81,7 +83,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
         raise InputError("Dask is not installed: pip install 'dask[distributed]'") from None
     if scheduler:
         try:
-            client = Client(scheduler, timeout=15)
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
         try:
@@ -114,31 +116,44 @@ def process_files(paths: Sequence[str | Path], *, workers: int | None = None, sc
     Outcomes come back in the order of ``paths``. ``progress``: a stream for a progress bar (None: quiet).
     """
     names = [str(p) for p in paths]
-    bar = _progress(len(names), progress)
-    outcomes: dict[str, FileOutcome] = {}
-
-    def done(out: FileOutcome) -> None:
-        outcomes[out.path] = out
-        if not out.ok and progress is not None:
-            bar.write(f"failed: {out.error}", file=progress)
-        bar.update(1)
-
-    try:
-        if workers == 0 and not scheduler:
+    if workers == 0 and not scheduler:
+        with _Tally(names, progress) as tally:
             for name in names:
-                done(task(name))
-        else:
-            from distributed import as_completed
+                tally.done(task(name))
+        return tally.ordered()
+    from distributed import as_completed
 
-            with dask_client(workers, scheduler) as client:
-                futures = client.map(task, names, pure=False)
-                path_of = {f.key: n for f, n in zip(futures, names, strict=True)}
-                for fut in as_completed(futures):
-                    try:
-                        done(fut.result())
-                    except Exception as exc:  # noqa: BLE001 — a worker lost or a task not runnable there
-                        name = path_of[fut.key]
-                        done(FileOutcome(name, False, f"{name}: {type(exc).__name__}: {exc}"))
-    finally:
-        bar.close()
-    return [outcomes[n] for n in names]
+    with dask_client(workers, scheduler) as client, _Tally(names, progress) as tally:
+        futures = client.map(task, names, pure=False)
+        path_of = {f.key: n for f, n in zip(futures, names, strict=True)}
+        for fut in as_completed(futures):
+            try:
+                tally.done(fut.result())
+            except Exception as exc:  # noqa: BLE001 — a worker lost, or the task cannot run there
+                name = path_of[fut.key]
+                tally.done(FileOutcome(name, False, f"{name}: {type(exc).__name__}: {exc}"))
+    return tally.ordered()
+
+
+class _Tally:
+    """Outcomes as they arrive, with a progress bar on a stream (failures printed above it)."""
+
+    def __init__(self, names: list[str], stream: TextIO | None) -> None:
+        self.names, self.stream = names, stream
+        self.outcomes: dict[str, FileOutcome] = {}
+        self.bar = _progress(len(names), stream)
+
+    def done(self, out: FileOutcome) -> None:
+        self.outcomes[out.path] = out
+        if not out.ok and self.stream is not None:
+            self.bar.write(f"failed: {out.error}", file=self.stream)
+        self.bar.update(1)
+
+    def ordered(self) -> list[FileOutcome]:
+        return [self.outcomes[n] for n in self.names]
+
+    def __enter__(self) -> _Tally:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.close()
