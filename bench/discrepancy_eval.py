@@ -10,7 +10,8 @@ Reports the confusion matrix (truth vs first named effect), top-1 accuracy where
 noise, the false-positive rate on null data, parameter recovery, gap reduction on held-out roller types and
 the time per dataset. Acceptance: top-1 ≥ 0.9 (size ≥ 3), false positives ≤ 5 %, every dataset < 10 s.
 
-    python bench/discrepancy_eval.py [--per-effect 40] [--nulls 100] [--workers 2] [--seed 0] [--out FILE]
+    python bench/discrepancy_eval.py [--per-effect 40] [--nulls 100] [--workers 2 | --scheduler ADDRESS]
+                                     [--seed 0] [--out FILE]
 """
 
 from __future__ import annotations
@@ -210,6 +211,8 @@ def main() -> None:
     parser.add_argument("--per-effect", type=int, default=40, help="datasets per hidden effect (default 40)")
     parser.add_argument("--nulls", type=int, default=100, help="null datasets (default 100)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run the datasets on this Dask scheduler (tcp://host:8786) instead of local processes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--formulation", choices=("twin", "independent"), default="twin",
                         help="hidden effects as the library's terms (twin) or in other functional forms")
@@ -223,11 +226,17 @@ def main() -> None:
     tasks += [Task(NONE, args.seed * 100_000 + 50_000 + j, args.formulation, args.background)
               for j in range(args.nulls)]
     start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        results = list(pool.map(run_task, tasks, chunksize=4))
+    if args.scheduler:
+        from labctl.archive.runner import dask_map
+
+        results = dask_map(run_task, tasks, scheduler=args.scheduler)
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            results = list(pool.map(run_task, tasks, chunksize=4))
     print(f"formulation: {args.formulation}; background: {'surface roughness' if args.background else 'none'}\n")
     print(summarize(results))
-    print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {args.workers} workers")
+    where = args.scheduler or f"{args.workers} workers"
+    print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {where}")
     if args.out:
         with open(args.out, "w", encoding="utf-8") as fh:
             json.dump(results, fh, indent=1)
