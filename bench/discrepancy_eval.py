@@ -18,7 +18,8 @@ Suites (``--suite``, default ``acceptance`` = all but ``twin``):
 - ``robust``: one duplicated row with a wrong stiffness, 3 % gross outliers, stiffness given in N/mm — the
   finding reported and the verdict unchanged (or the input refused).
 
-    python bench/discrepancy_eval.py [--suite acceptance] [--seeds 20] [--noise 0.5,1,2] [--workers 2] [--out F]
+    python bench/discrepancy_eval.py [--suite acceptance] [--seeds 20] [--noise 0.5,1,2]
+                                     [--workers 2 | --scheduler ADDRESS] [--out F]
 """
 
 from __future__ import annotations
@@ -390,14 +391,21 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20, help="datasets per scenario and noise scale (default 20)")
     parser.add_argument("--noise", default="0.5,1,2", help="noise scales (default 0.5,1,2)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run the datasets on this Dask scheduler (tcp://host:8786) instead of local processes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="write every dataset's result as JSON here")
     args = parser.parse_args()
     scales = [float(v) for v in args.noise.split(",")]
     tasks = tasks_for(args.suite, args.seeds, scales, args.seed)
     start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        results = list(pool.map(run_task, tasks, chunksize=2))
+    if args.scheduler:
+        from labctl.archive.runner import dask_map
+
+        results = dask_map(run_task, tasks, scheduler=args.scheduler)
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            results = list(pool.map(run_task, tasks, chunksize=2))
     parts = []
     for suite, title in (("independent", "Hidden effects in functional forms unlike the library's"),
                          ("twin", "Hidden effects in the library's own forms")):
@@ -412,7 +420,8 @@ def main() -> None:
         parts.append(summarize_robust([r for r in results if r["suite"] == "robust"]))
     print("\n\n".join(parts))
     seconds = [r["seconds"] for r in results]
-    print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {args.workers} workers; "
+    where = args.scheduler or f"{args.workers} workers"
+    print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {where}; "
           f"workflow time per 231-point dataset: mean {np.mean(seconds):.2f} s, max {np.max(seconds):.2f} s")
     if args.out:
         with open(args.out, "w", encoding="utf-8") as fh:
