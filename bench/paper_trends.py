@@ -123,13 +123,10 @@ def at_load(curve: Curve, load_n: float) -> float:
 
 def findings(world: str, seed: int, raw: bool, tmp: Path) -> list[dict[str, object]]:
     curves: dict[tuple[int, float], Curve] = {}
-    ref_rows: list = []
     for type_id in range(1, 10):
         for ra in RAILS:
             if raw or (type_id, ra) == (1, 0.2e-6):
-                curve, rows = raw_curve(type_id, ra, world, seed, tmp)
-                if (type_id, ra) == (1, 0.2e-6):
-                    ref_rows = rows
+                curve, _ = raw_curve(type_id, ra, world, seed, tmp)
             else:
                 curve = truth_curve(type_id, ra, world, seed + type_id)
             curves[type_id, ra] = curve

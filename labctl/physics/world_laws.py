@@ -33,11 +33,13 @@ SPOT_AREA_M2 = 0.01e-6  # reference contact patch of the seating scatter
 class ConformingContact:
     """Elastic line contact with end effects, in series with a plastically conforming asperity layer.
 
-    1/k = 1/(k_Tripp(t)·(1 + 2·edge/L_we)·bedding) + 2·σ_eff/F, with edge = edge_length + edge_half_widths·a
-    (the rail beyond each end carries load over a zone as deep as the contact's stress field, ∝ the half-width a), where the asperity layer (exponential height tail,
-    stiffness F/σ per contact) has σ = asperity_scale·sqrt(Ra_rail² + (roller_ra_weight·Ra_roller)²) and the
-    softer body's asperities yield as the peak Hertz pressure p approaches a fraction of its hardness H:
-    σ_eff = σ / (1 + (p/(conformity·H))^n). Lower hardness → more conformity → stiffer, most on rough rails.
+    1/k = 1/(k_Tripp(t)·(1 + 2·edge/L_we)·(1 + b·(L_r - L_we)/L_we)) + 2·σ_eff/F.
+    End effects: edge = edge_length + edge_half_widths·a (the rail beyond each end carries load over a zone as
+    deep as the contact's stress field, ∝ the half-width a). Asperity layer (exponential height tail, stiffness
+    F/σ per contact): σ = asperity_scale·sqrt(Ra_rail² + (roller_ra_weight·Ra_roller)²); the softer body's
+    asperities yield as the peak Hertz pressure p approaches a fraction of its hardness H:
+    σ_eff = σ / (1 + (p/(conformity·H))^n). Bedding b: see ``bedded_fraction``. Lower hardness → more
+    conformity → stiffer, most on rough rails.
     """
 
     depth_m: float = 1.6e-3
@@ -53,7 +55,8 @@ class ConformingContact:
     seating_z: float = 0.0
     name: ClassVar[str] = "conforming"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {
-        "depth_m": (1e-4, 0.1), "edge_length_m": (0.0, 2e-3), "edge_half_widths": (0.0, 20.0), "asperity_scale": (0.0, 20.0),
+        "depth_m": (1e-4, 0.1), "edge_length_m": (0.0, 2e-3),
+        "edge_half_widths": (0.0, 20.0), "asperity_scale": (0.0, 20.0),
         "roller_ra_weight": (0.0, 1.0), "conformity": (0.01, 10.0),
         "conformity_exponent": (0.5, 20.0), "bedding": (0.01, 10.0), "bedding_exponent": (0.5, 40.0),
         "asperity_spot_rel": (0.0, 2.0), "seating_z": (-10.0, 10.0),
