@@ -21,7 +21,8 @@ class FaultSettings:
     double_hit_rate: float = 0.0  # per blow: the hammer bounces back, a second pulse 20-60 % as strong at 1-3 ms
     late_double_hit_rate: float = 0.0  # per blow: a small late second hit, 1-5 % as strong at +2 to +10 ms
     overload_rate: float = 0.0  # per blow: one channel (force or an accelerometer) driven past its range
-    intermittent_channel_rate: float = 0.0  # per record: one accelerometer channel's connector drops out
+    intermittent_channel_rate: float = 0.0  # per record: one accelerometer's connector drops out (reads flat 0)
+    dead_channel_rate: float = 0.0  # per seating: lifting the disc pulls a cable; flat 0 until the next seating
     mains_hum_m_per_s2: float = 0.0  # amplitude of mains hum on every accelerometer channel (with 3rd harmonic)
     mains_hz: float = 50.0
     creep_rate: float = 0.0  # per knob turn: a loose nut; the step's blows set the load creeping

@@ -58,6 +58,7 @@ class RigTwin:
         self.faults = faults or FaultSettings()
         self.fault_log: list[tuple[float, str]] = []  # (rig time, what happened): the faults actually generated
         self.slack_deg = 0.0
+        self.pulled_channel: str | None = None  # a cable pulled at the last seating (fault): reads flat 0
         self._creep_pending = False  # a loose knob nut: the blows of this step start it creeping
         self.clock_start_s = time.time() if clock_start_s is None else clock_start_s
         self.time_s = 0.0
@@ -155,6 +156,10 @@ class RigTwin:
             worse = int(self._rng_fault.integers(len(rollers)))
             rollers[worse] = BurrSeated(rollers[worse], f.unequal_seating_gap_m)
             self._log(f"roller {worse + 1} seated on a {f.unequal_seating_gap_m * 1e6:g} µm burr")
+        self.pulled_channel = None
+        if f.dead_channel_rate and self._rng_fault.random() < f.dead_channel_rate:
+            self.pulled_channel = str(self._rng_fault.choice(self.rig.channels))
+            self._log(f"{self.pulled_channel} cable pulled: the channel reads 0 until the next seating")
         return rollers
 
     def rotate_rollers(self) -> None:
@@ -269,9 +274,9 @@ class RigTwin:
         if strike.overload_channel is not None:
             gain = self._overload_gain(strike.overload_channel, force, accel, channels)
             force, accel = force * gain, accel * gain
-        dropped = self._random_dropout(channels)
+        flat = {self._random_dropout(channels), self.pulled_channel} - {None}
         for i, ch in enumerate(channels):
-            if ch in self.dead_channels or ch == dropped:
+            if ch in self.dead_channels:
                 accel[i] = 0.0
         if self.faults.mains_hum_m_per_s2 > 0:
             accel += mains_hum(n_samples, sample_rate_hz, self.faults.mains_hum_m_per_s2, self.faults.mains_hz,
@@ -280,6 +285,9 @@ class RigTwin:
         accel = accel + self._rng_noise.normal(0.0, s.accel_noise_m_per_s2, accel.shape)
         force, f_clip = digitise(force, s.force_range_n, s.adc_bits)
         accel, a_clip = digitise(accel, s.accel_range_m_per_s2, s.adc_bits)
+        for i, ch in enumerate(channels):
+            if ch in flat:  # an open IEPE input: the front end's open-circuit detection reads 0
+                accel[i], a_clip[i] = 0.0, False
         self.time_s = max(self.time_s, strike.time_s) + n_samples / sample_rate_hz
         clipped = (("F",) if f_clip[0] else ()) + tuple(ch for ch, c in zip(channels, a_clip, strict=True) if c)
         return Record(sample_rate_hz, force, accel, channels, trigger.pretrigger_samples,
