@@ -10,7 +10,7 @@ import dataclasses
 from pathlib import Path
 
 from drivers.interfaces import Operator, Rig
-from drivers.sim import RigTwin, SimSettings, build_sim_rig
+from drivers.sim import FaultSettings, RigTwin, SimSettings, build_sim_rig
 from labctl.errors import InputError
 from labctl.physics.effects import ContactCase
 from labctl.physics.rig import rig_modes
@@ -52,7 +52,7 @@ def make_rig(
 def make_twin(world: World, case: ContactCase, rig: RigConfig, *, seed: int | None = None) -> RigTwin:
     """The digital twin of ``rig`` (as it truly is in ``world``) with the rollers of ``case`` seated."""
     return RigTwin(world.true_rig(rig), world.specimen(case), rig_modes, seed=seed,
-                   settings=sim_settings(world))
+                   settings=sim_settings(world), faults=fault_settings(world))
 
 
 def sim_settings(world: World) -> SimSettings:
@@ -68,6 +68,20 @@ def sim_settings(world: World) -> SimSettings:
         return SimSettings(**values)
     except ValueError as exc:
         raise InputError(f"{world.source}: instruments: {exc}") from None
+
+
+def fault_settings(world: World) -> FaultSettings:
+    """The simulator's fault rates and sizes from the world file's ``[faults]`` table (none by default)."""
+    names = [f.name for f in dataclasses.fields(FaultSettings)]
+    unknown = sorted(set(world.faults) - set(names))
+    if unknown:
+        raise InputError(
+            f"{world.source}: faults: unknown setting(s) {', '.join(unknown)}; expected {', '.join(names)}"
+        )
+    try:
+        return FaultSettings(**world.faults)
+    except ValueError as exc:
+        raise InputError(f"{world.source}: faults: {exc}") from None
 
 
 def _specimen(case: ContactCase) -> str:

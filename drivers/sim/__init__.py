@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from drivers.interfaces import Operator, Rig
 from drivers.operators import ScriptedOperator
+from drivers.sim.faults import FaultSettings
 from drivers.sim.instruments import SimActuator, SimDaq, SimHammer, SimLoadCell
 from drivers.sim.model import ModesFunction, RigLike, SimSettings, Specimen
 from drivers.sim.operator import TwinOperator
@@ -36,6 +37,6 @@ def twin_of(rig: Rig) -> RigTwin:
 
 
 __all__ = [
-    "ModesFunction", "RigLike", "RigTwin", "SimActuator", "SimDaq", "SimHammer", "SimLoadCell", "SimSettings",
-    "Specimen", "TwinOperator", "build_sim_rig", "twin_of",
+    "FaultSettings", "ModesFunction", "RigLike", "RigTwin", "SimActuator", "SimDaq", "SimHammer", "SimLoadCell",
+    "SimSettings", "Specimen", "TwinOperator", "build_sim_rig", "twin_of",
 ]

@@ -117,6 +117,11 @@ class SimLoadCell(_SimInstrument):
 
     def read(self) -> LoadReading:
         self._check("read")
+        fault = self.twin.load_cell_fault()
+        if fault == "timeout":
+            raise DeviceTimeout(self.name, "read", f"no answer within {self.twin.settings.load_cell_read_s:g} s")
+        if fault == "garbled":
+            raise DeviceError(self.name, "read", "unreadable reply 'S D   ?#.2 kg'")
         force, stable = self.twin.read_load_cell()
         return LoadReading(force, stable)
 

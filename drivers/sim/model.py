@@ -115,6 +115,8 @@ class SimSettings:
     load_creep_n_per_s: float = 0.0
     stable_rate_n_per_s: float = 0.5
     knob_turn_s_per_deg: float = 0.01
+    knob_slack_deg: float = 0.0  # after re-seating, the nuts turn up to this far (uniform) before the springs bite
+    contact_nonlinearity: float = 1.0  # 1: a blow's force swing shifts the contact stiffness (first order); 0: off
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():

@@ -35,6 +35,10 @@ class Blow:
             out += _half_sine(t_s - onset_s - self.second_delay_s, self.width_s, self.peak_n * self.second_ratio)
         return out
 
+    def impulse_n_s(self) -> float:
+        """∫F dt of the blow (both pulses)."""
+        return 2.0 / math.pi * self.width_s * self.peak_n * (1.0 + self.second_ratio)
+
     def onset_s(self, crossing_s: float, level_n: float) -> float:
         """Pulse start such that the rising force crosses ``level_n`` at ``crossing_s``."""
         return crossing_s - self.width_s / math.pi * math.asin(min(1.0, level_n / self.peak_n))

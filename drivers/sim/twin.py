@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from drivers.interfaces import Record, TriggerSpec
+from drivers.sim.faults import BurrSeated, FaultSettings, mains_hum
 from drivers.sim.model import ModesFunction, ModesLike, RigLike, SeatedRoller, SimSettings, Specimen
 from drivers.sim.response import Blow, digitise, modal_model, response
 
@@ -45,14 +46,20 @@ class RigTwin:
         seed: int | None = None,
         settings: SimSettings | None = None,
         clock_start_s: float | None = None,
+        faults: FaultSettings | None = None,
     ) -> None:
         seq = np.random.SeedSequence(seed)
         self.seed: int = int(seq.entropy)  # type: ignore[arg-type]
-        self._rng_seat, self._rng_blow, self._rng_noise, self._rng_cell = (
-            np.random.default_rng(s) for s in seq.spawn(4)
+        self._rng_seat, self._rng_blow, self._rng_noise, self._rng_cell, self._rng_fault = (
+            np.random.default_rng(s) for s in seq.spawn(5)
         )
         self.rig, self.specimen, self._modes_fn = rig, specimen, modes
         self.settings = settings or SimSettings()
+        self.faults = faults or FaultSettings()
+        self.fault_log: list[tuple[float, str]] = []  # (rig time, what happened): the faults actually generated
+        self.slack_deg = 0.0
+        self.pulled_channel: str | None = None  # a cable pulled at the last seating (fault): reads flat 0
+        self._creep_pending = False  # a loose knob nut: the blows of this step start it creeping
         self.clock_start_s = time.time() if clock_start_s is None else clock_start_s
         self.time_s = 0.0
         self.knob_angle_deg = 0.0
@@ -79,7 +86,7 @@ class RigTwin:
 
     def load_per_roller_n(self) -> float:
         """Load on each roller now: preload + spring force (the nut takes up slack first) + creep since the turn."""
-        spring = max(0.0, self.knob_angle_deg) * self.rig.load_per_knob_degree_n
+        spring = max(0.0, self.knob_angle_deg - self.slack_deg) * self.rig.load_per_knob_degree_n
         creep = self._creep_n + self.creep_n_per_s * (self.time_s - self._creep_since_s)
         return max(self.preload_n, self.preload_n + spring + creep)
 
@@ -91,6 +98,9 @@ class RigTwin:
         self.knob_angle_deg += angle_deg
         self.time_s += abs(angle_deg) * self.settings.knob_turn_s_per_deg
         self._creep_n, self._creep_since_s = 0.0, self.time_s
+        if self.faults.creep_rate and angle_deg > 0:
+            self.creep_n_per_s = self.settings.load_creep_n_per_s
+            self._creep_pending = bool(self._rng_fault.random() < self.faults.creep_rate)
         self._overshoot_n = SETTLE_OVERSHOOT * self.rig.roller_count * (self.load_per_roller_n() - before)
         self._reads_since_turn = 0
 
@@ -100,7 +110,7 @@ class RigTwin:
             raise ValueError(
                 f"load {load_n!r} N per roller is below the preload {self.preload_n:.1f} N (the upper disc's weight)"
             )
-        self.knob_angle_deg = (load_n - self.preload_n) / self.rig.load_per_knob_degree_n
+        self.knob_angle_deg = self.slack_deg + (load_n - self.preload_n) / self.rig.load_per_knob_degree_n
         self._creep_n, self._creep_since_s = 0.0, self.time_s
         self._overshoot_n = 0.0
         self._reads_since_turn = self.settings.load_cell_settle_reads
@@ -117,6 +127,22 @@ class RigTwin:
         drifting = abs(rollers * self.creep_n_per_s) > s.stable_rate_n_per_s
         return float(value - self._tare_n), settled and not drifting
 
+    def load_cell_fault(self) -> str | None:
+        """Whether this read fails on the line: ``"timeout"`` (no answer), ``"garbled"`` (unreadable reply) or None."""
+        f = self.faults
+        if not (f.load_cell_timeout_rate or f.load_cell_garbled_rate):
+            return None
+        u = self._rng_fault.random()
+        kind = ("timeout" if u < f.load_cell_timeout_rate
+                else "garbled" if u < f.load_cell_timeout_rate + f.load_cell_garbled_rate else None)
+        if kind is not None:
+            self.time_s += self.settings.load_cell_read_s
+            self._log(f"load cell read {kind}")
+        return kind
+
+    def _log(self, what: str) -> None:
+        self.fault_log.append((self.time_s, what))
+
     def tare(self) -> None:
         """Zero the load cell at the force it carries now."""
         self._tare_n = 0.0
@@ -124,12 +150,25 @@ class RigTwin:
 
     # --- rollers and dynamics ------------------------------------------------------------------------
     def _seat(self) -> list[SeatedRoller]:
-        return [self.specimen.seat(self._rng_seat) for _ in range(self.rig.roller_count)]
+        rollers = [self.specimen.seat(self._rng_seat) for _ in range(self.rig.roller_count)]
+        f = self.faults
+        if f.unequal_seating_rate and self._rng_fault.random() < f.unequal_seating_rate:
+            worse = int(self._rng_fault.integers(len(rollers)))
+            rollers[worse] = BurrSeated(rollers[worse], f.unequal_seating_gap_m)
+            self._log(f"roller {worse + 1} seated on a {f.unequal_seating_gap_m * 1e6:g} µm burr")
+        self.pulled_channel = None
+        if f.dead_channel_rate and self._rng_fault.random() < f.dead_channel_rate:
+            self.pulled_channel = str(self._rng_fault.choice(self.rig.channels))
+            self._log(f"{self.pulled_channel} cable pulled: the channel reads 0 until the next seating")
+        return rollers
 
     def rotate_rollers(self) -> None:
-        """The disc was lifted and the rollers turned ~±5°: each roller now touches on a new contact spot."""
+        """The disc was lifted and the rollers turned ~±5°: each roller now touches on a new contact spot, and the
+        knob nuts, run back on, take up a new amount of slack before the springs bite."""
         self.rollers = self._seat()
         self.rotations += 1
+        if self.settings.knob_slack_deg > 0:
+            self.slack_deg = float(self._rng_seat.uniform(0.0, self.settings.knob_slack_deg))
 
     def roller_stiffness_n_per_m(self) -> list[float]:
         load = self.load_per_roller_n()
@@ -161,13 +200,65 @@ class RigTwin:
         phase = rng.uniform(0.0, 1.0)
         if self._next_peak_n is not None:
             peak, self._next_peak_n = self._next_peak_n, None
-        delay, ratio = self._next_double or (0.0, 0.0)
+        if self._creep_pending:
+            self._creep_pending = False
+            self.set_creep(self.faults.creep_n_per_s)
+            self._log(f"load creeps {self.faults.creep_n_per_s:g} N/s per roller from this blow on (loose knob nut)")
+        delay, ratio = self._next_double or self._random_double()
+        if self._next_overload is None:
+            self._next_overload = self._random_overload()
         x, y = self.rig.hammer_xy_m
         blow = Blow(peak, width, x + float(dx), y + float(dy), delay, ratio)
         strike = Strike(blow, self.time_s, phase, self._next_overload)
         self._next_double = self._next_overload = None
         self.strikes.append(strike)
         return strike
+
+    def _random_double(self) -> tuple[float, float]:
+        f, rng = self.faults, self._rng_fault
+        if not (f.double_hit_rate or f.late_double_hit_rate):
+            return 0.0, 0.0
+        u = rng.random()
+        if u < f.double_hit_rate:
+            delay, ratio = rng.uniform(1e-3, 3e-3), rng.uniform(0.2, 0.6)
+        elif u < f.double_hit_rate + f.late_double_hit_rate:
+            delay, ratio = rng.uniform(2e-3, 10e-3), rng.uniform(0.01, 0.05)
+        else:
+            return 0.0, 0.0
+        self._log(f"double hit: second pulse {ratio:.0%} at +{delay * 1e3:.1f} ms")
+        return float(delay), float(ratio)
+
+    def _random_overload(self) -> str | None:
+        f, rng = self.faults, self._rng_fault
+        if not (f.overload_rate and rng.random() < f.overload_rate):
+            return None
+        channel = str(rng.choice(("F", *self.rig.channels)))
+        self._log(f"overload on {channel}")
+        return channel
+
+    def blow_modes(self, blow: Blow) -> ModesLike:
+        """The modes the record of this blow shows: the contact is nonlinear, so the force swing ΔF the blow puts
+        through each roller shifts its effective stiffness (first order, amplitude-averaged over the decay):
+        Δk/k = s·ΔF²·(k''/(8k) - k'²/(12k²)) with k', k'' derivatives in F and s = 1/2 (energy weighting)."""
+        static = self.modes()
+        scale = self.settings.contact_nonlinearity
+        if scale == 0.0:
+            return static
+        impulse = blow.impulse_n_s()
+        b = int(np.argmin(np.abs(np.asarray(static.frequencies_hz) - static.bounce_hz)))
+        relative = static.vertical_at("upper", 0.0, 0.0, b) - static.vertical_at("lower", 0.0, 0.0, b)
+        omega = 2.0 * math.pi * static.bounce_hz
+        swing = abs(omega * static.vertical_at("upper", blow.x_m, blow.y_m, b) * impulse / relative)
+        swing /= self.rig.roller_count
+        load = self.load_per_roller_n()
+        swing = min(swing, 0.9 * load)
+        ks = []
+        for r in self.rollers:
+            h = 0.05 * load
+            k0, kp, km = (float(r.stiffness_n_per_m(x)) for x in (load, load + h, load - h))
+            k_f, k_ff = (kp - km) / (2 * h), (kp - 2 * k0 + km) / h**2
+            ks.append(k0 * (1.0 + scale * 0.5 * swing**2 * (k_ff / (8 * k0) - k_f**2 / (12 * k0**2))))
+        return self._modes_fn(self.rig, ks)
 
     def record(self, strike: Strike, sample_rate_hz: float, n_samples: int, trigger: TriggerSpec) -> Record | None:
         """The record the DAQ captures of a blow, or None if its force never reaches the trigger level."""
@@ -178,22 +269,37 @@ class RigTwin:
         t = np.arange(n_samples) / sample_rate_hz
         crossing = (trigger.pretrigger_samples - strike.sample_phase) / sample_rate_hz
         force = blow.force_n(t, blow.onset_s(crossing, trigger.level_n))
-        model = modal_model(self.modes(), self.rig.flexible_modes, channels, blow.x_m, blow.y_m)
+        model = modal_model(self.blow_modes(blow), self.rig.flexible_modes, channels, blow.x_m, blow.y_m)
         accel = response(model, force, sample_rate_hz)
         if strike.overload_channel is not None:
             gain = self._overload_gain(strike.overload_channel, force, accel, channels)
             force, accel = force * gain, accel * gain
+        flat = {self._random_dropout(channels), self.pulled_channel} - {None}
         for i, ch in enumerate(channels):
             if ch in self.dead_channels:
                 accel[i] = 0.0
+        if self.faults.mains_hum_m_per_s2 > 0:
+            accel += mains_hum(n_samples, sample_rate_hz, self.faults.mains_hum_m_per_s2, self.faults.mains_hz,
+                               self._rng_fault, len(channels))
         force = force + self._rng_noise.normal(0.0, s.force_noise_n, n_samples)
         accel = accel + self._rng_noise.normal(0.0, s.accel_noise_m_per_s2, accel.shape)
         force, f_clip = digitise(force, s.force_range_n, s.adc_bits)
         accel, a_clip = digitise(accel, s.accel_range_m_per_s2, s.adc_bits)
+        for i, ch in enumerate(channels):
+            if ch in flat:  # an open IEPE input: the front end's open-circuit detection reads 0
+                accel[i], a_clip[i] = 0.0, False
         self.time_s = max(self.time_s, strike.time_s) + n_samples / sample_rate_hz
         clipped = (("F",) if f_clip[0] else ()) + tuple(ch for ch, c in zip(channels, a_clip, strict=True) if c)
         return Record(sample_rate_hz, force, accel, channels, trigger.pretrigger_samples,
                       self.clock_start_s + strike.time_s, clipped)
+
+    def _random_dropout(self, channels: tuple[str, ...]) -> str | None:
+        f, rng = self.faults, self._rng_fault
+        if not (f.intermittent_channel_rate and rng.random() < f.intermittent_channel_rate):
+            return None
+        channel = str(rng.choice(channels))
+        self._log(f"{channel} dropped out")
+        return channel
 
     def _overload_gain(self, channel: str, force: np.ndarray, accel: np.ndarray, channels: tuple[str, ...]) -> float:
         if channel == "F":

@@ -1,8 +1,10 @@
 """World scenarios: the physics hidden in the simulated rig's data, read from a TOML file (units at the edge).
 
-A world is a contact law (baseline + effect terms of ``labctl.physics.effects``), the rig's true setup
-stiffness relative to its nominal value, per-seating scatter of effect parameters, and optional overrides of
-the simulated instruments. The simulator evaluates it; the discrepancy workflow must find what it hides.
+A world is a contact law (a library baseline or a world law of ``labctl.physics.world_laws`` — physical, tabulated
+or a safe expression — followed by effect terms of ``labctl.physics.effects``), the rig's true setup stiffness
+relative to its nominal value, per-seating scatter of law parameters, optional overrides of the simulated
+instruments and the rates and sizes of instrument faults. The simulator evaluates it; the discrepancy workflow
+must find what it hides.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from labctl.physics.law import BASELINES, ContactLaw
 from labctl.physics.materials import Material
 from labctl.physics.rig_config import RigConfig
 from labctl.physics.tripp import DEFAULT_DEPTH_M
+from labctl.physics.world_laws import WORLD_BASELINES, ConformingContact, ExpressionLaw, TabulatedLaw, WorldLaw
 
 DEFAULT_WORLD = "default"
 WORLDS_DIR = "worlds"
@@ -30,7 +33,8 @@ UNITS: dict[str, tuple[str, float]] = {
     "_mm": ("_m", 1e-3), "_um": ("_m", 1e-6), "_mrad": ("_rad", 1e-3), "_ms": ("_s", 1e-3), "_gpa": ("_pa", 1e9),
 }
 SI_SUFFIXES = ("_m", "_rad", "_s", "_pa")
-TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments", "rig"}
+TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments", "faults", "rig"}
+BASE = -1  # index of a world law's own baseline in Scatter.parameters (effects count from 0)
 
 
 def to_si(key: str, value: float) -> tuple[str, float]:
@@ -51,14 +55,14 @@ class Scatter:
     """Redrawn each time a roller is seated: lognormal σ per effect parameter, and a load-independent σ."""
 
     stiffness_rel: float = 0.0
-    parameters: tuple[tuple[int, str, float], ...] = ()  # (index of the effect in the law, SI parameter, σ)
+    parameters: tuple[tuple[int, str, float], ...] = ()  # (effect index in the law or BASE, SI parameter, σ)
 
 
 @dataclass(frozen=True)
 class SeatedRoller:
     """One roller on its current contact spot: the world's law with this seating's parameters."""
 
-    law: ContactLaw
+    law: ContactLaw | WorldLaw
     case: ContactCase
     factor: float = 1.0
 
@@ -74,25 +78,33 @@ class WorldSpecimen:
     case: ContactCase
 
     def seat(self, rng: np.random.Generator) -> SeatedRoller:
-        effects = list(self.world.law.effects)
+        law = self.world.law
+        effects = list(law.effects)
         for index, param, sigma in self.world.scatter.parameters:
-            effect = effects[index]
-            lo, hi = effect.BOUNDS[param]
-            value = float(np.clip(getattr(effect, param) * math.exp(sigma * rng.standard_normal()), lo, hi))
-            effects[index] = replace(effect, **{param: value})  # type: ignore[type-var]
+            term = law.base if index == BASE else effects[index]  # type: ignore[union-attr]
+            lo, hi = term.BOUNDS[param]
+            value = float(np.clip(getattr(term, param) * math.exp(sigma * rng.standard_normal()), lo, hi))
+            if index == BASE:
+                law = law.with_base(**{param: value})  # type: ignore[union-attr]
+            else:
+                effects[index] = replace(term, **{param: value})  # type: ignore[type-var]
+        reseated = getattr(getattr(law, "base", None), "reseated", None)
+        if reseated is not None:
+            law = replace(law, base=reseated(rng))
         sigma = self.world.scatter.stiffness_rel
         factor = math.exp(sigma * rng.standard_normal()) if sigma > 0 else 1.0
-        return SeatedRoller(replace(self.world.law, effects=tuple(effects)), self.case, factor)
+        return SeatedRoller(replace(law, effects=tuple(effects)), self.case, factor)
 
 
 @dataclass(frozen=True)
 class World:
     """Hidden physics of a simulated rig."""
 
-    law: ContactLaw
+    law: ContactLaw | WorldLaw
     setup_stiffness_factor: float = 1.0
     scatter: Scatter = field(default_factory=Scatter)
     instruments: dict[str, float] = field(default_factory=dict)  # SI overrides of the simulator's settings
+    faults: dict[str, float] = field(default_factory=dict)  # SI rates and sizes of the simulator's faults
     source: str = ""
     description: str = ""
     rig_overrides: tuple[tuple[str, str, float], ...] = ()  # (rig-file table, key, value in the file's units)
@@ -155,6 +167,7 @@ def load_world(path: str | Path | None = None) -> World:
         setup_stiffness_factor=setup_factor,
         scatter=Scatter(stiffness_rel, params),
         instruments=_instruments(doc.get("instruments", {}), f"{where}: instruments"),
+        faults=_instruments(doc.get("faults", {}), f"{where}: faults"),
         source=where,
         description=str(doc.get("description", "")),
         rig_overrides=rig_overrides(doc.get("rig", {}), f"{where}: rig"),
@@ -212,17 +225,22 @@ def override_rig(rig: RigConfig, overrides: tuple[tuple[str, str, float], ...]) 
 
 def _law(
     baseline: dict[str, Any], effects_doc: Any, where: str
-) -> tuple[ContactLaw, float, tuple[tuple[int, str, float], ...]]:
+) -> tuple[ContactLaw | WorldLaw, float, tuple[tuple[int, str, float], ...]]:
     b_where = f"{where}: baseline"
     model = require(baseline, "model", str, b_where)
-    if model not in BASELINES:
-        raise InputError(f"{b_where}.model = {model!r}: expected one of {', '.join(BASELINES)}")
-    _only(baseline, {"model", "depth_mm"} if model == "tripp" else {"model"}, b_where)
+    if model not in BASELINES and model not in WORLD_BASELINES:
+        raise InputError(f"{b_where}.model = {model!r}: expected one of {', '.join((*BASELINES, *WORLD_BASELINES))}")
+    base: ConformingContact | TabulatedLaw | ExpressionLaw | None = None
+    scatter: list[tuple[int, str, float]] = []
+    if model in WORLD_BASELINES:
+        base, base_rel = _world_baseline(model, baseline, b_where)
+        scatter.extend((BASE, param, sigma) for param, sigma in base_rel.items())
+    else:
+        _only(baseline, {"model", "depth_mm"} if model == "tripp" else {"model"}, b_where)
     depth_m = _number(baseline, "depth_mm", b_where, DEFAULT_DEPTH_M / 1e-3, 1e-3, 1e3) * 1e-3
     if not isinstance(effects_doc, dict):
         raise InputError(f"{where}: effects = {effects_doc!r}: expected a table of effect tables")
     effects: list[Effect] = []
-    scatter: list[tuple[int, str, float]] = []
     setup_factor = 1.0
     for name, table in effects_doc.items():
         e_where = f"{where}: effects.{name}"
@@ -238,7 +256,50 @@ def _law(
             continue
         scatter.extend((len(effects), param, sigma) for param, sigma in rel.items())
         effects.append(EFFECTS[name](**values))
+    if base is not None:
+        return WorldLaw(base, tuple(effects)), setup_factor, tuple(scatter)
     return ContactLaw(model, depth_m, tuple(effects)), setup_factor, tuple(scatter)
+
+
+def _world_baseline(
+    model: str, table: dict[str, Any], where: str
+) -> tuple[ConformingContact | TabulatedLaw | ExpressionLaw, dict[str, float]]:
+    """A world's own contact law (``labctl.physics.world_laws``) from its ``[baseline]`` table."""
+    if model == "expression":
+        _only(table, {"model", "expression"}, where)
+        text = require(table, "expression", str, where)
+        try:
+            return ExpressionLaw(text), {}
+        except ValueError as exc:
+            raise InputError(f"{where}.expression = {text!r}: {exc}") from None
+    if model == "table":
+        _only(table, {"model", "tables"}, where)
+        return TabulatedLaw(_tables(require(table, "tables", list, where), f"{where}.tables")), {}
+    params = {k: v for k, v in table.items() if k != "model"}
+    values, rel = _effect_parameters(ConformingContact, params, where)
+    return ConformingContact(**values), rel
+
+
+def _tables(entries: list[Any], where: str) -> tuple[tuple[int, tuple[float, ...], tuple[float, ...]], ...]:
+    out = []
+    for i, entry in enumerate(entries):
+        e_where = f"{where}[{i}]"
+        _only(entry, {"roller_type", "load_n", "stiffness_n_per_m"}, e_where)
+        type_id = require(entry, "roller_type", int, e_where)
+        loads = require(entry, "load_n", list, e_where)
+        ks = require(entry, "stiffness_n_per_m", list, e_where)
+        for key, values in (("load_n", loads), ("stiffness_n_per_m", ks)):
+            if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                       for v in values):
+                raise InputError(f"{e_where}.{key} = {values!r}: expected a list of positive numbers")
+        if len(loads) < 2 or len(loads) != len(ks) or any(b <= a for a, b in zip(loads, loads[1:], strict=False)):
+            raise InputError(f"{e_where}: load_n must rise strictly and match stiffness_n_per_m in length (>= 2)")
+        if type_id in (t[0] for t in out):
+            raise InputError(f"{e_where}.roller_type = {type_id}: a second table for the same roller type")
+        out.append((type_id, tuple(float(v) for v in loads), tuple(float(v) for v in ks)))
+    if not out:
+        raise InputError(f"{where}: expected at least one [[baseline.tables]] entry")
+    return tuple(out)
 
 
 def _effect_parameters(cls: type, table: dict[str, Any], where: str) -> tuple[dict[str, float], dict[str, float]]:
