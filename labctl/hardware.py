@@ -26,7 +26,7 @@ from labctl.errors import InputError, LabctlError
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
 ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # DESIGN §4: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
-EXAMPLE = "labctl/data/devices.example.toml"
+EXAMPLE = "the output of 'labctl devices example'"
 
 
 class HardwareError(LabctlError):
@@ -74,7 +74,7 @@ def find_devices_file(devices: str | Path | None = None) -> Path:
     for candidate in candidates:
         if candidate and Path(candidate).is_file():
             return Path(candidate)
-    raise InputError(f"no devices file: pass --devices FILE, set {DEVICES_ENV}, or copy {EXAMPLE} to ./devices.toml")
+    raise InputError(f"no devices file: pass --devices FILE, set {DEVICES_ENV}, or save {EXAMPLE} as ./devices.toml")
 
 
 def load_devices(devices: str | Path | None = None, *, usb_backend: Any = None,

@@ -52,3 +52,68 @@ def test_fit_below_validity_is_one_line_exit_2():
 )
 def test_bad_values_exit_2_with_one_line(args, fragment):
     assert_one_line_error(labctl(*args), fragment)
+
+
+HEAVY = ("numpy", "scipy", "h5py", "textual", "matplotlib")
+
+
+def test_registering_every_command_imports_no_heavy_library():
+    """The rule for command modules (labctl/cli/__init__.py): heavy imports happen when a command runs."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from labctl.cli import build_parser; build_parser(); "
+            f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "", f"imported at registration: {proc.stdout.strip()}"
+
+
+def test_main_imports_only_the_named_commands_module():
+    from labctl.cli import _modules_for, command_modules
+
+    assert _modules_for(["--version"]) == []
+    assert _modules_for(["import", "x.uff", "--json"]) == ["importer"]
+    assert _modules_for(["report", "--help"]) == ["report"]
+    assert _modules_for(["--help"]) is None and _modules_for(["nosuch"]) is None
+    assert {"importer", "report", "devices", "tui"} <= set(command_modules())
+
+
+def _leaf_parsers(parser, path=()):
+    import argparse
+
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield path, parser
+        return
+    for sub in subs:
+        for name, child in sub.choices.items():
+            yield from _leaf_parsers(child, (*path, name))
+
+
+def test_every_command_takes_json():
+    from labctl.cli import build_parser
+
+    leaves = list(_leaf_parsers(build_parser()))
+    assert len(leaves) > 10
+    missing = [" ".join(path) for path, p in leaves if "--json" not in p._option_string_actions]
+    assert missing == []
+
+
+def test_devices_example_json_and_no_source_tree_path(capsys, tmp_path, monkeypatch):
+    from tests.cli_util import labctl_here, labctl_here_json
+
+    out = labctl_here_json(capsys, "devices", "example")
+    assert "[load_cell]" in out["example"]
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("LABCTL_DEVICES", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    proc = labctl_here(capsys, "devices", "check")
+    line = assert_one_line_error(proc, "labctl devices example")
+    assert "labctl/data" not in line
+
+
+def test_tui_json_is_accepted_and_fails_cleanly_without_a_terminal(capsys):
+    from tests.cli_util import labctl_here
+
+    assert_one_line_error(labctl_here(capsys, "tui", "--json"), "interactive terminal")

@@ -46,13 +46,12 @@ def assert_not_blank_svg(path: Path) -> None:
 
 
 @pytest.mark.slow  # shares the demo campaign (~25 s to make)
-def test_report_on_the_demo_campaign_writes_every_figure_and_the_page(demo, tmp_path):
+def test_report_on_the_demo_campaign_writes_every_figure_and_the_page(demo, tmp_path, capsys):
     campaign, _ = demo
     out = tmp_path / "report"
-    res = labctl_json("report", str(campaign), "--out", str(out))
+    res = labctl_here_json(capsys, "report", str(campaign), "--out", str(out))
     names = [f["name"] for f in res["figures"]]
-    assert names == ["fig08_load_stiffness_s01", "fig12_models_ra0.2", "fig07_frf_s01_r01_step011",
-                     "frequency_load_s01"]
+    assert names == ["fig08_load_stiffness", "fig12_models_ra0.2", "fig07_frf_s01_r01_step011", "frequency_load"]
     page = Path(res["html"]).read_text(encoding="utf-8")
     for f in res["figures"]:
         png, svg = Path(f["png"]), Path(f["svg"])
@@ -65,6 +64,10 @@ def test_report_on_the_demo_campaign_writes_every_figure_and_the_page(demo, tmp_
         assert section in page
     assert res["impacts"] == {"accepted": 99, "rejected": 0, "by_reason": {}}
     assert Path(res["csv"]).name == "stiffness.csv" and 'href="stiffness.csv"' in page
+    assert res["simulated"] and "SIMULATED" in page and "<title>SIMULATED" in page
+    assert "Verdict against the model band" in page and "Rig and model parameters" in page
+    assert len(res["verdicts"]) == 11 and {v["model"] for v in res["verdicts"]} == {"Eq. 5"}
+    assert all(v["verdict"] in ("pass", "fail", "cannot tell") for v in res["verdicts"])
 
 
 @pytest.mark.slow  # shares the demo campaign (~25 s to make)
@@ -90,11 +93,11 @@ def test_models_figure_draws_eq5_and_the_measured_means_per_contact_length(demo)
     ax = models([series], "fit-ra0.2").axes[0]
     fit = next(line for line in ax.get_lines() if line.get_label() == "Eq. 5 fit")
     p = np.asarray(fit.get_xdata()) * 1e3  # N/mm → N/m
-    want = EmpiricalFit(EQ5, length).stiffness_n_per_m(p * length) / length * 1e-3
+    want = EmpiricalFit(EQ5, length).stiffness_n_per_m(p * length) / length * 1e-9  # N/µm per mm
     np.testing.assert_allclose(fit.get_ydata(), want, rtol=1e-12)
     means = ax.containers[0].lines[0]  # the error-bar markers: mean stiffness per step
     stats = series.step_stats()
-    np.testing.assert_allclose(means.get_ydata(), [s.stiffness_n_per_m / length * 1e-3 for s in stats])
+    np.testing.assert_allclose(means.get_ydata(), [s.stiffness_n_per_m / length * 1e-9 for s in stats])
 
 
 @pytest.mark.slow  # shares the demo campaign (~25 s to make)
@@ -151,9 +154,10 @@ def test_ball_campaigns_are_shown_against_hertz(tmp_path):
     series = SeriesData(1, "ball 6 mm", "ball", {}, case, [run])
     data = ReportData(tmp_path / "x.h5", {}, [series], ImpactStats(), None, {}, load_rig(), [])
     plots = {p.name: p for p in make_figures(data)}
-    assert set(plots) == {"fig08_load_stiffness_s01", "verification_hertz", "frequency_load_s01"}
-    hertz = plots["verification_hertz"].figure.axes[0].get_lines()[1]
-    want = HertzBallContact(6e-3, steel, steel).stiffness_n_per_m(hertz.get_xdata())
+    assert set(plots) == {"fig08_load_stiffness", "verification_hertz", "frequency_load"}
+    hertz = next(line for line in plots["verification_hertz"].figure.axes[0].get_lines()
+                 if line.get_label().startswith("Hertz"))
+    want = HertzBallContact(6e-3, steel, steel).stiffness_n_per_m(hertz.get_xdata()) * 1e-6  # N/µm
     np.testing.assert_allclose(hertz.get_ydata(), want, rtol=1e-12)
 
 
@@ -172,3 +176,71 @@ def test_report_errors_are_one_line(short_campaign, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", str(blocker)), "not a folder")
+
+
+def _series(k_factor: float, scatter: float = 0.0, roller_type: int = 1, runs: int = 3):
+    """A roller series whose repetitions measure k_factor × Eq. 5 (± scatter, alternating)."""
+    from labctl.physics import EQ5, EmpiricalFit, material, roller
+    from labctl.physics.effects import ContactCase
+    from labctl.report.data import RunCurve, SeriesData
+
+    r = roller(roller_type)
+    case = ContactCase(r, material("1.3505"), 0.2e-6)
+    f = np.linspace(60, 400, 5)
+    k = EmpiricalFit(EQ5, r.contact_length_m).stiffness_n_per_m(f) * k_factor
+    curves = [RunCurve(i + 1, np.arange(1, 6), f, k * (1 + scatter * (-1) ** i), np.full(5, 700.0),
+                       np.full((5, 2), 550.0)) for i in range(runs)]
+    return SeriesData(1, f"roller type {roller_type}", "roller", {}, case, curves)
+
+
+def test_verdicts_pass_fail_and_cannot_tell_follow_the_stated_rule():
+    from labctl.physics.rig_config import load_rig
+    from labctl.report.verdict import series_verdicts
+
+    rig = load_rig()
+    assert {v.verdict for v in series_verdicts(_series(1.02), rig)} == {"pass"}
+    assert {v.verdict for v in series_verdicts(_series(1.30), rig)} == {"fail"}
+    assert {v.verdict for v in series_verdicts(_series(0.75), rig)} == {"fail"}
+    # mean 9 % high but repetitions ±10 % apart: the 95 % interval straddles the band edge
+    assert {v.verdict for v in series_verdicts(_series(1.09, scatter=0.10), rig)} == {"cannot tell"}
+    assert {v.verdict for v in series_verdicts(_series(1.09), rig, band=0.05)} == {"fail"}
+    si3n4 = series_verdicts(_series(1.0, roller_type=8), rig)
+    assert {v.verdict for v in si3n4} == {"no verdict"} and "steel" in si3n4[0].note
+
+
+def test_rig_uncertainty_propagates_like_eq4():
+    """d ln k / d ln m = 3k/K_total and d ln k / d ln K_setup = -3k/K_setup for 1/K_total = 1/(3k) + 1/K_setup."""
+    from dataclasses import replace
+
+    from labctl.physics.rig_config import RigUncertainty, load_rig
+    from labctl.report.verdict import rig_relative_std
+
+    rig = load_rig()
+    k = 4.5e7
+    m, ks = rig.upper.mass_kg, rig.setup_stiffness_n_per_m
+    k_total = 1 / (1 / (3 * k) + 1 / ks)
+    only_mass = replace(rig, uncertainty=RigUncertainty(mass_std_kg=0.01 * m))
+    assert rig_relative_std(only_mass, k) == pytest.approx(3 * k / k_total * 0.01, rel=0.05)
+    only_setup = replace(rig, uncertainty=RigUncertainty(setup_stiffness_std_n_per_m=0.1 * ks))
+    assert rig_relative_std(only_setup, k) == pytest.approx(3 * k / ks * 0.1, rel=0.1)
+    assert rig_relative_std(replace(rig, uncertainty=RigUncertainty(model_rel=0.003)), k) == pytest.approx(0.003)
+
+
+def test_simulated_figures_say_so_and_use_n_per_um(tmp_path):
+    from labctl.physics.rig_config import load_rig
+    from labctl.report.data import ImpactStats, ReportData
+    from labctl.report.figures import make_figures
+
+    series = [_series(1.0), _series(1.0, roller_type=8)]
+    series[1].index = 2
+    for attrs, marked in (({"backend": "sim"}, True), ({"backend": "hw"}, False)):
+        data = ReportData(tmp_path / "x.h5", attrs, series, ImpactStats(), None, {}, load_rig(), [])
+        for plot in make_figures(data):
+            title = plot.figure.get_suptitle()
+            assert ("SIMULATED" in title) == marked, (plot.name, title)
+            for ax in plot.figure.axes:
+                assert "1e" not in ax.yaxis.get_offset_text().get_text()
+    models = next(p for p in make_figures(data) if p.name.startswith("fig12")).figure
+    assert len([ax for ax in models.axes if ax.get_visible()]) == 2  # steel and Si3N4 apart
+    si3n4 = next(ax for ax in models.axes if "Si3N4" in ax.get_title())
+    assert not any(line.get_label() == "Eq. 5 fit" for line in si3n4.get_lines())

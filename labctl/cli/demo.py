@@ -7,8 +7,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from labctl.cli.common import add_json, emit
 
 PROTOCOL = "roller_stiffness"
@@ -28,6 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def summarise(curves: list[Any], case: Any) -> list[dict[str, float]]:
     """Per load step over the repetitions: mean load and stiffness, spread (max-min)/mean, and the models."""
+    import numpy as np
+
     from labctl.physics.references import reference_curves
 
     n = min(len(c.load_n) for c in curves)

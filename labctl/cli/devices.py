@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 from labctl.cli.common import add_json, emit
-from labctl.hardware import check_devices, example_path, find_devices_file
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,11 +16,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="devices file (default: $LABCTL_DEVICES, ./devices.toml, ~/.config/labctl/devices.toml)")
     add_json(c)
     c.set_defaults(func=run_check)
-    e = ss.add_parser("example", help="print the annotated example devices file")
+    e = ss.add_parser("example", help="print the annotated example devices file (save it as devices.toml, edit)")
+    add_json(e)
     e.set_defaults(func=run_example)
 
 
 def run_check(args: argparse.Namespace) -> int:
+    from labctl.hardware import check_devices, find_devices_file
+
     path = find_devices_file(args.devices)
     checks = check_devices(path)
     result = {"devices_file": str(path), "ok": all(c.ok for c in checks), "devices": [c.to_dict() for c in checks]}
@@ -31,7 +32,9 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_example(args: argparse.Namespace) -> int:
-    sys.stdout.write(example_path().read_text(encoding="utf-8"))
+    from labctl.hardware import example_path
+
+    emit({"example": example_path().read_text(encoding="utf-8")}, args.json, lambda r: r["example"])
     return 0
 
 

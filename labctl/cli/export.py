@@ -5,15 +5,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from labctl.cli.common import add_json, emit
+from labctl.cli.common import add_json, emit, step_bar
 from labctl.errors import InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("export", help="export a campaign's impacts, FRFs and coherences as UFF58 (DESIGN.md §4)")
+    p = sub.add_parser("export", help="export a campaign's impacts, FRFs and coherences as UFF58 (docs/contracts.md)")
     p.add_argument("file", metavar="FILE.h5", help="campaign file")
     p.add_argument("--uff", required=True, metavar="OUT.uff", help="UFF file to write (replaced if it exists)")
-    p.add_argument("--binary", action="store_true", help="binary 58b data sets (smaller, exact) instead of ASCII 58")
+    fmt = p.add_mutually_exclusive_group()
+    fmt.add_argument("--binary", action="store_true", help="binary 58b data sets (smaller, exact, fast to read)")
+    fmt.add_argument("--ascii", action="store_true", help="ASCII 58 data sets (default only up to about 100 MB: "
+                     "larger exports are binary 58b unless --ascii is given)")
     p.add_argument("--series", type=int, metavar="S", help="only this specimen series")
     p.add_argument("--run", type=int, metavar="R", help="only this repetition")
     p.add_argument("--step", type=int, metavar="N", help="only this load step")
@@ -23,6 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--manifest", metavar="M.csv", help="also write the manifest `labctl import` reads back")
     p.add_argument("--nodes", metavar="MAP", help="node numbers, e.g. 'A1=101,A2=102,A3=103,A4=104,hammer=1' "
                                                   "(default A1..A4 = 1..4, hammer = 10)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -39,8 +43,10 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--{name} {value}: expected a number from 1")
     selection = Selection(series=args.series, run=args.run, step=args.step, all_impacts=args.all_impacts,
                           time=not args.no_time, frf=not args.no_frf)
-    done = export_campaign(args.file, args.uff, selection=selection, binary=args.binary,
-                           nodes=parse_node_map(args.nodes), manifest=args.manifest)
+    binary = True if args.binary else (False if args.ascii else None)
+    with step_bar("export", args.quiet) as progress:
+        done = export_campaign(args.file, args.uff, selection=selection, binary=binary,
+                               nodes=parse_node_map(args.nodes), manifest=args.manifest, progress=progress)
     result = {"file": args.file, "uff": done.out, "format": "58b" if done.binary else "58", "steps": done.steps,
               "impacts": done.impacts, "time_records": done.time_records, "frfs": done.frfs,
               "coherences": done.coherences, "sets": done.sets, "manifest": done.manifest}

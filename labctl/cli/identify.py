@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
-from labctl.physics import TrippContact, load_rig, material, roller
-from labctl.physics.tripp import DEFAULT_DEPTH_M
-from labctl.processing import CheckConfig, IdentifyConfig, WindowConfig, identify, load_impacts_npz
+
+if TYPE_CHECKING:
+    from labctl.physics import TrippContact
 
 MM = 1e-3
 
@@ -17,27 +17,30 @@ MM = 1e-3
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("identify", help="identify the rig's modes and the roller stiffness from an impacts NPZ")
     p.add_argument("file", metavar="FILE.npz", help="impacts NPZ (fs, force, accel, channels) or UFF58 time records "
-                                                    "(.uff/.unv); DESIGN.md §4")
+                                                    "(.uff/.unv); docs/contracts.md")
     p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
     p.add_argument("--accel-range", type=float, metavar="A",
                    help="accelerometer full scale, m/s² (default: overload seen as a clipped plateau)")
     p.add_argument("--force-range-n", type=float, metavar="F", help="force channel full scale, N")
     p.add_argument("--exp-window-end", type=float, default=0.01, metavar="E",
                    help="exponential window's value at the record end (default 0.01; 1 = no window)")
-    p.add_argument("--min-coherence", type=float, default=CheckConfig.min_coherence,
-                   help="coherence at the bounce below which an impact is rejected "
-                        f"(default {CheckConfig.min_coherence})")
+    p.add_argument("--min-coherence", type=float,
+                   help="coherence at the bounce below which an impact is rejected (default: the checks' default)")
     roll = p.add_argument_group("roller-only stiffness (rails' Tripp compliance removed)")
     roll.add_argument("--roller-type", type=int, metavar="N", help="roller type of the catalogue (Table 1)")
     roll.add_argument("--load-n", type=float, metavar="F", help="load per roller, N")
-    roll.add_argument("--depth-mm", type=float, default=DEFAULT_DEPTH_M / MM,
-                      help=f"rail evaluation depth t, mm (default {DEFAULT_DEPTH_M / MM:g})")
+    roll.add_argument("--depth-mm", type=float, help="rail evaluation depth t, mm (default: Tripp's default depth)")
     roll.add_argument("--rail-material", default="1.3505", help="rail material (default 1.3505)")
     add_json(p)
     p.set_defaults(func=run)
 
 
 def _contact(args: argparse.Namespace) -> TrippContact | None:
+    from labctl.physics import TrippContact, material, roller
+    from labctl.physics.tripp import DEFAULT_DEPTH_M
+
+    if args.depth_mm is None:
+        args.depth_mm = DEFAULT_DEPTH_M / MM
     if (args.roller_type is None) != (args.load_n is None):
         raise InputError("--roller-type and --load-n go together (both are needed for the roller-only stiffness)")
     if args.roller_type is None:
@@ -50,6 +53,9 @@ def _contact(args: argparse.Namespace) -> TrippContact | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.physics import load_rig
+    from labctl.processing import CheckConfig, IdentifyConfig, WindowConfig, identify, load_impacts_npz
+
     if not 0 < args.exp_window_end <= 1:
         raise InputError(f"--exp-window-end {args.exp_window_end!r}: expected a value in (0, 1]")
     for name in ("accel_range", "force_range_n"):
@@ -58,14 +64,15 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--{name.replace('_', '-')} {value!r}: expected a positive full scale")
     contact = _contact(args)
     rig = load_rig(args.rig)
-    if str(args.file).lower().endswith((".uff", ".unv")):  # UFF58 time records (DESIGN.md §4)
+    if str(args.file).lower().endswith((".uff", ".unv")):  # UFF58 time records (docs/contracts.md)
         from labctl.uff import load_impacts_uff
 
         data = load_impacts_uff(args.file)
     else:
         data = load_impacts_npz(args.file)
     window = WindowConfig(exponential_end=None if args.exp_window_end == 1 else args.exp_window_end)
-    config = IdentifyConfig(checks=CheckConfig(min_coherence=args.min_coherence), window=window)
+    checks = CheckConfig() if args.min_coherence is None else CheckConfig(min_coherence=args.min_coherence)
+    config = IdentifyConfig(checks=checks, window=window)
     result = identify(data.force_n, data.accel_m_per_s2, data.fs_hz, data.channels, rig,
                       accel_ranges=args.accel_range, force_range_n=args.force_range_n, config=config,
                       contact=contact, load_n=args.load_n)

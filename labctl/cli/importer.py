@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from labctl.cli.common import add_json, emit
+from labctl.cli.common import add_json, emit, step_bar
 from labctl.errors import InputError
 
 
@@ -25,6 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                   "(default A1..A4 = 1..4, hammer = 10)")
     p.add_argument("--sample-rate-hz", type=float, metavar="FS",
                    help="the acquisition's sample rate, when the files' 6-digit sample interval is not enough")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -41,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
                          rail_ra_m=None if args.rail_ra_um is None else args.rail_ra_um * 1e-6,
                          rail_material=args.rail_material, rig=args.rig, nodes=parse_node_map(args.nodes),
                          sample_rate_hz=args.sample_rate_hz)
-    done = import_uff(args.files, args.manifest, args.out, opts)
+    with step_bar("import", args.quiet) as progress:
+        done = import_uff(args.files, args.manifest, args.out, opts, progress=progress)
     result = {"out": done.out, "series": done.series, "steps": done.steps, "notes": done.notes,
               "identified": sum(1 for s in done.steps if "error" not in s)}
     emit(result, args.json, _text)

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from drivers.hw import MtSicsLoadCell
 from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
-from labctl.hardware import hardware_errors
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +31,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--timeout {args.timeout!r}: expected a positive number of seconds")
     if args.retries < 0:
         raise InputError(f"--retries {args.retries}: expected zero or more")
+    from drivers.hw import MtSicsLoadCell
+    from labctl.hardware import hardware_errors
+
     cell = MtSicsLoadCell(args.port, baudrate=args.baudrate, timeout_s=args.timeout, busy_retries=args.retries,
                           stable_timeout_s=max(args.timeout, 10.0))
     with hardware_errors(), cell:

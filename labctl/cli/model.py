@@ -7,15 +7,6 @@ from typing import Any
 
 from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
-from labctl.physics import (
-    FITS,
-    EmpiricalFit,
-    HertzBallContact,
-    PalmgrenContact,
-    TrippContact,
-    material,
-    roller,
-)
 
 MODELS = ("tripp", "palmgren", "fit-ra0.2", "fit-ra0.03", "hertz")
 
@@ -36,6 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _model(args: argparse.Namespace) -> Any:
+    from labctl.physics import FITS, EmpiricalFit, HertzBallContact, PalmgrenContact, TrippContact, material, roller
+
     rail = material(args.rail_material)
     if args.model == "hertz":
         if args.ball_diameter_mm is None:

@@ -17,6 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frf-step", metavar="S:R:N",
                    help="the step whose FRF is shown, as series:run:step (default: series 1, first repetition, "
                         "highest load)")
+    p.add_argument("--band", type=float, metavar="PCT",
+                   help="verdict band in %% around Eq. 5/6 for rollers (default 10; balls against Hertz: 5)")
     add_json(p)
     p.set_defaults(func=run)
 
@@ -34,15 +36,24 @@ def _step(text: str | None) -> tuple[int, int, int] | None:
 def run(args: argparse.Namespace) -> int:
     from labctl.report import build_report
 
-    result = build_report(args.file, args.out, _step(args.frf_step)).to_dict()
+    if args.band is not None and not 0 < args.band < 100:
+        raise InputError(f"--band {args.band:g}: expected a percentage between 0 and 100")
+    band = None if args.band is None else args.band / 100
+    result = build_report(args.file, args.out, _step(args.frf_step), band).to_dict()
     emit(result, args.json, _text)
     return 0
 
 
 def _text(r: dict[str, Any]) -> str:
     imp = r["impacts"]
-    lines = [f"report → {r['html']}", f"impacts: {imp['accepted']} accepted, {imp['rejected']} rejected"
+    counts: dict[str, int] = {}
+    for v in r["verdicts"]:
+        counts[v["verdict"]] = counts.get(v["verdict"], 0) + 1
+    lines = ["SIMULATED data (digital twin)"] if r["simulated"] else []
+    lines += [f"report → {r['html']}", f"impacts: {imp['accepted']} accepted, {imp['rejected']} rejected"
              + (" (" + ", ".join(f"{k} {v}" for k, v in imp["by_reason"].items()) + ")" if imp["by_reason"] else "")]
+    if counts:
+        lines.append("verdict per step: " + ", ".join(f"{n} {k}" for k, n in counts.items()))
     lines += [f"  {f['name']}: {f['title']}" for f in r["figures"]]
     if r["csv"]:
         lines.append(f"stiffness table → {r['csv']}")

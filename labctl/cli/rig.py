@@ -7,7 +7,6 @@ from typing import Any
 
 from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
-from labctl.physics import load_rig, rig_modes, roller_stiffness_from_bounce
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_modes(args: argparse.Namespace) -> int:
+    from labctl.physics import load_rig, rig_modes
+
     ks = args.stiffness_n_per_m
     if len(ks) not in (1, 3):
         raise InputError(f"--stiffness-n-per-m takes one value or three, got {len(ks)}")
@@ -54,6 +55,8 @@ def run_modes(args: argparse.Namespace) -> int:
 
 
 def run_stiffness(args: argparse.Namespace) -> int:
+    from labctl.physics import load_rig, roller_stiffness_from_bounce
+
     k = roller_stiffness_from_bounce(load_rig(args.rig), args.bounce_hz)
     emit({"bounce_hz": args.bounce_hz, "roller_stiffness_n_per_m": k}, args.json,
          lambda r: f"per-roller stiffness {r['roller_stiffness_n_per_m']:.4e} N/m at {r['bounce_hz']:g} Hz")

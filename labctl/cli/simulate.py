@@ -8,18 +8,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from drivers.interfaces import Rig, TriggerSpec
-from drivers.sim import twin_of
-from labctl.backends import make_rig
 from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
-from labctl.physics import ContactCase, material, roller
-from labctl.physics.materials import BEARING_STEEL
-from labctl.physics.world import ball
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from drivers.interfaces import Rig
 
 SAMPLE_RATE_HZ = 20_480.0
 N_SAMPLES = 65_536
@@ -39,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--world", help="world scenario: a TOML file or a shipped name (default: default)")
     i.add_argument("--seed", type=int, help="random seed (default: fresh; the one used is printed)")
     i.add_argument("--rail-ra-um", type=float, default=0.2, help="rail roughness Ra, µm (default 0.2)")
-    i.add_argument("--rail-material", default=BEARING_STEEL, help=f"rail material (default {BEARING_STEEL})")
+    i.add_argument("--rail-material", help="rail material (default: the catalogue's bearing steel)")
     i.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
     i.add_argument("--out", required=True, help="impacts NPZ file to write")
     add_json(i)
@@ -54,7 +51,15 @@ def run_impacts(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.parent.is_dir():
         raise InputError(f"--out {out}: directory {out.parent} does not exist")
-    rail = material(args.rail_material)
+    import numpy as np
+
+    from drivers.sim import twin_of
+    from labctl.backends import make_rig
+    from labctl.physics import ContactCase, material, roller
+    from labctl.physics.materials import BEARING_STEEL
+    from labctl.physics.world import ball
+
+    rail = material(args.rail_material or BEARING_STEEL)
     if args.ball_mm is not None:
         if not args.ball_mm > 0:
             raise InputError(f"--ball-mm {args.ball_mm!r}: expected a positive diameter in mm")
@@ -78,6 +83,10 @@ def run_impacts(args: argparse.Namespace) -> int:
 
 def strike_series(rig: Rig, impacts: int) -> tuple[float, np.ndarray, np.ndarray, tuple[str, ...]]:
     """Arm, strike and acquire ``impacts`` times at the paper's rate and length; stacked force and accel."""
+    import numpy as np
+
+    from drivers.interfaces import TriggerSpec
+
     fs = rig.daq.configure(SAMPLE_RATE_HZ, N_SAMPLES)
     records = []
     for _ in range(impacts):

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from labctl.cli.common import add_json, emit
 from labctl.errors import InputError
 
 
@@ -27,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, help="random seed for the simulated rig")
     p.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
     p.add_argument("--devices", help="devices TOML file for --backend hw")
+    add_json(p)
     p.set_defaults(func=run)
 
 
@@ -74,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
         sys.stderr.write(f"labctl tui: error: {app.error}\n")
         return 1
     if outcome is None:
+        if args.json:
+            emit({"status": None, "path": None, "message": ""}, True, str)
         return 0
-    sys.stdout.write(f"campaign {outcome.status}: {outcome.path}" + (f" ({outcome.message})" if outcome.message
-                                                                    else "") + "\n")
+    emit({"status": outcome.status, "path": str(outcome.path), "message": outcome.message or ""}, args.json,
+         lambda r: f"campaign {r['status']}: {r['path']}" + (f" ({r['message']})" if r["message"] else ""))
     return 0 if outcome.status == "complete" else (130 if outcome.status == "interrupted" else 1)

@@ -15,13 +15,19 @@ class ReportResult:
     csv: str | None
     figures: list[dict[str, str]] = field(default_factory=list)
     impacts: dict[str, Any] = field(default_factory=dict)
+    simulated: bool = False
+    verdicts: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"html": self.html, "csv": self.csv, "figures": self.figures, "impacts": self.impacts}
+        return {"html": self.html, "csv": self.csv, "figures": self.figures, "impacts": self.impacts,
+                "simulated": self.simulated, "verdicts": self.verdicts}
 
 
-def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, int] | None = None) -> ReportResult:
-    """Write the figures, the stiffness CSV and ``report.html`` for a campaign file into the folder ``out``."""
+def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, int] | None = None,
+                 band: float | None = None) -> ReportResult:
+    """Write the figures, the stiffness CSV and ``report.html`` for a campaign file into the folder ``out``.
+
+    ``band``: the verdict band for rollers as a fraction (default 0.10; balls 0.05), labctl.report.verdict."""
     import matplotlib
 
     matplotlib.use("Agg")  # files only, never a window
@@ -45,8 +51,17 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     csv = folder / "stiffness.csv" if points else None
     if csv is not None:
         write_stiffness_table(csv, points)
-    page = write_html(data, written, folder, csv.name if csv else None)
+    page = write_html(data, written, folder, csv.name if csv else None, band)
     st = data.impacts
+    from labctl.report.figures import is_simulated
+    from labctl.report.verdict import series_verdicts
+
+    verdicts = [v for s in data.series if s.runs for v in series_verdicts(s, data.rig, band)]
     return ReportResult(str(page), str(csv) if csv else None,
                         [{"name": n, "title": t, "png": str(p), "svg": str(s)} for n, t, p, s in written],
-                        {"accepted": st.accepted, "rejected": st.rejected, "by_reason": st.by_reason})
+                        {"accepted": st.accepted, "rejected": st.rejected, "by_reason": st.by_reason},
+                        is_simulated(data),
+                        [{"series": v.series, "step": v.step, "load_n": v.load_n,
+                          "stiffness_n_per_m": v.stiffness_n_per_m, "std_n_per_m": v.std_n_per_m,
+                          "model": v.model, "model_n_per_m": v.model_n_per_m, "band": v.band,
+                          "verdict": v.verdict} for v in verdicts])

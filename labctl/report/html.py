@@ -16,6 +16,8 @@ from labctl import __version__
 from labctl.physics.references import fit_for_rail, model_curve
 from labctl.physics.world import world_path
 from labctl.report.data import ReportData, SeriesData
+from labctl.report.figures import is_simulated
+from labctl.report.verdict import COVERAGE, FAIL, PASS, StepVerdict, rig_parameters, series_verdicts
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
@@ -26,7 +28,9 @@ td.l, th.l { text-align: left; }
 figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9em; color: #444; }
 pre { background: #f7f7f7; border: 1px solid #ddd; padding: .8em; overflow-x: auto; font-size: .85em; }
-.bad { color: #a00; }
+.bad { color: #a00; } .ok { color: #070; } .undecided { color: #a60; }
+.sim { background: #b00000; color: #fff; padding: .5em 1em; font-weight: bold; font-size: 1.2em; }
+.grid { display: grid; grid-template-columns: repeat(auto-fit, minmax(480px, 1fr)); gap: 1em; }
 """
 
 
@@ -60,13 +64,57 @@ def _stiffness_table(s: SeriesData) -> str:
     ref_name = {"hertz": "Hertz", "fit-ra0.2": "Eq. 5", "fit-ra0.03": "Eq. 6"}[ref]
     rows = []
     for st, k_ref, k_t in zip(stats, ref_k, tripp, strict=True):
-        rows.append([st.step, f"{st.load_n:.1f}", f"{st.stiffness_n_per_m:.4e}", f"{st.spread:.2%}",
-                     st.repetitions, "–" if not np.isfinite(k_t) else f"{k_t:.4e}",
-                     "–" if not np.isfinite(k_ref) else f"{k_ref:.4e}",
+        rows.append([st.step, f"{st.load_n:.1f}", f"{st.stiffness_n_per_m * 1e-6:.2f}", f"{st.spread:.2%}",
+                     st.repetitions, "–" if not np.isfinite(k_t) else f"{k_t * 1e-6:.2f}",
+                     "–" if not np.isfinite(k_ref) else f"{k_ref * 1e-6:.2f}",
                      "–" if not np.isfinite(k_ref) else f"{st.stiffness_n_per_m / k_ref - 1:+.2%}"])
-    head = ["step", "load [N]", "k mean [N/m]", "spread", "repetitions", "Tripp [N/m]", f"{ref_name} [N/m]",
+    head = ["step", "load [N]", "k mean [N/µm]", "spread", "repetitions", "Tripp [N/µm]", f"{ref_name} [N/µm]",
             f"k/{ref_name} − 1"]
     return f"<h3>{_e(s.label)}</h3>" + _table(head, rows)
+
+
+def _verdict_rows(verdicts: list[StepVerdict]) -> list[str]:
+    css = {PASS: "ok", FAIL: "bad"}
+    rows = []
+    for v in verdicts:
+        dev = "–" if not np.isfinite(v.deviation) else f"{v.deviation:+.1%}"
+        model = "–" if not np.isfinite(v.model_n_per_m) else f"{v.model_n_per_m * 1e-6:.2f}"
+        cells = [v.label, v.step, f"{v.load_n:.1f}", f"{v.stiffness_n_per_m * 1e-6:.2f} ± {v.std_n_per_m * 1e-6:.2f}",
+                 v.repetitions, f"{v.model or '–'} {model}", f"±{v.band:.0%}", dev]
+        row = "".join(f"<td{' class=l' if i == 0 else ''}>{_e(c)}</td>" for i, c in enumerate(cells))
+        row += (f"<td class='l {css.get(v.verdict, 'undecided')}'><b>{_e(v.verdict)}</b></td>"
+                f"<td class=l>{_e(v.note)}</td>")
+        rows.append(f"<tr>{row}</tr>")
+    return rows
+
+
+def _verdicts(data: ReportData, band: float | None) -> str:
+    verdicts = [v for s in data.series if s.runs for v in series_verdicts(s, data.rig, band)]
+    if not verdicts:
+        return "<p>No identified step to judge.</p>"
+    counts = {k: sum(v.verdict == k for v in verdicts) for k in dict.fromkeys(v.verdict for v in verdicts)}
+    rule = (f"<p>Rule: each step's mean stiffness over its repetitions against the reference model at the mean "
+            f"load (rollers: Eq. 5 for rails Ra ≥ 0.1 µm, else Eq. 6; balls: Hertz). u combines the standard error "
+            f"of the mean over the repetitions with the rig's systematic uncertainty (disc mass, K_setup, rig model; "
+            f"see Rig and model parameters). With k ± {COVERAGE:g}u (about 95 %): <b>pass</b> when the whole "
+            f"interval lies within the band, <b>fail</b> when it lies wholly outside, otherwise <b>cannot tell</b>. "
+            f"Eqs. 5/6 were fitted to steel rollers: rollers whose contact modulus E* differs from bearing "
+            f"steel's by more than 5 % get no verdict. Band: ±{(band if band is not None else 0.10):.0%} for "
+            f"rollers" + ("" if band is not None else ", ±5 % for balls") + ".</p>")
+    head = ["specimen", "step", "load [N]", "k ± u [N/µm]", "repetitions", "model [N/µm]", "band", "k/model − 1",
+            "verdict", "note"]
+    table = ("<table><tr>" + "".join(f"<th{' class=l' if i in (0, 8, 9) else ''}>{_e(h)}</th>"
+                                     for i, h in enumerate(head)) + "</tr>\n"
+             + "\n".join(_verdict_rows(verdicts)) + "</table>")
+    summary = ", ".join(f"{n} {k}" for k, n in counts.items())
+    return f"<p><b>{len(verdicts)} steps: {_e(summary)}.</b></p>" + rule + table
+
+
+def _parameters(data: ReportData) -> str:
+    rows = [[p.name, p.value, p.std or "–", p.source] for p in rig_parameters(data.rig)]
+    return ("<p>Every stiffness is computed from the bounce frequency with these rig parameters (Eq. 4); the "
+            "models with these parameters. 1-σ uncertainties as given by the rig file.</p>"
+            + _table(["parameter", "value", "1-σ", "from"], rows, left=4))
 
 
 def _impacts(data: ReportData) -> str:
@@ -106,9 +154,11 @@ def _specimens(data: ReportData) -> str:
                    "repetitions identified"], rows, left=3)
 
 
-def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out: Path, csv_name: str | None
-               ) -> Path:
-    """Write ``report.html`` into ``out``; ``figures`` are (name, title, png, svg) of files already written."""
+def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out: Path, csv_name: str | None,
+               band: float | None = None) -> Path:
+    """Write ``report.html`` into ``out``; ``figures`` are (name, title, png, svg) of files already written.
+
+    ``band`` is the verdict band for rollers (default ±10 %; balls ±5 %), see labctl.report.verdict."""
     a = data.attrs
     summary = [["campaign file", str(data.path)], ["protocol", a.get("protocol_name", "")],
                ["status", f"{a.get('status', '')} {a.get('status_message', '')}".strip()],
@@ -119,8 +169,13 @@ def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out
     if description:
         summary.append(["backend details", json.dumps(description) if isinstance(description, dict)
                         else description])
-    body = [f"<h1>Campaign report: {_e(a.get('protocol_name', data.path.name))}</h1>",
+    sim = is_simulated(data)
+    banner = ["<p class=sim>SIMULATED: these data come from the digital twin (backend 'sim'), not from a "
+              "measurement.</p>"] if sim else []
+    kind = "simulated" if sim else ("imported" if a.get("backend") == "import" else "measured")
+    body = [*banner, f"<h1>Campaign report ({kind}): {_e(a.get('protocol_name', data.path.name))}</h1>",
             _table(["", ""], summary, left=2), "<h2>Specimens</h2>", _specimens(data),
+            "<h2>Verdict against the model band</h2>", _verdicts(data, band),
             "<h2>Figures</h2>", *([_figure(*f) for f in figures] or ["<p>No identified step to plot.</p>"]),
             "<h2>Stiffness</h2>", *(_stiffness_table(s) for s in data.series if s.runs)]
     if csv_name:
@@ -131,13 +186,14 @@ def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out
     if "manifest.csv" in data.config:
         body += ["<h2>Import manifest</h2>", f"<pre>{_e(data.config['manifest.csv'])}</pre>"]
     body += ["<h2>Rig</h2>", f"<pre>{_e(data.config.get('rig.toml', 'not stored: the shipped paper rig'))}</pre>",
-             "<h2>World</h2>", _world(data)]
+             "<h2>Rig and model parameters</h2>", _parameters(data), "<h2>World</h2>", _world(data)]
     if "devices.toml" in data.config:
         body += ["<h2>Devices</h2>", f"<pre>{_e(data.config['devices.toml'])}</pre>"]
     now = datetime.now(UTC).isoformat(timespec="seconds")
     body.append(f"<p><small>Report made {now} by labctl {_e(__version__)}.</small></p>")
     page = ("<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
-            f"<title>labctl report: {_e(data.path.name)}</title><style>{STYLE}</style></head><body>\n"
+            f"<title>{'SIMULATED — ' if sim else ''}labctl report: {_e(data.path.name)}</title>"
+            f"<style>{STYLE}</style></head><body>\n"
             + "\n".join(body) + "\n</body></html>\n")
     path = out / "report.html"
     path.write_text(page, encoding="utf-8")

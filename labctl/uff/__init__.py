@@ -1,4 +1,4 @@
-"""UFF58 interchange (DESIGN.md §4): export campaigns, read time records from other acquisition systems, import.
+"""UFF58 interchange (docs/contracts.md): export campaigns, read time records from other acquisition systems, import.
 
 pyuff is imported lazily by the modules that read or write files, so ``import labctl.uff`` stays cheap.
 """

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -158,16 +159,21 @@ def _timestamp(ids: tuple[str, ...]) -> float:
     return datetime.now(UTC).timestamp()
 
 
-def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, opts: ImportOptions = ImportOptions()
-               ) -> ImportSummary:
-    """Build a campaign file at ``out`` from UFF58 files and a manifest; return per-step results."""
+def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, opts: ImportOptions = ImportOptions(),
+               progress: Callable[[int, int], None] | None = None) -> ImportSummary:
+    """Build a campaign file at ``out`` from UFF58 files and a manifest; return per-step results.
+
+    ``progress(done, total)`` is called after each stored step (total: the manifest's steps).
+    """
     manifest, out = Path(manifest), Path(out)
     if out.exists():
         raise InputError(f"{out}: already exists; choose another --out")
     rows = read_manifest(manifest)
     plan, specs = plan_import(rows, [Path(f) for f in files], manifest, opts)
     rig = load_rig(opts.rig)
-    opened = {p.file: UffFile(p.file) for p in plan}
+    if progress is not None:
+        progress(0, len(plan))
+    opened = {f: UffFile(f) for f in dict.fromkeys(p.file for p in plan)}  # each file scanned once
     impacts: dict[int, ImpactPlan] = {}
     for p in plan:
         try:
@@ -196,6 +202,8 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
                 ident = _store_step(writer, p, data, rig, opts)
                 runs[(p.series, p.run)].append((p, ident))
                 summary.steps.append(_step_summary(p, data, ident))
+                if progress is not None:
+                    progress(len(summary.steps), len(plan))
             for s, r in runs:
                 writer.store_curve(s, r)
             writer.set_status("complete", f"imported from {len(opened)} UFF file(s)")

@@ -1,4 +1,4 @@
-"""UFF58 conventions of DESIGN.md §4: channel ↔ node and direction, function and ordinate codes, unit labels.
+"""UFF58 conventions of docs/contracts.md: channel ↔ node and direction, function and ordinate codes, unit labels.
 
 Nodes 1–3 are the accelerometers A1–A3 above the rollers, node 4 is A4 under the bottom disc, node 10 the
 hammer; directions 1/2/3 are X/Y/Z. Other acquisition systems number their nodes their own way: a

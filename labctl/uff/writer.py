@@ -1,7 +1,7 @@
 """Export a campaign's time records, FRFs and coherences as UFF58 (ASCII 58 or binary 58b), one set at a time.
 
 Each impact is one load case (numbered from 1 through the file); its force record sits at the hammer's node
-and every accelerometer channel at its node and direction (DESIGN.md §4). A step's H1 FRFs (function type 4,
+and every accelerometer channel at its node and direction (docs/contracts.md). A step's H1 FRFs (function type 4,
 acceleration over force) and coherences (type 6) come before its impacts, so readers that judge a file by its
 first data set (sdypy-EMA) see accelerance FRFs. Sets are written one by one — pyuff's
 list mode writes 58b files it cannot read back — into a temporary file renamed at the end, so a failed
@@ -14,7 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +26,9 @@ from labctl.errors import InputError
 from labctl.storage import CampaignReader
 from labctl.uff import mapping as m
 from labctl.uff.manifest import MANIFEST_COLUMNS, format_load_cases
+
+ASCII_LIMIT_BYTES = 100e6  # larger selections are written as binary 58b unless ASCII is asked for
+ASCII_BYTES_PER_VALUE = 20.25  # E20.12, four values a line
 
 
 @dataclass(frozen=True)
@@ -119,13 +122,33 @@ def _steps(reader: CampaignReader, sel: Selection) -> Iterator[tuple[int, int, A
                     yield series, run.run, step
 
 
-def export_campaign(path: str | Path, out: str | Path, *, selection: Selection = Selection(), binary: bool = False,
-                    nodes: m.NodeMap = m.DEFAULT_NODES, manifest: str | Path | None = None) -> ExportSummary:
-    """Write the selected steps of a campaign file to ``out`` as UFF58; return what was written."""
+def ascii_size_bytes(reader: CampaignReader, steps: list[tuple[int, int, Any]], sel: Selection) -> float:
+    """About how large the selected time records would be as ASCII UFF58 (the FRFs are small beside them)."""
+    if not sel.time:
+        return 0.0
+    counts = [(series, run, step, sum(1 for i in step.impacts if sel.all_impacts or i.accepted))
+              for series, run, step in steps]
+    sized = next(((s, r, st) for s, r, st, n in counts if n), None)
+    if sized is None:
+        return 0.0
+    data = reader.impact_arrays(sized[0], sized[1], sized[2].step)
+    values = data.force_n.shape[1] * (1 + len(data.channels))
+    return sum(n for *_, n in counts) * values * ASCII_BYTES_PER_VALUE
+
+
+def export_campaign(path: str | Path, out: str | Path, *, selection: Selection = Selection(),
+                    binary: bool | None = None,
+                    nodes: m.NodeMap = m.DEFAULT_NODES, manifest: str | Path | None = None,
+                    progress: Callable[[int, int], None] | None = None) -> ExportSummary:
+    """Write the selected steps of a campaign file to ``out`` as UFF58; return what was written.
+
+    ``binary`` None chooses: binary 58b when the ASCII file would exceed ``ASCII_LIMIT_BYTES``, else ASCII 58.
+
+    ``progress(done, total)`` is called after each written step.
+    """
     out = Path(out)
     if out.is_dir():
         raise InputError(f"{out}: is a directory, expected a .uff file name")
-    summary = ExportSummary(str(out), binary)
     tmp = out.with_name(f".{out.name}.part")
     with CampaignReader(path) as reader:
         protocol = str(reader.attrs.get("protocol_name", ""))
@@ -134,6 +157,9 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
             wanted = ", ".join(f"{k} {v}" for k, v in (("series", selection.series), ("run", selection.run),
                                                         ("step", selection.step)) if v is not None)
             raise InputError(f"{path}: no stored step matches {wanted or 'the selection'}")
+        if binary is None:
+            binary = ascii_size_bytes(reader, steps, selection) > ASCII_LIMIT_BYTES
+        summary = ExportSummary(str(out), binary)
         writer = _Out(tmp)
         try:
             for series, run, step in steps:
@@ -148,6 +174,8 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
                     _write_impacts(writer, reader, series, run, step.step, selection, summary, nodes, binary,
                                    (head, where, load))
                 summary.steps += 1
+                if progress is not None:
+                    progress(summary.steps, len(steps))
                 if summary.impacts >= first:
                     summary.manifest_rows.append(_manifest_row(out.name, reader.specimen(series), run, step,
                                                                list(range(first, summary.impacts + 1))))
