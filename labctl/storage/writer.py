@@ -107,8 +107,11 @@ class CampaignWriter:
         p = Path(path)
         if p.exists():
             raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
-        p.parent.mkdir(parents=True, exist_ok=True)
-        h5 = h5py.File(p, "w")
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            h5 = h5py.File(p, "w-")
+        except OSError as exc:
+            raise InputError(f"{p}: cannot create the campaign file ({exc.strerror or exc})") from None
         _attrs(h5, {"format": s.FORMAT, "format_version": s.FORMAT_VERSION, "software_version": __version__,
                     "created_utc": utc_now(), "backend": backend, "protocol_name": protocol_name,
                     "seed": -1 if seed is None else seed, "status": "running",
