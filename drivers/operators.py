@@ -94,11 +94,13 @@ class ConsoleOperator:
 
     An empty line takes the first choice; an answer may be the choice's number, its name or a unique prefix
     (case-insensitive). Closed input raises ``DeviceDisconnected``; ``max_attempts`` invalid answers raise
-    ``DeviceError``.
+    ``DeviceError``. With ``reviews_impacts`` the engine asks for a verdict on every stored blow.
     """
 
-    def __init__(self, stdin: TextIO | None = None, stdout: TextIO | None = None, max_attempts: int = 5) -> None:
+    def __init__(self, stdin: TextIO | None = None, stdout: TextIO | None = None, max_attempts: int = 5,
+                 reviews_impacts: bool = False) -> None:
         self.name = "operator@console"
+        self.reviews_impacts = reviews_impacts  # asked accept/reject after every stored blow
         self._in, self._out, self._max = stdin or sys.stdin, stdout or sys.stdout, max_attempts
 
     def prompt(self, message: str, choices: tuple[str, ...] = ("ok",), action: OperatorAction = "confirm") -> str:

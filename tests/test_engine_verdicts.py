@@ -93,3 +93,24 @@ def test_operator_script_errors_name_the_entry_and_the_key(tmp_path, text, fragm
     with pytest.raises(InputError, match="op.toml") as err:
         load_operator_script(script)
     assert fragment in str(err.value)
+
+
+def test_a_reviewing_console_operator_is_asked_after_every_blow(tmp_path):
+    import io
+
+    from drivers.operators import ConsoleOperator
+    from labctl.campaign import run_campaign
+    from tests.engine_util import short_protocol
+
+    answers = io.StringIO("\n" + "reject\n" + "\n" * 40)  # mount; the first blow rejected; then Enter = accept
+    shown = io.StringIO()
+    operator = ConsoleOperator(answers, shown, reviews_impacts=True)
+    outcome = run_campaign(short_protocol(reps=1, samples=8192), out=tmp_path / "c.h5", seed=3, operator=operator)
+    assert outcome.status == "complete"
+    with CampaignReader(tmp_path / "c.h5") as r:
+        steps = r.runs(1)[0].steps
+        first = steps[0].impacts[0]
+        assert not first.accepted and first.verdict.source == "operator"
+        assert steps[0].result.used_attempts == (2, 3)
+        assert all(i.verdict.source == "operator" for s in steps for i in s.impacts)  # every blow was put to them
+    assert shown.getvalue().count("accept or reject?") == sum(len(s.impacts) for s in steps)

@@ -142,3 +142,15 @@ def test_an_empty_campaign_says_so(tmp_path, capsys):
     with h5py.File(path, "r+") as f:
         del f["series_01"]
     assert_one_line_error(labctl_here(capsys, "process", str(path)), "no load step")
+
+
+def test_process_reproduces_the_stored_results_of_a_new_campaign(tmp_path, capsys):
+    from tests.engine_util import short_campaign_file
+
+    path = short_campaign_file(tmp_path / "c.h5", seed=6, reps=1)
+    with CampaignReader(path) as r:
+        stored = {s.step: s.result for s in r.runs(1)[0].steps}
+    done = labctl_here_json(capsys, "process", str(path))
+    for s in done["steps"]:
+        assert s["roller_stiffness_n_per_m"] == pytest.approx(stored[s["step"]].roller_stiffness_n_per_m, rel=1e-9)
+        assert tuple(s["used_impacts"]) == stored[s["step"]].used_attempts

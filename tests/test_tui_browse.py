@@ -48,7 +48,7 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         step_lines = [t for t in labels if t.startswith("step ")]
         assert len(step_lines) == 3
         for line, step in zip(step_lines, steps, strict=True):
-            assert f"{step.result['bounce_hz']:.2f} Hz" in line and f"{step.load_n:.1f} N" in line
+            assert f"{step.result.bounce_hz:.2f} Hz" in line and f"{step.load_n:.1f} N" in line
         assert sum(t.startswith("impact ") for t in labels) == sum(len(s.impacts) for s in steps)
         plot = screen.query_one("#b-stiffness", StiffnessPlot)
         assert plot.point_count() == 3 and plot.runs["run 1"][0] == pytest.approx(list(curve["load_n"]))
@@ -57,7 +57,7 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         tree.move_cursor(step_node)
         await pilot.pause(0.2)
         detail = str(screen.query_one("#detail").render())
-        assert f"bounce {steps[0].result['bounce_hz']:.2f} Hz" in detail and detail.startswith("step 1:")
+        assert f"bounce {steps[0].result.bounce_hz:.2f} Hz" in detail and detail.startswith("step 1:")
         assert screen.query_one("#b-frf-plot", TracePlot).point_count() > 0
         last = steps[0].impacts[-1]
         step_node.expand()
@@ -66,7 +66,7 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         await pilot.pause(0.2)
         force = screen.query_one("#b-force", TracePlot)
         x, f = force.lines["force"]
-        assert max(f) == pytest.approx(last.attrs["peak_force_n"], rel=0.05)
+        assert max(f) == pytest.approx(last.peak_force_n, rel=0.05)
         assert force.title_text == f"impact {last.attempt} (ok)"
         await pilot.press("escape")
         assert not isinstance(app.screen, BrowserScreen)

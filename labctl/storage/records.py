@@ -85,7 +85,8 @@ class ImpactInfo:
 
 @dataclass(frozen=True)
 class ImpactRecord:
-    """One blow as stored: the traces in physical units (bit-exact as delivered), calibration, checks, verdict."""
+    """One blow as stored: the traces in physical units (bit-exact when the DAQ delivered ADC steps, else float32
+    precision), the channels' calibration, the automatic checks and the verdict with its source."""
 
     info: ImpactInfo
     channels: tuple[str, ...]

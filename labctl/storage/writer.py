@@ -66,8 +66,11 @@ def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, fl
     """
     if range_units is None or not np.isfinite(range_units) or range_units <= 0 or not np.isfinite(x).all():
         return None
+    probe = x[:256]
     for bits in ADC_BITS:
         step = 2.0 * float(range_units) / 2.0**bits
+        if not np.array_equal(np.rint(probe / step) * step, probe):  # cheap refusal on the first samples
+            continue
         k = np.rint(x / step)
         if np.abs(k).max(initial=0.0) <= 2.0**31 - 1 and np.array_equal(k * step, x):
             return k.astype(np.int32), step
@@ -107,8 +110,11 @@ class CampaignWriter:
         p = Path(path)
         if p.exists():
             raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
-        p.parent.mkdir(parents=True, exist_ok=True)
-        h5 = h5py.File(p, "w")
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            h5 = h5py.File(p, "w-")
+        except OSError as exc:
+            raise InputError(f"{p}: cannot create the campaign file ({exc.strerror or exc})") from None
         _attrs(h5, {"format": s.FORMAT, "format_version": s.FORMAT_VERSION, "software_version": __version__,
                     "created_utc": utc_now(), "backend": backend, "protocol_name": protocol_name,
                     "seed": -1 if seed is None else seed, "status": "running",
