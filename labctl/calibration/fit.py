@@ -143,7 +143,8 @@ class _Problem:
         # sensitivities to a common scale of the ball stiffness (seating) and to the load (Hertz: dlnk/dlnF = 1/3)
         self.g = (predict_hz(rig, obs, 1.0 + 1e-4) - base) / 1e-4
         loads = np.array([obs.steps[i].load_n for i in obs.step_of])
-        self.load_var = (self.g * load_noise_n / (3.0 * loads)) ** 2
+        self.load_hz = self.g * load_noise_n / (3.0 * loads)  # one load error moves a step's bounce and tilt alike
+        self.load_var = self.load_hz**2
         self.set_scatter(0.0)
 
     @property
@@ -154,8 +155,10 @@ class _Problem:
     def set_scatter(self, seating_rel: float, step_rel: float = 0.0) -> None:
         """Covariance: noise, plus a stiffness factor per seating (shared by its steps), plus per-frequency σ."""
         obs = self.obs
-        cov = np.diag(self.noise_var + (step_rel * obs.hz) ** 2)
+        cov = np.diag(np.maximum(obs.std_hz, 1e-9 * obs.hz) ** 2 + (step_rel * obs.hz) ** 2)
+        same_step = obs.step_of[:, None] == obs.step_of[None, :]
         same_run = obs.run_of[:, None] == obs.run_of[None, :]
+        cov = cov + np.outer(self.load_hz, self.load_hz) * same_step
         cov = cov + seating_rel**2 * np.outer(self.g, self.g) * same_run
         self.chol = np.linalg.cholesky(cov)
 
@@ -203,7 +206,8 @@ class _Problem:
     def solve(self, x0: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         nominal = np.log([self.nominal[p] for p in self.free])
         sol = least_squares(self.residuals, np.clip(x0, nominal - 2.0, nominal + 2.0), method="dogbox",
-                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-10, ftol=1e-10)
+                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-10, ftol=1e-10,
+                            max_nfev=40)
         j = sol.jac
         try:
             cov = np.linalg.inv(j.T @ j)
@@ -217,7 +221,8 @@ def expected_rel_std(rig: RigConfig, steps: Sequence[BallStep], *, seating_rel: 
     """Relative 1σ a fit of all parameters would reach on such steps (Fisher information at ``rig``): for
     planning a calibration protocol without simulating it. The steps' measured frequencies are not used."""
     obs = Observations.of(steps, use_tilt)
-    free = [p for p in PARAMETERS if use_tilt and obs.is_tilt.any() or p != "inertia_kg_m2"]
+    has_tilt = bool(obs.is_tilt.any())
+    free = [p for p in PARAMETERS if has_tilt or p != "inertia_kg_m2"]
     problem = _Problem(rig, obs, free, load_noise_n)
     problem.set_scatter(seating_rel)
     x = np.log([problem.nominal[p] for p in free])
