@@ -328,3 +328,6 @@ def test_a_campaign_run_with_the_calibrated_rig_stores_it_with_its_provenance(tw
     rig = rig_from_text(stored, "stored")
     assert rig.upper.mass_kg == pytest.approx(r["mass_kg"], rel=1e-12)
     assert rig.calibration["campaigns"] == [str(twin["b6"]), str(twin["b9"])]
+    # campaigns of different stored rigs need the nominal rig named
+    proc = labctl_here(capsys, "calibrate", str(twin["b6"]), str(out))
+    assert_one_line_error(proc, str(out), "different rig description", "--rig")
