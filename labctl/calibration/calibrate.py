@@ -67,7 +67,7 @@ class Calibration:
         out["fit"] = {
             "chi2": f.chi2, "dof": f.dof, "chi2_per_dof": f.chi2 / f.dof if f.dof else None,
             "seating_scatter_rel": f.seating_scatter_rel, "frequency_scatter_rel": f.frequency_scatter_rel,
-            "error_scale": f.error_scale, "load_noise_n": f.load_noise_n,
+            "error_scale": f.error_scale, "coverage_factors": f.coverage_factors, "load_noise_n": f.load_noise_n,
             "max_abs_whitened_residual": float(np.max(np.abs(resid))) if resid.size else None,
             "rms_residual_rel": {mode: _rms_rel(f.residuals, mode) for mode in ("bounce", "tilt")},
             "determined_below_rel": DETERMINED_REL,
