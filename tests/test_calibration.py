@@ -262,6 +262,13 @@ def test_inconsistent_data_are_flagged_not_trusted():
     assert cal.warnings() and "do not use this calibration" in cal.warnings()[0]
 
 
+def test_one_seating_per_ball_size_is_flagged():
+    steps = synthetic_steps(NOMINAL, [(6.0, LOADS[:5:2], 1), (9.0, LOADS[::4], 1)], seed=3, seating_rel=0.003)
+    fit = fit_rig(NOMINAL, steps, use_tilt=False)
+    warnings = Calibration(fit, NOMINAL, "", ["a"], steps).warnings()
+    assert any("6 mm, 9 mm seated only once" in w for w in warnings), warnings
+
+
 def test_calibration_protocol_determines_mass_and_setup_stiffness():
     """The shipped protocol's balls and loads fix mass to < 0.2 % and K_setup to < 3 % (seating scatter 0.3 %)."""
     proto = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "calibration.toml")
