@@ -255,11 +255,18 @@ def test_fit_uncertainties_cover_the_truth_at_their_stated_rate():
 
 def test_inconsistent_data_are_flagged_not_trusted():
     a = synthetic_steps(NOMINAL, [(6.0, LOADS[:5:2], 2)], seed=1)
-    b = synthetic_steps(rig_with(NOMINAL, {"mass_kg": 14.0}), [(9.0, LOADS[::3], 2)], seed=2)
+    b = synthetic_steps(rig_with(NOMINAL, {"mass_kg": 14.0}), [(9.0, LOADS[::4], 2)], seed=2)
     fit = fit_rig(NOMINAL, a + b, use_tilt=False)
     cal = Calibration(fit, NOMINAL, Path(NOMINAL.source).read_text(), ["a", "b"], a + b)
     assert fit.seating_scatter_rel > 0.03
     assert cal.warnings() and "do not use this calibration" in cal.warnings()[0]
+
+
+def test_one_seating_per_ball_size_is_flagged():
+    steps = synthetic_steps(NOMINAL, [(6.0, LOADS[:5:2], 1), (9.0, LOADS[::4], 1)], seed=3, seating_rel=0.003)
+    fit = fit_rig(NOMINAL, steps, use_tilt=False)
+    warnings = Calibration(fit, NOMINAL, "", ["a"], steps).warnings()
+    assert any("6 mm, 9 mm seated only once" in w for w in warnings), warnings
 
 
 def test_calibration_protocol_determines_mass_and_setup_stiffness():
@@ -328,3 +335,6 @@ def test_a_campaign_run_with_the_calibrated_rig_stores_it_with_its_provenance(tw
     rig = rig_from_text(stored, "stored")
     assert rig.upper.mass_kg == pytest.approx(r["mass_kg"], rel=1e-12)
     assert rig.calibration["campaigns"] == [str(twin["b6"]), str(twin["b9"])]
+    # campaigns of different stored rigs need the nominal rig named
+    proc = labctl_here(capsys, "calibrate", str(twin["b6"]), str(out))
+    assert_one_line_error(proc, str(out), "different rig description", "--rig")

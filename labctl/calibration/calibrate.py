@@ -67,7 +67,7 @@ class Calibration:
         out["fit"] = {
             "chi2": f.chi2, "dof": f.dof, "chi2_per_dof": f.chi2 / f.dof if f.dof else None,
             "seating_scatter_rel": f.seating_scatter_rel, "frequency_scatter_rel": f.frequency_scatter_rel,
-            "error_scale": f.error_scale, "load_noise_n": f.load_noise_n,
+            "error_scale": f.error_scale, "coverage_factors": f.coverage_factors, "load_noise_n": f.load_noise_n,
             "max_abs_whitened_residual": float(np.max(np.abs(resid))) if resid.size else None,
             "rms_residual_rel": {mode: _rms_rel(f.residuals, mode) for mode in ("bounce", "tilt")},
             "determined_below_rel": DETERMINED_REL,
@@ -83,13 +83,22 @@ class Calibration:
 
     def warnings(self) -> list[str]:
         """Reasons not to trust the fit although it converged."""
+        out = []
         s = self.fit.seating_scatter_rel
-        if s <= PLAUSIBLE_SEATING_SCATTER:
-            return []
-        return [f"the ball stiffness scatters by {100 * s:.3g} % per seating to explain the data, more than the "
-                f"{100 * PLAUSIBLE_SEATING_SCATTER:g} % Hertz contacts of ground balls allow: the balls are not "
-                "Hertz contacts (dirt, damage, another material) or the campaigns are not of one rig; "
-                "do not use this calibration"]
+        if s > PLAUSIBLE_SEATING_SCATTER:
+            out.append(f"the ball stiffness scatters by {100 * s:.3g} % per seating to explain the data, more than "
+                       f"the {100 * PLAUSIBLE_SEATING_SCATTER:g} % Hertz contacts of ground balls allow: the balls "
+                       "are not Hertz contacts (dirt, damage, another material) or the campaigns are not of one "
+                       "rig; do not use this calibration")
+        seatings: dict[float, set[str]] = {}
+        for step in self.steps:
+            seatings.setdefault(round(step.ball_diameter_m * 1e3, 6), set()).add(step.run_key)
+        once = sorted(d for d, runs in seatings.items() if len(runs) < 2)
+        if once:
+            out.append(f"ball size(s) {', '.join(f'{d:g} mm' for d in once)} seated only once: the seating "
+                       "scatter, which limits the mass, cannot be told from the rig parameters, so the "
+                       "uncertainties leave it out; repeat with at least two repetitions per ball size")
+        return out
 
     def rig_text(self) -> str:
         """The calibrated rig file (the nominal file with the determined values, uncertainty and provenance)."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import t as student_t
 
 from labctl.calibration.data import BallStep
 from labctl.errors import InputError
@@ -29,6 +30,7 @@ DETERMINED_REL = 0.2  # a parameter the data fix to worse than 20 % (1σ) is rep
 MAX_SCATTER_REL = 0.3  # cap on the estimated seating scatter (beyond it the fit is meaningless anyway)
 SUPPORT_PRIOR_REL = 0.5  # the rubber tube's stiffness when the data do not determine it (the rig file gives none)
 _EPS = 1e-6
+TWO_SIGMA_COVERAGE = 0.97725  # one-sided: ±2σ of a normal distribution covers 95.45 %
 
 
 def rig_values(rig: RigConfig) -> dict[str, float]:
@@ -125,6 +127,7 @@ class FitResult:
     ball_sizes_mm: list[float]
     residuals: list[dict] = field(default_factory=list)  # per observation: source, kind, measured, model, z
     unseparated_fit: dict[str, tuple[float, float]] = field(default_factory=dict)  # fitted but not used: value, σ
+    coverage_factors: dict[str, float] = field(default_factory=dict)  # small-sample widening applied per parameter
 
 
 def _load_noise_n(steps: Sequence[BallStep]) -> float:
@@ -143,7 +146,8 @@ class _Problem:
         # sensitivities to a common scale of the ball stiffness (seating) and to the load (Hertz: dlnk/dlnF = 1/3)
         self.g = (predict_hz(rig, obs, 1.0 + 1e-4) - base) / 1e-4
         loads = np.array([obs.steps[i].load_n for i in obs.step_of])
-        self.load_var = (self.g * load_noise_n / (3.0 * loads)) ** 2
+        self.load_hz = self.g * load_noise_n / (3.0 * loads)  # one load error moves a step's bounce and tilt alike
+        self.load_var = self.load_hz**2
         self.set_scatter(0.0)
 
     @property
@@ -154,8 +158,10 @@ class _Problem:
     def set_scatter(self, seating_rel: float, step_rel: float = 0.0) -> None:
         """Covariance: noise, plus a stiffness factor per seating (shared by its steps), plus per-frequency σ."""
         obs = self.obs
-        cov = np.diag(self.noise_var + (step_rel * obs.hz) ** 2)
+        cov = np.diag(np.maximum(obs.std_hz, 1e-9 * obs.hz) ** 2 + (step_rel * obs.hz) ** 2)
+        same_step = obs.step_of[:, None] == obs.step_of[None, :]
         same_run = obs.run_of[:, None] == obs.run_of[None, :]
+        cov = cov + np.outer(self.load_hz, self.load_hz) * same_step
         cov = cov + seating_rel**2 * np.outer(self.g, self.g) * same_run
         self.chol = np.linalg.cholesky(cov)
 
@@ -203,7 +209,8 @@ class _Problem:
     def solve(self, x0: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         nominal = np.log([self.nominal[p] for p in self.free])
         sol = least_squares(self.residuals, np.clip(x0, nominal - 2.0, nominal + 2.0), method="dogbox",
-                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-10, ftol=1e-10)
+                            bounds=(nominal - 2.3, nominal + 2.3), diff_step=_EPS, xtol=1e-10, ftol=1e-10,
+                            max_nfev=40)
         j = sol.jac
         try:
             cov = np.linalg.inv(j.T @ j)
@@ -217,7 +224,8 @@ def expected_rel_std(rig: RigConfig, steps: Sequence[BallStep], *, seating_rel: 
     """Relative 1σ a fit of all parameters would reach on such steps (Fisher information at ``rig``): for
     planning a calibration protocol without simulating it. The steps' measured frequencies are not used."""
     obs = Observations.of(steps, use_tilt)
-    free = [p for p in PARAMETERS if use_tilt and obs.is_tilt.any() or p != "inertia_kg_m2"]
+    has_tilt = bool(obs.is_tilt.any())
+    free = [p for p in PARAMETERS if has_tilt or p != "inertia_kg_m2"]
     problem = _Problem(rig, obs, free, load_noise_n)
     problem.set_scatter(seating_rel)
     x = np.log([problem.nominal[p] for p in free])
@@ -276,6 +284,8 @@ def fit_rig(rig: RigConfig, steps: Sequence[BallStep], *, use_tilt: bool = True)
                 raise InputError("the ball steps determine none of the rig parameters")
             continue
         break
+    coverage = _coverage_factors(problem, x, cov, sigma, step_rel, scale)
+    cov = cov * np.outer(coverage, coverage)
     fitted = dict(rig_values(rig))
     for i, p in enumerate(free):
         fitted[p] = float(math.exp(x[i]))
@@ -319,7 +329,28 @@ def fit_rig(rig: RigConfig, steps: Sequence[BallStep], *, use_tilt: bool = True)
                   "measured_hz": float(m), "model_hz": float(f), "whitened": float(r)}
                  for i, t, m, f, r in zip(obs.step_of, obs.is_tilt, obs.hz, model, z, strict=True)]
     return FitResult(values, std, total, correlation, tuple(reported), {**unseparated, **held}, chi2,
-                     int(obs.hz.size - len(free)), sigma, step_rel, scale, load_noise, sizes, residuals, unused)
+                     int(obs.hz.size - len(free)), sigma, step_rel, scale, load_noise, sizes, residuals, unused,
+                     dict(zip(free, coverage.tolist(), strict=True)))
+
+
+def _coverage_factors(problem: _Problem, x: np.ndarray, cov: np.ndarray, seating: float, step: float,
+                      scale: float) -> np.ndarray:
+    """Widening of each parameter's σ so that ±2σ covers 95.4 % although the seating scatter is estimated from
+    few seatings: Student's t with Welch–Satterthwaite degrees of freedom, (seatings − 1) / w², where w is the
+    share of the parameter's variance that comes from the seating scatter."""
+    runs = problem.obs.run_count
+    if seating <= 0.0 or runs < 2:
+        return np.ones(len(x))
+    problem.set_scatter(0.0, step)
+    j0 = problem.jacobian(x)
+    problem.set_scatter(seating, step)
+    try:
+        without = np.diag(np.linalg.inv(j0.T @ j0)) * scale**2
+    except np.linalg.LinAlgError:
+        return np.ones(len(x))
+    share = np.clip(1.0 - without / np.diag(cov), 1e-6, 1.0)
+    nu = (runs - 1) / share**2
+    return np.maximum(student_t.ppf(TWO_SIGMA_COVERAGE, nu) / 2.0, 1.0)
 
 
 def _fit_with_scatter(problem: _Problem, obs: Observations, x0: np.ndarray
