@@ -71,15 +71,13 @@ def read_ball_steps(path: str | Path) -> CampaignBalls:
                 for step in run.steps:
                     r = step.result
                     where = f"{path}:series {series}/run {run.run}/step {step.step}"
-                    bounce = _finite(r.get("bounce_hz")) if r else None
-                    load = _finite(step.attrs.get("load_n"))
+                    bounce = _finite(r.bounce_hz) if r is not None and r.identified else None
+                    load = _finite(step.load_n)
                     if r is None or bounce is None or load is None or load <= 0:
                         skipped.append(f"{where}: no identified bounce frequency or load")
                         continue
-                    tilt = r.get("tilt_hz") or []
-                    tilt_std = r.get("tilt_hz_std") or []
-                    t = [_finite(v) for v in tilt]
-                    ts = [_finite(v) for v in tilt_std]
+                    t = [_finite(v) for v in r.tilt_hz]
+                    ts = [_finite(v) for v in r.tilt_hz_std]
                     tilt_ok = len(t) == 2 and all(v is not None and v > 0 for v in t) and len(ts) == 2 \
                         and all(v is not None for v in ts)
                     tilt_hz = tilt_std_hz = None
@@ -87,11 +85,11 @@ def read_ball_steps(path: str | Path) -> CampaignBalls:
                         tilt_hz = 0.5 * (t[0] + t[1])  # type: ignore[operator]
                         # an unresolved pair is one peak between the two: its half-split is unknown, so widen
                         tilt_std_hz = 0.5 * math.hypot(ts[0], ts[1])  # type: ignore[arg-type]
-                        if not r.get("tilt_pair_resolved", True):
+                        if not r.tilt_pair_resolved:
                             tilt_std_hz = max(tilt_std_hz, 0.002 * tilt_hz)
                     steps.append(BallStep(
                         source=where, run_key=f"{path}:{series}:{run.run}", load_n=load,
-                        load_repeat_n=_finite(step.attrs.get("load_after_n")), contact=contact,
-                        bounce_hz=bounce, bounce_std_hz=float(_finite(r.get("bounce_hz_std")) or 0.0),
+                        load_repeat_n=_finite(step.load_after_n), contact=contact,
+                        bounce_hz=bounce, bounce_std_hz=float(_finite(r.bounce_hz_std) or 0.0),
                         tilt_hz=tilt_hz, tilt_std_hz=tilt_std_hz))
     return CampaignBalls(str(path), steps, rig_text, skipped)

@@ -156,6 +156,11 @@ class StepInfo:
     def load_drift(self) -> bool:
         return bool(self.attrs.get("load_drift", False))
 
+    @property
+    def load_after_n(self) -> float:
+        """The load read after the step's impacts (NaN when the step has none)."""
+        return float(self.attrs.get("load_after_n", np.nan))
+
 
 def step_info(series: int, run: int, g: h5py.Group) -> StepInfo:
     a = attrs_of(g)
