@@ -120,15 +120,17 @@ def _differs(a: tuple[str, ...], b: tuple[str, ...]) -> str:
     return f"tells whether {' + '.join(extra)} is present"
 
 
-def _length_words(spec: Specimen, measured: list[float]) -> str:
+def _length_words(spec: Specimen, measured: list[float], materials: set[str]) -> str:
     length = spec.roller.contact_length_m
+    kind = "roller" if spec.roller.material.name in materials else \
+        f"{spec.roller.material.name} roller (a material not measured yet)"
     nearest = min(measured, key=lambda m: abs(math.log(length / m)))
     ratio = length / nearest
     name = f"type {spec.type_id} (L_we {length * 1e3:.3g} mm, D {spec.roller.diameter_m * 1e3:.3g} mm)"
     if abs(ratio - 1) <= SAME_LENGTH:
-        return f"a roller of the measured length, {name},"
+        return f"a {kind} of the measured length, {name},"
     word = "longer" if ratio > 1 else "shorter"
-    return f"a {word} roller, {name} at {ratio:.2g}× the nearest measured L_we,"
+    return f"a {word} {kind}, {name} at {ratio:.2g}× the nearest measured L_we,"
 
 
 def _load_words(loads: np.ndarray, spec: Specimen, data: Dataset) -> str:
@@ -153,7 +155,8 @@ def _reason(spec: Specimen, loads: np.ndarray, score: Score, models: list[ModelA
     rails = {round(c.case.rail_ra_m * 1e6, 6) for c in data.cases}
     rail = round(spec.rail_ra_m * 1e6, 6)
     rail_words = f" on Ra {rail:g} µm rails" + ("" if rail in rails else " (not measured yet)")
-    where = f"{_length_words(spec, lengths)}{rail_words} {_load_words(loads, spec, data)}"
+    materials = {c.case.roller.material.name for c in data.cases}
+    where = f"{_length_words(spec, lengths, materials)}{rail_words} {_load_words(loads, spec, data)}"
     if score.pair_terms and float(score.discrimination[0]) >= float(score.parameters[0]):
         (i, j), _ = max(score.pair_terms.items(), key=lambda kv: float(kv[1][0]))
         what = _differs(models[i].rival.terms, models[j].rival.terms)
