@@ -157,3 +157,35 @@ def test_bad_data_is_a_one_line_error_naming_the_file(capsys, tmp_path):
     bad.write_text("diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m\n3,1.793,0.2,-5,1e8\n")
     assert_one_line_error(labctl_here(capsys, "plan", str(bad)), "bad.csv", "load_n")
     assert_one_line_error(labctl_here(capsys, "plan", str(tmp_path / "none.csv")), "none.csv", "not found")
+
+
+def test_an_unnamed_empirical_term_is_pinned_down_at_the_extremes_of_its_feature():
+    """A stiffness that grows as D^0.15 (no library term): the workflow proposes ln(D/D0); the plan says more
+    data are needed and picks the catalogue's thickest or thinnest roller to pin the coefficient down."""
+    law = ContactLaw("tripp", 1.5e-3)
+
+    def truth(case, load_n):
+        return law.stiffness_n_per_m(case, load_n) * (case.roller.diameter_m / 5e-3) ** 0.15
+
+    plan = plan_measurements(synthesize(truth, types=range(1, 8), noise=NOISE, seed=3, repetitions=2, steps=8))
+    assert plan.result.empirical is not None and "ln(D/D0)" in plan.result.empirical.features
+    assert not plan.enough
+    top = plan.recommendations[0]
+    diameters = [r.diameter_m for r in rollers().values()]
+    assert rollers()[top.roller_type].diameter_m in (min(diameters), max(diameters))
+    assert "unnamed empirical term (ln(D/D0))" in top.reason
+
+
+def test_loads_a_model_in_play_cannot_predict_are_not_proposed():
+    from labctl.planning.plan import _predictable
+    from labctl.planning.specimens import Specimen
+
+    def offset_model(data, x):  # a load-cell offset of 50 N: no true load below it
+        load = np.concatenate([c.load_n for c in data.cases])
+        return np.where(load > 50.0, np.log(load), np.nan)
+
+    rival = Rival(("load_offset",), offset_model, np.zeros(1), np.zeros(1), np.ones(1), np.ones(1), 0.0)
+    spec = Specimen(rollers()[1], STEEL, 0.2e-6, np.array([37.9, 78.4, 118.9]), 434.0)
+    kept = _predictable(spec, [rival])
+    assert kept is not None and list(kept.loads_n) == [78.4, 118.9]
+    assert _predictable(replace(spec, loads_n=np.array([37.9])), [rival]) is None

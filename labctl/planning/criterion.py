@@ -51,6 +51,8 @@ class Score:
     """w_i w_j (KL_ij + KL_ji) per model pair."""
     kl: dict[tuple[int, int], np.ndarray]
     """KL_ij per ordered pair (i true)."""
+    param_terms: dict[int, np.ndarray]
+    """w_k · ½ ln(det C_k,T / det C'_k,T) per model with term parameters."""
 
 
 def _logdet(a: np.ndarray) -> np.ndarray:
@@ -84,7 +86,8 @@ def score_sets(models: list[ModelAt], noise: np.ndarray, sets: np.ndarray) -> Sc
             pair_terms[(i, j)] = term
             disc = disc + term
     params = np.zeros(n)
-    for m, si in zip(models, s_inv, strict=True):
+    param_terms: dict[int, np.ndarray] = {}
+    for k, (m, si) in enumerate(zip(models, s_inv, strict=True)):
         t = m.term_rows
         if t.size == 0 or m.weight <= 0:
             continue
@@ -94,8 +97,9 @@ def score_sets(models: list[ModelAt], noise: np.ndarray, sets: np.ndarray) -> Sc
         c_new = c[None] - np.einsum("nap,nab,nbq->npq", jc, si, jc)
         before = _logdet(c[np.ix_(t, t)][None])
         after = _logdet(c_new[:, t[:, None], t[None, :]])
-        params = params + m.weight * 0.5 * (before - after)
-    return Score(disc + params, disc, params, pair_terms, kl)
+        param_terms[k] = m.weight * 0.5 * (before - after)
+        params = params + param_terms[k]
+    return Score(disc + params, disc, params, pair_terms, kl, param_terms)
 
 
 def greedy_loads(models: list[ModelAt], noise: np.ndarray, budget: int) -> tuple[np.ndarray, Score]:
@@ -118,4 +122,5 @@ def greedy_loads(models: list[ModelAt], noise: np.ndarray, budget: int) -> tuple
 def _pick(sc: Score, k: int) -> Score:
     one = slice(k, k + 1)
     return Score(sc.total[one], sc.discrimination[one], sc.parameters[one],
-                 {key: v[one] for key, v in sc.pair_terms.items()}, {key: v[one] for key, v in sc.kl.items()})
+                 {key: v[one] for key, v in sc.pair_terms.items()}, {key: v[one] for key, v in sc.kl.items()},
+                 {key: v[one] for key, v in sc.param_terms.items()})

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -160,11 +160,25 @@ def _reason(spec: Specimen, loads: np.ndarray, score: Score, models: list[ModelA
     if score.pair_terms and float(score.discrimination[0]) >= float(score.parameters[0]):
         (i, j), _ = max(score.pair_terms.items(), key=lambda kv: float(kv[1][0]))
         what = _differs(models[i].rival.terms, models[j].rival.terms)
+    elif score.param_terms:
+        k, _ = max(score.param_terms.items(), key=lambda kv: float(kv[1][0]))
+        what = f"pins down the parameters of {models[k].rival.label}"
     else:
-        final = models[0].rival
-        what = (f"pins down the parameters of {final.label}" if final.terms
-                else "pins down the baseline's depth (nothing else is in play)")
+        what = "pins down the baseline's depth (no effect term is in play)"
     return f"{where} {what}"
+
+
+def _predictable(spec: Specimen, play: list[Rival]) -> Specimen | None:
+    """The specimen with only the loads every model in play can predict (a load offset larger than a load
+    leaves that model without a prediction there); None when no load is left."""
+    design = _design_data(spec)
+    ok = np.ones(spec.loads_n.size, dtype=bool)
+    for rival in play:
+        mu, jac = rival.jacobian(design)
+        ok &= np.isfinite(mu) & np.all(np.isfinite(jac), axis=1)
+    if not np.any(ok):
+        return None
+    return replace(spec, loads_n=spec.loads_n[ok])
 
 
 def _would_change(score: Score, models: list[ModelAt]) -> bool:
@@ -193,6 +207,9 @@ def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | N
     ranked: list[tuple[float, Recommendation]] = []
     change = False
     for spec in candidate_specimens(protocol, rig, rail, RAIL_RA_UM):
+        spec = _predictable(spec, play)
+        if spec is None:
+            continue
         design = _design_data(spec)
         sigma = noise.sigma_at(design)
         noise_cov = np.diag(sigma**2) + tau2
@@ -200,8 +217,6 @@ def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | N
         for rival, w in zip(play, weights, strict=True):
             mu, jac = rival.jacobian(design)
             models.append(ModelAt(rival, float(w), mu, jac, _term_rows(rival, result.final.spec.fits_depth)))
-        if not all(np.all(np.isfinite(m.mu)) and np.all(np.isfinite(m.jac)) for m in models):
-            continue  # a model with no prediction there (e.g. a load offset above the load): not scored
         idx, score = greedy_loads(models, noise_cov, budget_steps)
         change = change or _would_change(score, models)
         loads = spec.loads_n[idx]

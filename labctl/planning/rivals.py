@@ -109,7 +109,8 @@ def from_empirical(final: Fit, term: EmpiricalTerm, data: Dataset, whiten: Calla
     n = z.size
     bic = n * math.log(max(float(np.mean(z**2)), 1e-300)) + (p + k) * math.log(n)
     prior = np.concatenate([_prior(final.spec), np.full(k, PRIOR_SD_EMPIRICAL)])
-    return Rival((*final.spec.terms, "unnamed empirical term"), predict, x, lower, upper, prior, bic)
+    label = f"unnamed empirical term ({', '.join(names)})"
+    return Rival((*final.spec.terms, label), predict, x, lower, upper, prior, bic)
 
 
 def _without(spec: ModelSpec, name: str) -> ModelSpec:
