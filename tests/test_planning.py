@@ -189,3 +189,9 @@ def test_loads_a_model_in_play_cannot_predict_are_not_proposed():
     kept = _predictable(spec, [rival])
     assert kept is not None and list(kept.loads_n) == [78.4, 118.9]
     assert _predictable(replace(spec, loads_n=np.array([37.9])), [rival]) is None
+
+
+def test_a_file_that_is_no_campaign_is_a_one_line_error(capsys, tmp_path):
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(b"not hdf5")
+    assert_one_line_error(labctl_here(capsys, "plan", str(path)), "campaign.h5")
