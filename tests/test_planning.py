@@ -195,3 +195,21 @@ def test_a_file_that_is_no_campaign_is_a_one_line_error(capsys, tmp_path):
     path = tmp_path / "campaign.h5"
     path.write_bytes(b"not hdf5")
     assert_one_line_error(labctl_here(capsys, "plan", str(path)), "campaign.h5")
+
+
+def test_cli_loads_follow_the_given_rig_file(capsys, short_roller_csv, tmp_path):
+    """A rig with springs twice as stiff: every recommended load is a whole number of its (larger) knob steps."""
+    from labctl.data import data_path
+
+    text = data_path("rigs/paper_rig.toml").read_text()
+    assert "spring_rate_n_per_m = 4.05e4" in text
+    rig_file = tmp_path / "stiff_springs.toml"
+    rig_file.write_text(text.replace("spring_rate_n_per_m = 4.05e4", "spring_rate_n_per_m = 8.1e4"))
+    out = labctl_here_json(capsys, "plan", str(short_roller_csv), "--rig", str(rig_file), "--budget-steps", "2",
+                           "--candidates", "end_effects")
+    rig = load_rig(rig_file)
+    per_step = rig.load_per_knob_degree_n * load_protocol("roller_stiffness").loading.knob_step_deg
+    assert per_step == pytest.approx(2 * load_rig().load_per_knob_degree_n * 180.0)
+    for r in out["recommendations"]:
+        steps = (np.array(r["loads_n"]) - rig.preload_per_roller_n) / per_step
+        assert np.allclose(steps, np.round(steps), atol=0.01), (r, steps)
