@@ -15,6 +15,13 @@ noise model re-estimated); the table gives, over ``--seeds`` seeds, the median s
 length (Laplace, whitened with the noise model) and the rms error of the fitted length against the truth.
 
     python bench/planning.py [--seeds 8] [--budget 5] [--seating 0.0]
+
+``--suite verdicts`` instead checks the two verdicts of the plan over seeds: the paper's programme (types 1-7
+on both rails, 2 repetitions × 8 steps) on worlds with one or two library effects must give ``enough``; one
+short roller type (1, 2, 7 or 9) with roughness and end effects must not, and its top recommendation must be a
+roller of at least twice or at most half its contact length.
+
+    python bench/planning.py --suite verdicts [--seeds 3]
 """
 
 from __future__ import annotations
@@ -73,12 +80,48 @@ def edge_estimate(points: list[StiffnessPoint]) -> tuple[float, float]:
     return fit.effect_parameters()["end_effects"]["edge_length_m"], float(np.sqrt(rival.covariance[k, k])) * (hi - lo)
 
 
+def verdicts(seeds: int) -> None:
+    """``enough`` on the full programme, a clearly different length recommended after one short roller."""
+    from labctl.physics import SetupCompliance, rollers
+
+    worlds = {"surface_roughness": (SurfaceRoughness(1.5),), "end_effects": (EndEffects(EDGE_M),),
+              "surface_roughness + end_effects": (SurfaceRoughness(1.5), EndEffects(EDGE_M)),
+              "setup_compliance": (SetupCompliance(1.25),)}
+    print("| data | world | datasets | right verdict named | enough | top: L_we ratio >= 2 or <= 0.5 |")
+    print("|---|---|---|---|---|---|")
+    for name, effects in worlds.items():
+        law = ContactLaw("tripp", 1.5e-3, effects)
+        named = enough = 0
+        for s in range(seeds):
+            points: list[StiffnessPoint] = []
+            for k, ra in enumerate((0.2e-6, 0.03e-6)):
+                points += synthesize(law.stiffness_n_per_m, types=range(1, 8), rail_ra_m=ra, noise=NOISE,
+                                     seed=10 * s + k, repetitions=2, steps=8)
+            plan = plan_measurements(points)
+            named += " + ".join(st.name for st in plan.result.steps) == name
+            enough += plan.enough
+        print(f"| types 1-7, both rails | {name} | {seeds} | {named} | {enough} | - |")
+    for t in (1, 2, 7, 9):
+        enough = clear = 0
+        for s in range(seeds):
+            plan = plan_measurements(synthesize(LAW.stiffness_n_per_m, types=[t], noise=NOISE, seed=s))
+            top = plan.recommendations[0]
+            ratio = rollers()[top.roller_type].contact_length_m / rollers()[t].contact_length_m
+            enough += plan.enough
+            clear += ratio >= 2 or ratio <= 0.5
+        print(f"| type {t} only, Ra 0.2 | surface_roughness + end_effects | {seeds} | - | {enough} | {clear} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--suite", choices=("se", "verdicts"), default="se")
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--budget", type=int, default=5)
     ap.add_argument("--seating", type=float, default=0.0)
     args = ap.parse_args()
+    if args.suite == "verdicts":
+        verdicts(args.seeds)
+        return
     protocol, rig, steel = load_protocol("roller_stiffness"), load_rig(), material("1.3505")
     from labctl.physics import rollers
 
