@@ -129,6 +129,7 @@ EXPRESSION_FUNCTIONS: dict[str, Callable[..., Any]] = {
     "log": np.log, "exp": np.exp, "sqrt": np.sqrt, "tanh": np.tanh, "abs": np.abs, "minimum": np.minimum,
     "maximum": np.maximum,
 }
+ARITY = {"minimum": 2, "maximum": 2}  # the others take one argument
 EXPRESSION_NAMES = {
     "F": "load per roller (N)", "L": "contact length L_we (m)", "Lr": "total roller length L_r (m)",
     "D": "roller diameter (m)", "R": "roller radius (m)", "E": "effective modulus E* (Pa)",
@@ -146,6 +147,7 @@ def check_expression(text: str) -> ast.Expression:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise ValueError(f"not an expression: {exc.msg}") from None
+    callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         if isinstance(node, (ast.Expression, ast.Load)) or type(node) in _BINARY:
             continue
@@ -157,10 +159,14 @@ def check_expression(text: str) -> ast.Expression:
             continue
         if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(node.value, bool):
             continue
-        if isinstance(node, ast.Name) and (node.id in EXPRESSION_NAMES or node.id in EXPRESSION_FUNCTIONS):
+        if isinstance(node, ast.Name) and (
+            node.id in EXPRESSION_NAMES or (node.id in EXPRESSION_FUNCTIONS and id(node) in callees)
+        ):
             continue
         if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in EXPRESSION_FUNCTIONS
                 and not node.keywords):
+            if len(node.args) != ARITY.get(node.func.id, 1) or any(isinstance(a, ast.Starred) for a in node.args):
+                raise ValueError(f"{node.func.id}() takes {ARITY.get(node.func.id, 1)} argument(s)")
             continue
         what = (node.id if isinstance(node, ast.Name)
                 else node.func.id if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
