@@ -52,14 +52,14 @@ class ConformingContact:
     bedding: float = 0.42
     bedding_exponent: float = 10.0
     asperity_spot_rel: float = 0.0
-    seating_z: float = 0.0
+    seating_z: float = 0.0  # this seating's draw (standard normal, set by ``reseated``; not a world-file key)
     name: ClassVar[str] = "conforming"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {
         "depth_m": (1e-4, 0.1), "edge_length_m": (0.0, 2e-3),
         "edge_half_widths": (0.0, 20.0), "asperity_scale": (0.0, 20.0),
         "roller_ra_weight": (0.0, 1.0), "conformity": (0.01, 10.0),
         "conformity_exponent": (0.5, 20.0), "bedding": (0.01, 10.0), "bedding_exponent": (0.5, 40.0),
-        "asperity_spot_rel": (0.0, 2.0), "seating_z": (-10.0, 10.0),
+        "asperity_spot_rel": (0.0, 2.0),
     }
 
     def reseated(self, rng: np.random.Generator) -> ConformingContact:
