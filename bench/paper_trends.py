@@ -6,7 +6,8 @@ turns from the preload up to the C0 cap), three repetitions with the rollers re-
 stiffness of every step comes from the twin's truth (the roller stiffness the bounce frequency of the three
 seated rollers implies, exactly what an ideal identification returns); the reference configuration (type 1,
 Ra 0.2 µm) is also run as a full campaign and processed from its raw impacts, which gives the scatter and the
-frequencies at 440 N. ``--raw`` processes every type and rail from raw impacts instead (about 10 min).
+frequencies at 440 N. ``--raw`` processes every type and rail from raw impacts instead (the full paper
+programme: 18 campaigns, most of an hour on two shared cores; each file is deleted once processed).
 
     python bench/paper_trends.py [--world default] [--seed 1] [--raw] [--json]
 """
@@ -82,6 +83,7 @@ def raw_curve(type_id: int, rail_ra_m: float, world: str, seed: int, tmp: Path) 
     if outcome.status != "complete":
         raise RuntimeError(f"campaign {path} ended {outcome.status}: {outcome.message}")
     rows = [r for r in process_campaign(path).rows if r.result is not None]
+    path.unlink()  # a campaign of type 4 holds several GB of raw impacts
     runs = sorted({r.run for r in rows})
     steps = min(sum(r.run == run for r in rows) for run in runs)
     k = np.array([[r.result["roller_stiffness_n_per_m"] for r in rows if r.run == run][:steps] for run in runs])

@@ -85,3 +85,5 @@ def test_hidden_world_effect_is_named_from_raw_impacts(tmp_path, capsys, world, 
         else:
             assert names[:1] == [effect], out["effects"]
             assert out["gap_after"] < out["gap_before"]
+            edge = out["effects"][0]["parameters"]["edge_length_m"]
+            assert edge == pytest.approx(EDGE_M, rel=0.3), out["effects"]  # the size the table hides

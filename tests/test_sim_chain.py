@@ -177,3 +177,18 @@ def test_extra_load_cell_reads_do_not_change_the_impact_data():
         return strike_records(rig, 1, samples=2048)[0].accel_m_per_s2
 
     np.testing.assert_array_equal(accel(0), accel(5))
+
+
+def test_seating_scatter_comes_from_the_asperities_the_spot_meets_and_nothing_else(tmp_path):
+    from labctl.physics.world import data_path
+
+    text = data_path("worlds/default.toml").read_text()
+    world = tmp_path / "no_spot.toml"
+    world.write_text(text.replace("asperity_spot_rel = 0.18", "asperity_spot_rel = 0.0"))
+    twin = twin_of(sim_rig(seed=5, world=str(world)))
+    twin.set_load_per_roller(RIG.preload_per_roller_n)
+    ks = set()
+    for _ in range(5):
+        twin.rotate_rollers()
+        ks.update(round(k, 6) for k in twin.roller_stiffness_n_per_m())
+    assert len(ks) == 1  # no multiplicative noise term: without the seating spots every roller is the same

@@ -120,6 +120,9 @@ def test_a_world_can_hide_an_expression_read_safely(tmp_path):
     ("open", "'open' is not allowed"),
     ("F +", "not an expression"),
     ("'1' * 3", "not allowed"),
+    ("log * F", "'log' is not allowed"),
+    ("log(F, L)", "log() takes 1 argument(s)"),
+    ("maximum(F)", "maximum() takes 2 argument(s)"),
 ])
 def test_world_expressions_allow_only_arithmetic_on_known_names(tmp_path, expression, message):
     path = tmp_path / "bad.toml"

@@ -3,8 +3,10 @@
 Knob angle → spring compression → load per roller (from the preload, never below it) → each seated roller's
 stiffness from the hidden world → rig modes → the response to each blow. Rig time is virtual: nothing sleeps.
 Test hooks (double hit, overload, dead channel, creep, unplugged device) are methods here, not in the
-instrument interfaces. Separate random streams for seating, blows, noise and the load cell keep one stream's
-use (e.g. extra load-cell reads) from changing another's data: everything is reproducible from the seed.
+instrument interfaces; the world's faults (``drivers.sim.faults``) are drawn here from their own random stream
+and logged in ``fault_log``. A blow's record shows the contact's first-order nonlinearity (``blow_modes``).
+Separate random streams for seating, blows, noise, the load cell and faults keep one stream's use (e.g. extra
+load-cell reads) from changing another's data: everything is reproducible from the seed.
 """
 
 from __future__ import annotations

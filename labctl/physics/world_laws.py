@@ -52,14 +52,14 @@ class ConformingContact:
     bedding: float = 0.42
     bedding_exponent: float = 10.0
     asperity_spot_rel: float = 0.0
-    seating_z: float = 0.0
+    seating_z: float = 0.0  # this seating's draw (standard normal, set by ``reseated``; not a world-file key)
     name: ClassVar[str] = "conforming"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {
         "depth_m": (1e-4, 0.1), "edge_length_m": (0.0, 2e-3),
         "edge_half_widths": (0.0, 20.0), "asperity_scale": (0.0, 20.0),
         "roller_ra_weight": (0.0, 1.0), "conformity": (0.01, 10.0),
         "conformity_exponent": (0.5, 20.0), "bedding": (0.01, 10.0), "bedding_exponent": (0.5, 40.0),
-        "asperity_spot_rel": (0.0, 2.0), "seating_z": (-10.0, 10.0),
+        "asperity_spot_rel": (0.0, 2.0),
     }
 
     def reseated(self, rng: np.random.Generator) -> ConformingContact:
@@ -129,6 +129,7 @@ EXPRESSION_FUNCTIONS: dict[str, Callable[..., Any]] = {
     "log": np.log, "exp": np.exp, "sqrt": np.sqrt, "tanh": np.tanh, "abs": np.abs, "minimum": np.minimum,
     "maximum": np.maximum,
 }
+ARITY = {"minimum": 2, "maximum": 2}  # the others take one argument
 EXPRESSION_NAMES = {
     "F": "load per roller (N)", "L": "contact length L_we (m)", "Lr": "total roller length L_r (m)",
     "D": "roller diameter (m)", "R": "roller radius (m)", "E": "effective modulus E* (Pa)",
@@ -146,6 +147,7 @@ def check_expression(text: str) -> ast.Expression:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise ValueError(f"not an expression: {exc.msg}") from None
+    callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         if isinstance(node, (ast.Expression, ast.Load)) or type(node) in _BINARY:
             continue
@@ -157,10 +159,14 @@ def check_expression(text: str) -> ast.Expression:
             continue
         if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(node.value, bool):
             continue
-        if isinstance(node, ast.Name) and (node.id in EXPRESSION_NAMES or node.id in EXPRESSION_FUNCTIONS):
+        if isinstance(node, ast.Name) and (
+            node.id in EXPRESSION_NAMES or (node.id in EXPRESSION_FUNCTIONS and id(node) in callees)
+        ):
             continue
         if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in EXPRESSION_FUNCTIONS
                 and not node.keywords):
+            if len(node.args) != ARITY.get(node.func.id, 1) or any(isinstance(a, ast.Starred) for a in node.args):
+                raise ValueError(f"{node.func.id}() takes {ARITY.get(node.func.id, 1)} argument(s)")
             continue
         what = (node.id if isinstance(node, ast.Name)
                 else node.func.id if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
