@@ -117,12 +117,17 @@ def synth_impacts(
     dead: Sequence[str] = (),
     ringing: bool = False,
     seed: int = 0,
+    snr_decay_s: float | None = None,
+    force_peak_snr_db: float | None = None,
 ) -> SynthSet:
     """Impacts of the modal model; ``modes`` may be one list or one list per impact (hit-point scatter).
 
     ``double_hits`` maps an impact index to (delay s, ratio of the second peak); ``clip`` maps an impact
     index to (channel, level m/s²) where that channel saturates; ``dead`` channels read exactly zero;
     ``ringing`` passes every channel through a sharp anti-alias filter (as a DAQ does).
+    ``snr_decay_s``: the responses' SNR is taken over this long after the blow (the response's decay)
+    instead of the whole record; ``force_peak_snr_db``: the force noise as peak to noise (a real hammer's
+    40-60 dB) instead of the force's RMS over the record at ``snr_db``.
     """
     rng = np.random.default_rng(seed)
     per_impact = [list(modes)] * n_impacts if isinstance(modes[0], SynthMode) else [list(m) for m in modes]
@@ -143,8 +148,15 @@ def synth_impacts(
             f = signal.sosfilt(sos, f)
         y = np.fft.irfft(accelerance(per_impact[i], freqs) * np.fft.rfft(f), n_pad, axis=-1)
         force[i], accel[i] = f[:n_samples], y[:, :n_samples]
-    sigma_a = math.sqrt(np.mean(accel**2)) / 10 ** (snr_db / 20)
-    sigma_f = math.sqrt(np.mean(force**2)) / 10 ** (snr_db / 20)
+    if snr_decay_s is None:
+        sigma_a = math.sqrt(np.mean(accel**2)) / 10 ** (snr_db / 20)
+    else:
+        end = pretrigger + int(snr_decay_s * fs_hz)
+        sigma_a = math.sqrt(np.mean(accel[:, :, pretrigger:end] ** 2)) / 10 ** (snr_db / 20)
+    if force_peak_snr_db is None:
+        sigma_f = math.sqrt(np.mean(force**2)) / 10 ** (snr_db / 20)
+    else:
+        sigma_f = float(np.max(np.abs(force))) / 10 ** (force_peak_snr_db / 20)
     accel += rng.normal(0.0, sigma_a, accel.shape)
     force += rng.normal(0.0, sigma_f, force.shape)
     for i, (ch, level) in (clip or {}).items():

@@ -10,7 +10,7 @@ import pytest
 from scipy.stats import binom
 
 from labctl.processing import identify
-from tests.cli_util import labctl_here_json
+from tests.cli_util import labctl_here, labctl_here_json
 from tests.impact_generator import contact_truth, generate
 from tests.synth_impacts import load_rig
 
@@ -90,6 +90,13 @@ def test_a_channel_clipped_in_every_impact_is_dropped_and_the_step_goes_on(tmp_p
     assert all(i["accepted"] for i in out["impacts"])
     assert out["bounce_hz"] == pytest.approx(g.truth["bounce_hz"], abs=0.02)
     assert out["modes"][0]["shape"]["A2Z"] == 0.0
+    budget = out["roller_stiffness_budget_n_per_m"]
+    assert set(budget) == {"modal_fit", "disc_mass", "setup_stiffness", "rig_model"}
+    assert out["roller_stiffness_std_n_per_m"] >= max(budget.values())
+    text = labctl_here(capsys, "identify", str(path))
+    assert text.returncode == 0, text.stderr
+    assert "1-σ budget: modal fit" in text.stdout and "per roller: 1:" in text.stdout
+    assert "A2Z saturated in every impact: dropped" in text.stdout
 
 
 def test_a_clip_of_two_samples_is_seen_without_a_stated_range():

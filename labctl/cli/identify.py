@@ -100,6 +100,11 @@ def _text(r: dict[str, Any]) -> str:
                else "tilt pair unresolved: the rollers cannot be told apart")
         lines.append("  per roller: " + ", ".join(f"{i + 1}: {k:.4e} ± {s:.1e}" for i, (k, s)
                                                  in enumerate(zip(ks, kstd, strict=True))) + f" N/m ({how})")
+    lin = r.get("linearity")
+    if lin:
+        lines.append(f"linearity  bounce {100 * lin['slope_hz_per_n']:+.4f} ± {100 * lin['slope_std_hz_per_n']:.4f} Hz "
+                     f"per 100 N of blow over {min(lin['peak_force_n']):.0f}-{max(lin['peak_force_n']):.0f} N"
+                     + ("   (not linear: see warning)" if lin["nonlinear"] else ""))
     if "roller_only_stiffness_n_per_m" in r:
         lines.append(f"roller alone     {r['roller_only_stiffness_n_per_m']:.5e} ± "
                      f"{r['roller_only_stiffness_std_n_per_m']:.2e} N/m (rails' Tripp compliance removed)")

@@ -178,13 +178,17 @@ class BounceSensitivity:
 
 def bounce_sensitivity(config: RigConfig, roller_stiffness_n_per_m: float) -> BounceSensitivity:
     """Derivatives of the bounce frequency (forward differences of the rig model) for the uncertainty budget."""
-    k = float(roller_stiffness_n_per_m)
-    f0 = bounce_hz(config, k)
+    k = np.full(3, float(roller_stiffness_n_per_m))
+
+    def f(c: RigConfig, kk: np.ndarray) -> float:
+        return float(ContactModeModel(c)(kk)[0][0])
+
+    f0 = f(config, k)
     h = 1e-5
-    dk = (bounce_hz(config, k * (1 + h)) - f0) / (k * h)
-    dm = (bounce_hz(with_disc_mass_scaled(config, 1 + h), k) - f0) / (config.upper.mass_kg * h)
+    dk = (f(config, k * (1 + h)) - f0) / (k[0] * h)
+    dm = (f(with_disc_mass_scaled(config, 1 + h), k) - f0) / (config.upper.mass_kg * h)
     ks = config.setup_stiffness_n_per_m
-    dks = (bounce_hz(config.with_setup_stiffness(ks * (1 + h)), k) - f0) / (ks * h)
+    dks = (f(config.with_setup_stiffness(ks * (1 + h)), k) - f0) / (ks * h)
     return BounceSensitivity(dk, dm, dks)
 
 
@@ -233,3 +237,28 @@ def contact_modes_hz(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> 
     """(bounce, lower tilt, upper tilt) frequencies for three roller stiffnesses."""
     f, _ = contact_modes(config, roller_stiffness_n_per_m)
     return float(f[0]), float(f[1]), float(f[2])
+
+
+def equal_roller_stiffness(config: RigConfig, bounce_frequency_hz: float,
+                           model: ContactModeModel | None = None) -> tuple[float, float]:
+    """(k, df/dk): the per-roller stiffness of three equal rollers that gives this bounce frequency, by Newton
+    steps on ln k from Eq. 4 (the support's small share then included), and the slope there (Hz per N/m).
+    Falls back to ``roller_stiffness_from_bounce`` (bracketing) when Newton does not settle."""
+    m = model or ContactModeModel(config)
+    mass = config.upper.mass_kg
+    w2 = (2.0 * math.pi * bounce_frequency_hz) ** 2
+    inv = 2.0 / (mass * w2) - 1.0 / config.setup_stiffness_n_per_m  # Eq. 4: 1/(3k) = 2/(m ω²) - 1/K_setup
+    k = 1.0 / (3.0 * inv) if inv > 0 else roller_stiffness_from_bounce(config, bounce_frequency_hz)
+    for _ in range(8):
+        f0 = float(m(np.full(3, k))[0][0])
+        dk = 1e-6 * k
+        slope = (float(m(np.full(3, k + dk))[0][0]) - f0) / dk
+        if not slope > 0:
+            break
+        step = (bounce_frequency_hz - f0) / slope
+        k = max(k + step, 0.5 * k)
+        if abs(step) < 1e-12 * k:
+            return k, slope
+    k = roller_stiffness_from_bounce(config, bounce_frequency_hz)
+    dk = 1e-6 * k
+    return k, (bounce_hz(config, k + dk) - bounce_hz(config, k)) / dk

@@ -23,6 +23,7 @@ LOW_FORCE = "low_force"
 LOW_COHERENCE = "low_coherence"
 REASONS = (DOUBLE_HIT, OVERLOAD, PULSE_WIDTH, LOW_FORCE, LOW_COHERENCE)
 PULSE_SEARCH_S = 5e-3  # the blow's extent is searched this far either side of its peak
+PLATEAU_SEARCH_S = 0.2  # a clipped response's plateaus lie within this long after the blow
 FURTHER_PULSE_SIGMAS = 4.5  # a matched-filter peak this far above the force noise is a further pulse whose
 # force joins the force window (however small: its response is in the responses); ≥ double_hit_ratio rejects
 
@@ -131,30 +132,55 @@ def locate_pulse(force_n: ArrayLike, fs_hz: float) -> Pulse:
     return Pulse(g, peak, start, end, p, width, noise, polarity)
 
 
-def second_hit(pulse: Pulse, fs_hz: float, window_s: float) -> tuple[float, float | None, float]:
+@dataclass(frozen=True)
+class _Matched:
+    """The matched filter's output around the blow (the main pulse's own neighbourhood masked)."""
+
+    ratio: np.ndarray  # index j: the template at sample lo + j + n_t, scaled so the blow reads 1
+    lo: int
+    hi: int
+    n_t: int
+    j0: int
+    main: float
+
+
+def _matched(pulse: Pulse, fs_hz: float, window_s: float) -> _Matched | None:
+    g = pulse.force_n
+    tpl = g[pulse.start:pulse.end + 1]
+    n_t = len(tpl)
+    lo = max(0, pulse.start - n_t - int(window_s * fs_hz))
+    hi = min(len(g), pulse.end + n_t + int(window_s * fs_hz))
+    if n_t < 1 or hi - lo < 3 * n_t + 2:
+        return None
+    kernel = np.concatenate([np.zeros(n_t), tpl, np.zeros(n_t)])
+    kernel -= kernel.mean()
+    main = float(kernel @ kernel)
+    if not main > 0:
+        return None
+    ratio = np.correlate(g[lo:hi], kernel, mode="valid") / main
+    j0 = pulse.start - n_t - lo
+    guard = n_t + max(2, n_t // 2)
+    ratio[max(0, j0 - guard + 1):max(0, j0 + guard)] = -np.inf
+    return _Matched(ratio, lo, hi, n_t, j0, main)
+
+
+def second_hit(pulse: Pulse, fs_hz: float, window_s: float,
+               matched: _Matched | None = None) -> tuple[float, float | None, float]:
     """Largest other pulse relative to the main one: (ratio, delay s, ratio the noise alone could reach).
 
     Within ``window_s`` of the blow the matched filter is used; beyond it (a rare, late second blow) the
     raw force is compared with the peak.
     """
     g = pulse.force_n
-    tpl = g[pulse.start:pulse.end + 1]
-    n_t = len(tpl)
+    m = matched if matched is not None else _matched(pulse, fs_hz, window_s)
+    n_t = pulse.end + 1 - pulse.start
     lo = max(0, pulse.start - n_t - int(window_s * fs_hz))
     hi = min(len(g), pulse.end + n_t + int(window_s * fs_hz))
     best: tuple[float, float | None, float] = (0.0, None, pulse.noise_n / max(pulse.peak_n, 1e-300))
-    if hi - lo >= 3 * n_t + 2:
-        kernel = np.concatenate([np.zeros(n_t), tpl, np.zeros(n_t)])
-        kernel -= kernel.mean()
-        main = float(kernel @ kernel)
-        if main > 0:
-            ratio = np.correlate(g[lo:hi], kernel, mode="valid") / main  # index j: template at g[lo + j + n_t]
-            j0 = pulse.start - n_t - lo
-            guard = n_t + max(2, n_t // 2)
-            ratio[max(0, j0 - guard + 1):max(0, j0 + guard)] = -np.inf
-            k = int(np.argmax(ratio))
-            if np.isfinite(ratio[k]):
-                best = (float(ratio[k]), (k - j0) / fs_hz, pulse.noise_n / math.sqrt(main))
+    if m is not None:
+        k = int(np.argmax(m.ratio))
+        if np.isfinite(m.ratio[k]):
+            best = (float(m.ratio[k]), (k - m.j0) / fs_hz, pulse.noise_n / math.sqrt(m.main))
     outside = np.concatenate([g[:lo], g[hi:]])
     if len(outside) and pulse.peak_n > 0:
         k = int(np.argmax(outside))
@@ -166,31 +192,19 @@ def second_hit(pulse: Pulse, fs_hz: float, window_s: float) -> tuple[float, floa
     return best
 
 
-def further_pulses(pulse: Pulse, fs_hz: float, window_s: float,
-                   sigmas: float = FURTHER_PULSE_SIGMAS) -> tuple[tuple[int, int], ...]:
+def further_pulses(pulse: Pulse, fs_hz: float, window_s: float, sigmas: float = FURTHER_PULSE_SIGMAS,
+                   matched: _Matched | None = None) -> tuple[tuple[int, int], ...]:
     """Every other pulse the matched filter sees above ``sigmas`` × its noise within ``window_s`` of the blow:
     (first, last sample) each, for the force window to keep."""
     from scipy.signal import find_peaks
 
-    g = pulse.force_n
-    tpl = g[pulse.start:pulse.end + 1]
-    n_t = len(tpl)
-    lo = max(0, pulse.start - n_t - int(window_s * fs_hz))
-    hi = min(len(g), pulse.end + n_t + int(window_s * fs_hz))
-    if hi - lo < 3 * n_t + 2 or n_t < 1:
+    m = matched if matched is not None else _matched(pulse, fs_hz, window_s)
+    if m is None:
         return ()
-    kernel = np.concatenate([np.zeros(n_t), tpl, np.zeros(n_t)])
-    kernel -= kernel.mean()
-    main = float(kernel @ kernel)
-    if not main > 0:
-        return ()
-    ratio = np.correlate(g[lo:hi], kernel, mode="valid") / main
-    j0 = pulse.start - n_t - lo
-    guard = n_t + max(2, n_t // 2)
-    ratio[max(0, j0 - guard + 1):max(0, j0 + guard)] = 0.0
-    level = sigmas * pulse.noise_n / math.sqrt(main)
-    peaks, _ = find_peaks(ratio, height=level, distance=max(1, n_t))
-    return tuple((lo + int(j) + n_t, lo + int(j) + 2 * n_t - 1) for j in peaks)
+    level = sigmas * pulse.noise_n / math.sqrt(m.main)
+    ratio = np.where(np.isfinite(m.ratio), m.ratio, 0.0)
+    peaks, _ = find_peaks(ratio, height=level, distance=max(1, m.n_t))
+    return tuple((m.lo + int(j) + m.n_t, m.lo + int(j) + 2 * m.n_t - 1) for j in peaks)
 
 
 def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None:
@@ -233,6 +247,7 @@ def overloaded_channels(
     fraction: float,
     names: Sequence[str],
     extremes: tuple[np.ndarray, np.ndarray] | None = None,
+    upto: int | None = None,
 ) -> tuple[str, ...]:
     """Channels that reached ``fraction`` of their range, or that show a clipped plateau when no range is
     known. ``extremes`` (per-channel max and min) spare a pass over the data when the caller has them."""
@@ -241,9 +256,15 @@ def overloaded_channels(
     if ranges is not None:
         top, bottom = extremes if extremes is not None else (accel_m_per_s2.max(axis=-1), accel_m_per_s2.min(axis=-1))
         peaks = np.maximum(top, -bottom)
+    # a response's extremes come right after the blow: the plateau search looks there (exact values compared)
+    early = accel_m_per_s2[:, :upto] if upto else accel_m_per_s2
+    top_all, bottom_all = early.max(axis=-1), early.min(axis=-1)
+    repeats = (np.count_nonzero(early == top_all[:, None], axis=-1) > 1) | (
+        np.count_nonzero(early == bottom_all[:, None], axis=-1) > 1)
     for c, name in enumerate(names):
         near_full_scale = ranges is not None and np.isfinite(ranges[c]) and peaks[c] >= fraction * ranges[c]
-        if near_full_scale or _plateau_clipped(accel_m_per_s2[c]):  # below a stated range an amplifier may clip
+        # below a stated range an amplifier may clip first; an extreme reached once is no plateau
+        if near_full_scale or repeats[c] and _plateau_clipped(early[c]):
             out.append(name)
     f_peak = float(np.max(np.abs(force_n)))
     if force_range_n is not None and f_peak >= fraction * force_range_n or _plateau_clipped(force_n):
@@ -279,17 +300,21 @@ def check_impact(
     pulse = locate_pulse(f, fs_hz)
     reasons: list[str] = []
     notes: list[str] = []
-    ratio, delay, noise_ratio = second_hit(pulse, fs_hz, config.double_hit_window_s)
+    matched = _matched(pulse, fs_hz, config.double_hit_window_s)
+    ratio, delay, noise_ratio = second_hit(pulse, fs_hz, config.double_hit_window_s, matched)
     threshold = max(config.double_hit_ratio, config.double_hit_noise_sigmas * noise_ratio)
     if ratio >= threshold:
         reasons.append(DOUBLE_HIT)
         notes.append(f"second pulse {ratio:.0%} of the first at {1e3 * (delay or 0.0):+.1f} ms")
-    extra = further_pulses(pulse, fs_hz, config.double_hit_window_s)
+    extra = further_pulses(pulse, fs_hz, config.double_hit_window_s, matched=matched)
     if extra and ratio < threshold:
         at = ", ".join(f"{1e3 * (a - pulse.start) / fs_hz:+.1f}" for a, _ in extra[:5])
         notes.append(f"smaller pulse(s) at {at} ms (largest {ratio:.1%} of the blow) kept in the force window")
+    upto = None
+    if len(f) > 4 * int(PLATEAU_SEARCH_S * fs_hz):
+        upto = pulse.end + int(PLATEAU_SEARCH_S * fs_hz)
     over = overloaded_channels(f, a, accel_ranges=accel_ranges, force_range_n=force_range_n,
-                               fraction=config.overload_fraction, names=names, extremes=extremes)
+                               fraction=config.overload_fraction, names=names, extremes=extremes, upto=upto)
     if over:
         reasons.append(OVERLOAD)
         notes.append(f"near full scale: {', '.join(over)}")

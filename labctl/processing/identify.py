@@ -28,7 +28,7 @@ from labctl.processing.frf import (
     response_buffer,
 )
 from labctl.processing.linearity import Linearity, linearity_check
-from labctl.processing.modes import ForceNoise, ModalFit, force_noise_covariance, impact_shifts
+from labctl.processing.modes import ForceNoise, Linearised, ModalFit, impact_shifts
 from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
 from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
@@ -242,49 +242,70 @@ class ForceNoiseWidener:
         self.weights = channel_weights(noise[live])
         self.active = bool(spectra.force_windows) and bool(np.any(sigma_f[used] > 0))
         self._noise: dict[tuple[int, int], ForceNoise] = {}
+        self._done: dict[tuple[int, int, int], tuple[ModalFit, ModalFit, Linearised]] = {}
 
-    def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
-        if not self.active:
-            return fit
+    def force_noise(self, band: slice) -> ForceNoise:
         key = (band.start, band.stop)
         fn = self._noise.get(key)
         if fn is None:
             fn = self._noise[key] = _force_noise(self.spectra, self.used, self.sigma_f, band)
-        cov = force_noise_covariance(fit, self.frf.frequencies_hz[band],
-                                     self.frf.h1[self.live][:, band].astype(complex), fn,
-                                     decay_rate_per_s=self.spectra.decay_rate_per_s, channel_weights=self.weights)
+        return fn
+
+    def linearised(self, fit: ModalFit, band: slice) -> Linearised | None:
+        """The linearised fit made when ``fit`` was widened (None if it was not)."""
+        hit = self._done.get((id(fit), band.start, band.stop))
+        return hit[2] if hit is not None and hit[0] is fit else None
+
+    def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
+        if not self.active:
+            return fit
+        key = (id(fit), band.start, band.stop)
+        hit = self._done.get(key)
+        if hit is not None and hit[0] is fit:
+            return hit[1]
+        try:
+            lin = Linearised(fit, self.frf.frequencies_hz[band], self.frf.h1[self.live][:, band].astype(complex),
+                             self.spectra.decay_rate_per_s, self.weights)
+        except np.linalg.LinAlgError:
+            return replace(fit, frequency_std_hz=np.full_like(fit.frequency_std_hz, np.inf))
+        fn = self.force_noise(band)
+        cov = lin.inv @ lin.force_outer(fn, range(len(fn.windows)), per_impact=False) @ lin.inv
         var = np.clip(np.diag(cov), 0.0, None)
         f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
         z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
-        return replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
+        out = replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
+        self._done[key] = (fit, out, lin)
+        self._done[(id(out), band.start, band.stop)] = (out, out, lin)
+        return out
 
 
 def _force_noise(spectra: Spectra, used: list[int], sigma_f: np.ndarray, band: slice) -> ForceNoise:
     lines = np.arange(spectra.frequencies_hz.shape[0])[band]
-    return ForceNoise(spectra=spectra.force[used][:, band].astype(complex), line_index=lines,
+    return ForceNoise(spectra=spectra.force[:, band][used].astype(complex), line_index=lines,
                       n_fft=spectra.n_samples, windows=tuple(spectra.force_windows[i] for i in used),
                       sigma_n=sigma_f[used])
 
 
 def _linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks: list[float], sigma_f: np.ndarray,
-               live: np.ndarray, noise: np.ndarray) -> Linearity | None:
+               live: np.ndarray, noise: np.ndarray, widen: ForceNoiseWidener | None = None) -> Linearity | None:
     """Each used impact's bounce frequency (first order from the step's fit) against its peak force."""
     if len(used) < 2 or not spectra.force_windows:
         return None
     fit, band, b = modes.fit, modes.band, modes.classes.bounce
-    f_band = spectra.force[used][:, band].astype(complex)
+    f_band = spectra.force[:, band][used].astype(complex)
+    x_band = spectra.response[:, :, band][used][:, live]
     with np.errstate(divide="ignore", invalid="ignore"):
-        h_each = spectra.response[used][:, live][:, :, band] / f_band[:, None, :]
+        h_each = x_band / f_band[:, None, :]
     if not np.all(np.isfinite(h_each)):
         return None
-    h_step = np.sum(spectra.response[used][:, live][:, :, band] * f_band.conj()[:, None, :], axis=0) / np.sum(
-        np.abs(f_band) ** 2, axis=0)
+    h_step = np.sum(x_band * f_band.conj()[:, None, :], axis=0) / np.sum(np.abs(f_band) ** 2, axis=0)
+    lin = widen.linearised(fit, band) if widen is not None else None
+    fn = widen.force_noise(band) if widen is not None else _force_noise(spectra, used, sigma_f, band)
     try:
-        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each,
-                                     _force_noise(spectra, used, sigma_f, band),
+        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each, fn,
                                      decay_rate_per_s=spectra.decay_rate_per_s,
                                      channel_weights=channel_weights(noise[live]),
-                                     noise_inflation=spectra.noise_inflation)
+                                     noise_inflation=spectra.noise_inflation, linearised=lin)
     except np.linalg.LinAlgError:
         return None
     f_b = float(fit.frequencies_hz[b])
@@ -377,8 +398,8 @@ def identify(
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
     sigma_f = np.array([checks[i].force_noise_n for i in accepted])
-    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
-                 ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
+    widen = ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise)
+    modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise, widen)
     warnings: list[str] = []
     protected = frozenset(k for k, i in enumerate(accepted) if forced is not None and forced[i])
     drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence, protected)
@@ -388,12 +409,13 @@ def identify(
                                            f"{cfg.checks.min_coherence:g} without this impact")
         used.remove(drop)
         frf = estimate_frf(spectra, used)
-        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise,
-                     ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise))
+        widen = ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise)
+        modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise, widen)
     if dropped:
         warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
-    lin = _linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise)
+    lin = _linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise,
+                     widen)
     if lin is not None and lin.warning():
         warnings.append(lin.warning())
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,

@@ -223,16 +223,19 @@ class ForceNoise:
     sigma_n: np.ndarray  # (n_imp,)
     _phases: dict = field(default_factory=dict, repr=False, compare=False)
 
-    def phase(self, i: int) -> np.ndarray:
-        """exp(-2πi k t / N) for impact i's window samples t and the band's lines k (kept: reused by every fit)."""
+    def phase(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Real and imaginary parts of exp(-2πi k t / N) for impact i's window samples t and the band's lines k
+        (kept: reused by every fit; two real arrays because complex matrix products of this shape take a slow
+        path)."""
         out = self._phases.get(i)
         if out is None:
             idx = self.windows[i][0]
-            out = self._phases[i] = np.exp(-2j * math.pi * np.outer(idx, self.line_index) / self.n_fft)
+            angle = (2.0 * math.pi / self.n_fft) * np.outer(idx, self.line_index)
+            out = self._phases[i] = (np.cos(angle), -np.sin(angle))
         return out
 
 
-class _Linearised:
+class Linearised:
     """The fitted step's variable-projection problem frozen at its solution: maps data perturbations to poles."""
 
     def __init__(self, fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, decay_rate_per_s: float,
@@ -271,7 +274,8 @@ class _Linearised:
             ff = np.abs(noise.spectra[i]) ** 2 if per_impact else total_ff
             a = -noise.spectra[i].conj() / np.where(ff > 0, ff, np.inf)
             q = np.conj(self.p_c) * mix * a[:, None]
-            g = vals[:, None] * np.real(noise.phase(i) @ q)
+            re, im = noise.phase(i)
+            g = vals[:, None] * (re @ np.ascontiguousarray(q.real) - im @ np.ascontiguousarray(q.imag))
             outer += noise.sigma_n[i] ** 2 * (g.T @ g)
         return outer
 
@@ -287,7 +291,7 @@ def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, n
     """
     m = len(fit.frequencies_hz)
     try:
-        lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
+        lin = Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
     except np.linalg.LinAlgError:
         return np.full((2 * m, 2 * m), np.inf)
     outer = lin.force_outer(noise, range(len(noise.windows)), per_impact=False)
@@ -296,11 +300,11 @@ def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, n
 
 def impact_shifts(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, h_each: np.ndarray, noise: ForceNoise, *,
                   decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None,
-                  noise_inflation: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                  noise_inflation: float = 1.0, linearised: Linearised | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each impact's own poles, to first order from the step's fit: (n_imp, 2M) shifts from the step's
     poles and their 1-σ (response noise scaled by the impact's share of the force energy, plus its own
     force noise). ``h_each``: (n_imp, n_ch, n_lines) single-impact FRFs X_i/F_i on the band."""
-    lin = _Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
+    lin = linearised or Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
     response = np.clip(np.diag(lin.inv), 0.0, None) * fit.sigma2 * noise_inflation
     energy = np.sum(np.abs(noise.spectra) ** 2, axis=1)
     shifts, stds = [], []

@@ -99,7 +99,7 @@ def _jacobian(residual, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.nd
     return np.column_stack([(residual(u + h * e) - r0) / h for e in np.eye(len(u))])
 
 
-def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 12) -> tuple[np.ndarray, np.ndarray]:
+def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Minimise |residual(u)|² (a few parameters, a good start): Gauss–Newton steps, halved when they do not
     lower the cost; returns the solution and the Jacobian there."""
     u = u0.copy()
@@ -117,7 +117,7 @@ def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 12) -> tuple[np.ndar
             break
         u, r = u + step, r_new
         jac = _jacobian(residual, u, r)
-        if float(np.max(np.abs(step))) < 1e-9:
+        if float(np.max(np.abs(step))) < 1e-7:  # 1e-7 of each k: far below any stated uncertainty
             break
     return u, jac
 
@@ -184,7 +184,7 @@ def solve_rollers(
     split = measured[2] - measured[1]
     eps0 = split / max(abs(_split_per_deviation(rig, k_equal)), 1e-300)
     starts = []
-    for theta in np.radians(np.arange(0.0, 360.0, 30.0)):
+    for theta in np.radians(np.arange(0.0, 360.0, 45.0)):
         e = np.cos(theta - np.radians([0.0, 120.0, 240.0]))
         starts.append(np.log(k_equal * np.clip(1.0 + eps0 * e, 0.2, 5.0)))
     best = min(starts, key=lambda u: float(np.sum(residual(u) ** 2)))

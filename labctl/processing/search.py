@@ -5,8 +5,9 @@ rig file). The fit band spans the dominant resonances there plus a few half-powe
 multi-channel LSCF estimate gives three start poles that the variable-projection fit refines. If that fit
 is not clearly resolved (a pole poorly determined, implausibly damped, too weak to matter or not worth
 its parameters, or the two tilt poles within their uncertainty), a two-mode fit is made and the pair is
-restarted from a few splits around its tilt; the best three-mode fit is kept only when the Bayesian
-information criterion prefers it, otherwise the pair is reported as degenerate.
+restarted from a few splits around its tilt; the best three-mode fit is kept only when a likelihood-ratio
+test at level 0.001 prefers it and its tilt poles are apart beyond their uncertainty (force noise
+included), otherwise the pair is reported as degenerate with the split it could hide.
 """
 
 from __future__ import annotations
@@ -129,7 +130,7 @@ def _widen(fit: ModalFit, live: np.ndarray, n_channels: int) -> ModalFit:
 
 def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
     """Every pole inside the band, well determined, plausibly damped (a few times the rig's modal damping),
-    of visible strength and worth its parameters (BIC)."""
+    of visible strength and worth its constants (likelihood ratio at RESOLUTION_LEVEL)."""
     if not _valid(fit) or np.any(fit.damping_ratios > max(0.1, PLAUSIBLE_DAMPING * zeta)):
         return False
     sharp = fit.frequency_std_hz < SHARPNESS * 2.0 * fit.damping_ratios * fit.frequencies_hz
@@ -163,7 +164,8 @@ def fit_contact_modes(
     widen: Callable[[ModalFit, slice], ModalFit] | None = None,
 ) -> ContactModes:
     """Band, start poles, 3-mode fit; if the tilt pair is not clearly resolved, a 2-mode fit and split
-    starts around its tilt, the best 3-mode fit kept only when the BIC prefers it."""
+    starts around its tilt, the best 3-mode fit kept only when the likelihood-ratio test prefers it.
+    ``widen`` adds the force noise to a candidate's uncertainties before the tilt poles are compared."""
     hl = h[live]
     band = fit_band(freqs_hz, hl, search_hz[0], search_hz[1], zeta, band_widths)
     f, hb = freqs_hz[band], hl[:, band]

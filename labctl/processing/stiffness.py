@@ -11,8 +11,8 @@ import math
 from dataclasses import dataclass
 
 from labctl.errors import ModelDomainError
-from labctl.physics import RigConfig, TrippContact, bounce_hz, roller_stiffness_from_bounce
-from labctl.physics.rig import bounce_sensitivity
+from labctl.physics import RigConfig, TrippContact, roller_stiffness_from_bounce
+from labctl.physics.rig import bounce_sensitivity, equal_roller_stiffness
 
 
 @dataclass(frozen=True)
@@ -25,9 +25,9 @@ class Stiffness:
 
 def stiffness_from_bounce(rig: RigConfig, bounce_frequency_hz: float, bounce_std_hz: float = 0.0) -> Stiffness:
     """Per-roller stiffness k (equal rollers) for this bounce frequency, and σ_k from σ_f."""
-    k = roller_stiffness_from_bounce(rig, bounce_frequency_hz)
-    dk = 1e-5 * k
-    df_dk = (bounce_hz(rig, k + dk) - bounce_frequency_hz) / dk
+    if not (math.isfinite(bounce_frequency_hz) and bounce_frequency_hz > 0):
+        roller_stiffness_from_bounce(rig, bounce_frequency_hz)  # raises the model's domain error
+    k, df_dk = equal_roller_stiffness(rig, bounce_frequency_hz)
     std = abs(bounce_std_hz / df_dk) if df_dk > 0 and math.isfinite(bounce_std_hz) else math.inf
     return Stiffness(k, std)
 
