@@ -27,7 +27,7 @@ from labctl.processing.frf import (
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.linearity import Linearity, linearity_check
+from labctl.processing.linearity import Linearity, ZeroAmplitude, linearity_check, zero_amplitude
 from labctl.processing.modes import ForceNoise, Linearised, ModalFit, impact_shifts
 from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
 from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
@@ -99,6 +99,7 @@ class Identification:
     rollers_differing: tuple[int, ...] = ()  # 1-based rollers whose stiffness differs beyond its uncertainty
     roller_stiffness_budget_n_per_m: dict[str, float] = field(default_factory=dict)
     linearity: dict | None = None  # bounce frequency against peak force over the step's impacts
+    small_blow: dict | None = None  # the modes' shift above their small-blow limit, removed from the result
 
     @property
     def accepted(self) -> list[int]:
@@ -149,6 +150,7 @@ class Identification:
             "rollers_differing": list(self.rollers_differing),
             "roller_stiffness_budget_n_per_m": dict(self.roller_stiffness_budget_n_per_m),
             "linearity": self.linearity,
+            "small_blow": self.small_blow,
         })
         if self.roller_only_stiffness_n_per_m is not None:
             out["roller_only_stiffness_n_per_m"] = self.roller_only_stiffness_n_per_m
@@ -418,10 +420,37 @@ def identify(
                      widen)
     if lin is not None and lin.warning():
         warnings.append(lin.warning())
+    small_blow = _small_blow_limit(modes, spectra, used, lin, fs_hz)
+    if small_blow is not None:
+        modes = _shifted(modes, small_blow)
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
                      dropped)
     result.linearity = lin.to_dict() if lin is not None else None
+    result.small_blow = small_blow.to_dict() if small_blow is not None else None
     return result
+
+
+def _small_blow_limit(modes: ContactModes, spectra: Spectra, used: list[int], lin: Linearity | None,
+                      fs_hz: float) -> ZeroAmplitude | None:
+    """How far the blows' size moved the step's bounce above its small-blow limit (None: not estimable)."""
+    if lin is None:
+        return None
+    b = modes.classes.bounce
+    f_b = float(modes.fit.frequencies_hz[b])
+    k = int(np.argmin(np.abs(spectra.frequencies_hz - f_b)))
+    amplitude = np.abs(spectra.force[used, k]) / fs_hz  # the blow's spectral density at the bounce, N·s
+    return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b)
+
+
+def _shifted(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
+    """The contact modes moved to the small-blow limit: every mode by the bounce's relative shift (the blow
+    changes all roller stiffnesses alike), the shift's uncertainty added to each frequency's."""
+    fit = modes.fit
+    f_b = float(fit.frequencies_hz[modes.classes.bounce])
+    rel, rel_std = small.shift_hz / f_b, small.shift_std_hz / f_b
+    freqs = fit.frequencies_hz * (1.0 - rel)
+    stds = np.hypot(fit.frequency_std_hz, freqs * rel_std)
+    return replace(modes, fit=replace(fit, frequencies_hz=freqs, frequency_std_hz=stds))
 
 
 def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,

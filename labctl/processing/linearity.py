@@ -66,3 +66,49 @@ def linearity_check(peak_force_n: Sequence[float], bounce_hz: Sequence[float], b
     z = slope / slope_std
     return Linearity(tuple(map(float, p)), tuple(map(float, f)), tuple(map(float, s)), slope, slope_std, z, level,
                      bool(abs(z) > norm.isf(level / 2)))
+
+
+@dataclass(frozen=True)
+class ZeroAmplitude:
+    """The contact modes' shift from the blows' size: f_i = f0 + c·a_i² over the impacts (a_i the force
+    spectrum at the bounce), so the step's H1-weighted frequency sits ``shift_hz`` above the small-blow limit."""
+
+    c_hz_per_n2_s2: float  # c, the backbone curve's curvature in the blow's force spectrum at the bounce
+    c_std_hz_per_n2: float
+    a2_eff_n2_s2: float  # the H1 weighting's effective a² (Σa⁴/Σa²)
+    shift_hz: float  # step frequency minus its small-blow limit
+    shift_std_hz: float
+
+    def to_dict(self) -> dict:
+        return {"c_hz_per_n2_s2": self.c_hz_per_n2_s2, "c_std_hz_per_n2": self.c_std_hz_per_n2,
+                "a2_eff_n2_s2": self.a2_eff_n2_s2, "shift_hz": self.shift_hz, "shift_std_hz": self.shift_std_hz}
+
+
+def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], bounce_hz_std: Sequence[float],
+                   half_bandwidth_hz: float = math.inf) -> ZeroAmplitude | None:
+    """The small-blow limit of the bounce over a step's impacts (None: fewer than two impacts or blows of one size).
+
+    A smooth contact nonlinearity moves a mode's frequency with the square of its amplitude (the backbone
+    curve ω(A) = ω0 + κA² + O(A⁴)), and a blow's modal amplitude is proportional to its force spectrum at the
+    mode. The H1 average weights impact i by a_i², so the step's frequency is f0 + c·Σa⁴/Σa²; the shift is
+    that term with the uncertainty of c carried along, whether or not the slope is significant. The impacts'
+    frequencies are first-order estimates, good to about (f_i - f̄)²/Γ for a mode of half-power half-bandwidth
+    Γ: that bound is added to the shift's uncertainty.
+    """
+    a, f, s = (np.asarray(v, float) for v in (amplitude_n_s, bounce_hz, bounce_hz_std))
+    if len(a) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(a))):
+        return None
+    x = a**2
+    if float(np.ptp(x)) < 1e-3 * float(np.max(x)):
+        return None
+    w = 1.0 / s**2
+    xm = float(np.sum(w * x) / np.sum(w))
+    sxx = float(np.sum(w * (x - xm) ** 2))
+    if not sxx > 0:
+        return None
+    fm = float(np.sum(w * f) / np.sum(w))
+    c = float(np.sum(w * (x - xm) * (f - fm)) / sxx)
+    c_std = 1.0 / math.sqrt(sxx)
+    a2_eff = float(np.sum(x**2) / np.sum(x))
+    linearisation = float(np.max((f - fm) ** 2)) / half_bandwidth_hz
+    return ZeroAmplitude(c, c_std, a2_eff, c * a2_eff, math.hypot(c_std * a2_eff, linearisation))
