@@ -17,6 +17,7 @@ from drivers.interfaces import Record, Rig, TriggerSpec
 from labctl import events as ev
 from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.control import RunControl, StopRequested
+from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import StepPlan, next_load_n, plan_steps
 from labctl.engine.steps import StepRunner
 from labctl.errors import LabctlError
@@ -70,6 +71,9 @@ class Engine:
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
         self.impacts_done = self._count_done()
         self._session_start = (time.monotonic(), self.impacts_done)
+        self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
+                                      acq.samples / acq.sample_rate_hz)
+        self.bus.subscribe(self.eta)
 
     # --- events -------------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -91,11 +95,8 @@ class Engine:
                                 on_resume=lambda: self.emit(ev.Resumed(self.now(), pos)))
 
     def progress(self, pos: ev.Position) -> None:
-        t_start, done_start = self._session_start
-        rate_n = self.impacts_done - done_start
-        remaining = max(self.impacts_total - self.impacts_done, 0)
-        eta = (time.monotonic() - t_start) / rate_n * remaining if rate_n > 0 else None
-        self.emit(ev.Progress(self.now(), pos, self.impacts_done, self.impacts_total, eta))
+        now = self.now()
+        self.emit(ev.Progress(now, pos, self.impacts_done, self.impacts_total, self.eta.eta_s(now)))
 
     def _count_done(self) -> int:
         return sum(bool(impact.attrs.get("accepted")) for step in schema.all_steps(self.writer.h5)

@@ -34,7 +34,7 @@ def step_label(step: StepInfo) -> str:
     bounce, k = r.get("bounce_hz"), r.get("roller_stiffness_n_per_m")
     text = f"step {step.step}: {step.load_n:.1f} N"
     if bounce is not None and k is not None:
-        text += f" · {float(bounce):.2f} Hz · k {float(k):.3e} N/m"
+        text += f" · {float(bounce):.2f} Hz · k {float(k) * 1e-6:.2f} N/µm"
     elif "failed" in r or (step.complete and step.result is None):
         text += " · not identified"
     elif not step.complete:
@@ -69,7 +69,7 @@ class BrowserScreen(Screen):
                 with Horizontal(classes="row"):
                     yield StiffnessPlot(id="b-stiffness")
                     with Vertical(classes="panel", id="b-frf"):
-                        yield TracePlot("FRF", "f [Hz]", "|H1| [1/kg]", id="b-frf-plot")
+                        yield TracePlot("FRF", "f [Hz]", "|H1| [(m/s²)/N]", id="b-frf-plot")
                         yield TracePlot("", "f [Hz]", "coherence", id="b-coh-plot")
                 with Horizontal(classes="row"):
                     yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")
