@@ -4,9 +4,10 @@ A load step (loading, settling, its impacts, identification) is the unit of work
 steps the campaign has, the file says how many are done (a resumed campaign's steps count as done), and the
 median active time of the steps measured so far says how long one takes. Time spent paused does not count.
 Before this session has measured a step, the gaps between the stored impacts' timestamps of completed steps
-stand in; without those, a step's acquisition time from the protocol (a lower bound, replaced as soon as a
-step has been measured). Once based on measured step times, the estimate never rises above the previous
-estimate (counted down) plus the last measured step time, so it does not jump about.
+stand in; a new campaign shows no estimate until its first step is done, a resumed one without usable
+timestamps the impacts' record time (a rough guess, replaced as soon as a step has been measured). Once
+based on measured step times, the estimate never rises above the previous estimate (counted down) plus the
+last measured step time, so it does not jump about.
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def _seconds(stamp: Any) -> float | None:
 
 def campaign_estimator(h5: Any, steps_total: int, impacts_per_step: int, record_s: float) -> EtaEstimator:
     """An estimator for a campaign file about to be run or resumed: its completed steps count as done, and the
-    stored impacts' timestamps give a step's time; without them, the impacts' record time (a lower bound)."""
+    stored impacts' timestamps give a step's time. A new campaign has no estimate until a step is measured; a
+    resumed one without usable timestamps starts from the impacts' record time (a rough guess)."""
     done = 0
     firsts: list[tuple[tuple[int, int], int, float]] = []
     for step in schema.all_steps(h5):
@@ -127,4 +129,6 @@ def campaign_estimator(h5: Any, steps_total: int, impacts_per_step: int, record_
     gaps = stored_step_times_s(firsts)
     if gaps:
         return EtaEstimator(steps_total, done, statistics.median(gaps))
+    if done == 0:  # a new campaign: no estimate until its first step has been measured
+        return EtaEstimator(steps_total, done, None)
     return EtaEstimator(steps_total, done, impacts_per_step * record_s, prior_measured=False)
