@@ -69,8 +69,11 @@ def test_resumed_campaign_counts_stored_steps_as_done_and_shows_a_positive_eta(t
         if isinstance(event, ev.StepProcessed) and event.position.step == 2:
             control.stop()
 
-    first = run_campaign("quick_check", out=out, seed=1, subscribers=(stop_after_step_2,), control=control)
+    fresh = Recorder()
+    first = run_campaign("quick_check", out=out, seed=1, subscribers=(stop_after_step_2, fresh), control=control)
     assert first.status == "interrupted"
+    etas = {(p.position.step, p.eta_s is None) for p in fresh.of(ev.Progress)}
+    assert etas == {(1, True), (2, False)}  # no guess before a step has been measured, then one
     seen = Recorder()
     again = run_campaign("quick_check", out=out, resume=True, subscribers=(seen,))
     assert again.status == "complete"
