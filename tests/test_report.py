@@ -176,6 +176,16 @@ def test_report_errors_are_one_line(short_campaign, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", str(blocker)), "not a folder")
+    assert_one_line_error(labctl_here(capsys, "report", str(short_campaign), "--out", out, "--band", "0"), "--band")
+
+
+def test_band_option_sets_the_verdicts_band(short_campaign, tmp_path, capsys):
+    tight = labctl_here_json(capsys, "report", str(short_campaign), "--out", str(tmp_path / "t"), "--band", "0.01")
+    wide = labctl_here_json(capsys, "report", str(short_campaign), "--out", str(tmp_path / "w"), "--band", "90")
+    assert {v["band"] for v in tight["verdicts"]} == {0.0001} and {v["band"] for v in wide["verdicts"]} == {0.9}
+    judged = [v for v in wide["verdicts"] if v["model"]]
+    assert judged and all(v["verdict"] == "pass" for v in judged)
+    assert all(v["verdict"] in ("fail", "cannot tell") for v in tight["verdicts"] if v["model"])
 
 
 def _series(k_factor: float, scatter: float = 0.0, roller_type: int = 1, runs: int = 3):

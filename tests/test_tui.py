@@ -228,3 +228,31 @@ def app_event(event: ev.Event):
     from labctl.tui.app import EngineEvent
 
     return EngineEvent(event)
+
+
+@pytest.mark.parametrize("answer", ["n", "y"])
+async def test_abort_dialog_pauses_acquisition_until_answered(tmp_path, answer):
+    from labctl.tui.dialogs import ConfirmDialog
+
+    hold, release = threading.Event(), threading.Event()
+
+    def hold_after_step_1(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 1:
+            hold.set()
+            release.wait(30)
+
+    app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: hold.is_set() and not isinstance(app.screen, PromptDialog), what="step 1")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        release.set()  # the engine goes on to its next safe point and holds there
+        await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="the engine to hold")
+        held = app.monitor.state.impacts_done
+        await pilot.pause(1.0)
+        assert app.monitor.state.impacts_done == held and isinstance(app.screen, ConfirmDialog)
+        await pilot.press(answer)
+        await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
+    assert app.outcome.status == ("complete" if answer == "n" else "aborted")
+    with CampaignReader(tmp_path / "qc.h5") as r:
+        assert r.attrs["status"] == app.outcome.status

@@ -114,3 +114,23 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     (written,) = tmp_path.glob("quick_check-*.h5")
     with CampaignReader(written) as r:
         assert r.attrs["status"] == "complete"
+
+
+@pytest.mark.parametrize("no_auto_confirm", [True, False])
+async def test_setup_screen_honours_no_auto_confirm(tmp_path, monkeypatch, no_auto_confirm):
+    from textual.widgets import Checkbox
+
+    monkeypatch.chdir(tmp_path)
+    app = LabApp(TuiSettings(seed=1, no_auto_confirm=no_auto_confirm))
+    async with app.run_test(size=SIZE) as pilot:
+        screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
+        assert screen.query_one("#auto", Checkbox).value is not no_auto_confirm
+        await pilot.press("enter")  # quick_check
+        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
+        assert app.auto_confirm is not no_auto_confirm
+        if no_auto_confirm:
+            await pilot.pause(4.0)  # longer than the auto-confirm delay: the prompt still waits for a key
+            assert app.screen is dialog and dialog.request.answer is None
+            await pilot.press("enter")
+        await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
+    assert app.outcome.status == "complete"

@@ -39,7 +39,7 @@ def test_state_header_follows_the_events():
     s.apply(step_processed(1, 37.9, 532.48, 2.26e7), now=111.0)
     s.apply(step_processed(2, 116.1, 638.97, 3.33e7), now=112.0)
     assert s.curves[(1, 1)] == ((37.9, 116.1), (2.26e7, 3.33e7))
-    assert "bounce 638.97 Hz" in s.modes_text() and "k 3.330e+07 N/m" in s.modes_text()
+    assert "bounce 638.97 Hz" in s.modes_text() and "k 33.30 N/µm" in s.modes_text()
     s.apply(ev.Paused(1.0, ev.Position(1, 2, 2, 1)), now=113.0)
     assert s.status == "paused" and s.running
     s.apply(ev.CampaignFinished(2.0, "interrupted", "qc.h5", "stopped"), now=120.0)
@@ -148,3 +148,39 @@ def test_cli_without_a_terminal_says_so(tmp_path):
     proc = labctl("tui", "quick_check", "--out", str(tmp_path / "n.h5"))
     assert_one_line_error(proc, "terminal", "labctl run")
     assert not (tmp_path / "n.h5").exists()
+
+
+@pytest.mark.parametrize(("lo", "hi", "ticks", "labels"), [
+    (0.0, 2000.0, [0, 500, 1000, 1500, 2000], ["0", "500", "1000", "1500", "2000"]),
+    (21.7, 130.2, [50, 100], ["50", "100"]),
+    (0.0, 1.0, [0.0, 0.2, 0.4, 0.6, 0.8, 1.0], ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0"]),
+    (0.48, 1.0, [0.6, 0.8, 1.0], ["0.6", "0.8", "1.0"]),
+])
+def test_ticks_fall_on_a_1_2_5_grid(lo, hi, ticks, labels):
+    got, text = pd.nice_ticks(lo, hi)
+    assert got == pytest.approx(ticks) and text == labels
+    step = got[1] - got[0]
+    mantissa = step / 10 ** math.floor(math.log10(step))
+    assert min(abs(mantissa - m) for m in (1, 2, 5)) < 1e-9
+    assert pd.nice_range(1.1857, 44.3) == (0.0, 50.0)
+
+
+def test_frf_plots_keep_a_fixed_span_and_coherence_on_0_to_1():
+    from labctl.tui.plots import FrfPlots, TracePlot
+
+    mag, coh = TracePlot("", "f [Hz]", "|H1|"), TracePlot("", "f [Hz]", "coherence")
+    plots = FrfPlots(mag, coh)
+    f = np.linspace(0, 10240, 4097)
+    for bounce in (500.0, 1200.0):  # the span does not follow the bounce frequency
+        h = 1 / np.abs(1 - (f / bounce) ** 2 + 0.05j)
+        plots.show(f, h[None], (0.48 + 0.5 * (f < 3000))[None], ("A1Z",), bounce, (bounce * 0.8,), "")
+        x = mag.lines["A1Z"][0]
+        assert max(x) <= pd.FRF_SPAN_HZ and max(x) > 0.95 * pd.FRF_SPAN_HZ
+        assert mag.x_range == coh.x_range == (0.0, pd.FRF_SPAN_HZ) and coh.y_range == (0.0, 1.0)
+    assert mag.ylabel == "|H1| [(m/s²)/N]"
+
+
+def test_repetitions_differ_in_marker_and_colour():
+    from labctl.tui.plots import RUN_COLORS, RUN_MARKERS
+
+    assert len(set(RUN_MARKERS)) == len(RUN_MARKERS) and len(set(RUN_COLORS[:3])) == 3

@@ -345,7 +345,7 @@ def test_large_exports_default_to_binary_and_progress_is_reported(campaign, tmp_
     small = writer.export_campaign(campaign, tmp_path / "s.uff", selection=writer.Selection(run=1, frf=False),
                                    manifest=tmp_path / "m.csv", progress=lambda d, t: calls.append((d, t)))
     assert not small.binary  # a few MB: ASCII, readable by any tool
-    assert calls[-1] == (small.steps, small.steps) and [d for d, _ in calls] == list(range(1, small.steps + 1))
+    assert calls[-1] == (small.steps, small.steps) and [d for d, _ in calls] == list(range(small.steps + 1))
     monkeypatch.setattr(writer, "ASCII_LIMIT_BYTES", 1e5)
     big = writer.export_campaign(campaign, tmp_path / "b.uff", selection=writer.Selection(run=1, frf=False))
     assert big.binary and (tmp_path / "b.uff").read_bytes().splitlines()[1].split()[0] == b"58b"

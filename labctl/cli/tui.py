@@ -57,7 +57,7 @@ def settings_from(args: argparse.Namespace):  # noqa: ANN201 - TuiSettings, impo
         devices = str(find_devices_file(devices))
     return TuiSettings(protocol=protocol, backend=args.backend, out=out, resume=args.resume,
                        autostart=args.autostart and protocol is not None, auto_confirm_s=auto, world=args.world,
-                       seed=args.seed, rig=args.rig, devices=devices)
+                       seed=args.seed, rig=args.rig, devices=devices, no_auto_confirm=args.no_auto_confirm)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ from labctl import events as ev
 from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
+from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import StepPlan, next_load_n, plan_steps
 from labctl.engine.steps import Interlock, StepRunner
 from labctl.errors import LabctlError
@@ -71,6 +72,9 @@ class Engine:
         steps = sum(p.steps_estimate for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
         self._session_start = (time.monotonic(), self.impacts_done)
+        self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
+                                      acq.samples / acq.sample_rate_hz)
+        self.bus.subscribe(self.eta)
 
     # --- events -------------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -92,11 +96,8 @@ class Engine:
                                 on_resume=lambda: self.emit(ev.Resumed(self.now(), pos)))
 
     def progress(self, pos: ev.Position) -> None:
-        t_start, done_start = self._session_start
-        rate_n = self.impacts_done - done_start
-        remaining = max(self.impacts_total - self.impacts_done, 0)
-        eta = (time.monotonic() - t_start) / rate_n * remaining if rate_n > 0 else None
-        self.emit(ev.Progress(self.now(), pos, self.impacts_done, self.impacts_total, eta))
+        now = self.now()
+        self.emit(ev.Progress(now, pos, self.impacts_done, self.impacts_total, self.eta.eta_s(now)))
 
     @property
     def impacts_done(self) -> int:

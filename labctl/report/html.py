@@ -30,7 +30,6 @@ figcaption { font-size: .9em; color: #444; }
 pre { background: #f7f7f7; border: 1px solid #ddd; padding: .8em; overflow-x: auto; font-size: .85em; }
 .bad { color: #a00; } .ok { color: #070; } .undecided { color: #a60; }
 .sim { background: #b00000; color: #fff; padding: .5em 1em; font-weight: bold; font-size: 1.2em; }
-.grid { display: grid; grid-template-columns: repeat(auto-fit, minmax(480px, 1fr)); gap: 1em; }
 """
 
 

@@ -41,6 +41,7 @@ class TuiSettings:
     seed: int | None = None
     rig: str | None = None
     devices: str | None = None
+    no_auto_confirm: bool = False  # --no-auto-confirm: the setup screen's auto-confirm box starts unticked
 
     def out_path(self) -> Path:
         """The campaign file: as given, or ``<protocol>-<date>-<time>.h5`` in the working directory."""
@@ -94,6 +95,7 @@ class LabApp(App[Outcome | None]):
         self.quit_when_done = False
         self.rejection = ""  # why the step's latest impact was rejected (titles the next strike prompt)
         self.monitor = MonitorScreen(settings.protocol)
+        self._plan_counters()
 
     # --- screens --------------------------------------------------------------------------------------------
     def get_default_screen(self) -> MonitorScreen:
@@ -117,8 +119,26 @@ class LabApp(App[Outcome | None]):
             return
         self.settings = settings
         self.monitor.protocol = settings.protocol
+        self._plan_counters()
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.action_start()
+
+    def _plan_counters(self) -> None:
+        """Show the protocol's totals (series, repetitions, steps, impacts) before the engine starts."""
+        protocol = self.settings.protocol
+        if protocol is None:
+            return
+        steps: tuple[int, ...] = ()
+        try:
+            from labctl.engine.plan import plan_steps
+            from labctl.physics.rig_config import load_rig
+
+            rig = load_rig(self.settings.rig)
+            steps = tuple(plan_steps(protocol, spec, rig).steps_estimate for spec in protocol.specimens)
+        except Exception:  # the engine reports the plan when it starts; the counters wait for it
+            steps = ()
+        self.monitor.state.plan(len(protocol.specimens), protocol.repetitions.count,
+                                protocol.acquisition.impacts_per_step, steps)
 
     # --- engine ---------------------------------------------------------------------------------------------
     @property
@@ -219,15 +239,24 @@ class LabApp(App[Outcome | None]):
         self.monitor.log_line(f"{verb} requested for the step's latest impact (applied at the next safe point)")
 
     def action_abort(self) -> None:
-        if not self.running:
+        """Ask before aborting; acquisition pauses (at its next safe point) until the question is answered."""
+        if not self.running or self.control.stop_status:
             return
+        was_paused = self.control.paused
+        self.control.pause()
+        if not was_paused:
+            self.monitor.log_line("paused while the abort question is open")
 
         def answered(yes: bool | None) -> None:
             if yes:
                 self._stop("aborted")
+            elif not was_paused:
+                self.control.resume()
+                self.monitor.set_status("running")
+                self.monitor.log_line("not aborted: resuming")
 
-        self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition stops after the current impact. "
-                                       "The file keeps every impact so far and is marked aborted."), answered)
+        self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition is paused. Abort: it stops here, the "
+                                       "file keeps every impact so far and is marked aborted."), answered)
 
     def _stop(self, status: str) -> None:
         (self.control.abort if status == "aborted" else self.control.stop)()

@@ -33,7 +33,7 @@ def step_label(step: StepInfo) -> str:
     r = step.result
     text = f"step {step.step}: {step.load_n:.1f} N"
     if r is not None and r.identified:
-        text += f" · {r.bounce_hz:.2f} Hz · k {r.roller_stiffness_n_per_m:.3e} N/m"
+        text += f" · {r.bounce_hz:.2f} Hz · k {r.roller_stiffness_n_per_m * 1e-6:.2f} N/µm"
     elif r is not None or step.complete:
         text += " · not identified"
     elif not step.complete:
@@ -68,7 +68,7 @@ class BrowserScreen(Screen):
                 with Horizontal(classes="row"):
                     yield StiffnessPlot(id="b-stiffness")
                     with Vertical(classes="panel", id="b-frf"):
-                        yield TracePlot("FRF", "f [Hz]", "|H1| [1/kg]", id="b-frf-plot")
+                        yield TracePlot("FRF", "f [Hz]", "|H1| [(m/s²)/N]", id="b-frf-plot")
                         yield TracePlot("", "f [Hz]", "coherence", id="b-coh-plot")
                 with Horizontal(classes="row"):
                     yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")

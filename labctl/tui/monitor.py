@@ -84,7 +84,7 @@ class MonitorScreen(Screen):
                 yield TracePlot("", "t [ms] from peak", "F [N]", id="force-plot")
                 yield TracePlot("", "t [ms]", "a [m/s²]", id="accel-plot")
             with Vertical(id="frf-panel", classes="panel"):
-                yield TracePlot("", "f [Hz]", "|H1| [1/kg]", id="frf-plot")
+                yield TracePlot("", "f [Hz]", "|H1| [(m/s²)/N]", id="frf-plot")
                 yield TracePlot("", "f [Hz]", "coherence", id="coh-plot")
         with Horizontal(id="bottom"):
             yield StiffnessPlot(id="stiffness")
@@ -101,7 +101,7 @@ class MonitorScreen(Screen):
         self.query_one("#stiffness").add_class("panel")
         self.query_one("#stiffness").border_title = "stiffness vs load"
         table = self.query_one("#steps", DataTable)
-        table.add_columns("run", "step", "load N", "bounce Hz", "tilt Hz", "k N/m", "coh")
+        table.add_columns("run", "step", "load N", "bounce Hz", "tilt Hz", "k N/µm", "coh")
         self.impact = ImpactPlots(self.query_one("#force-plot", TracePlot), self.query_one("#accel-plot", TracePlot))
         self.frf = FrfPlots(self.query_one("#frf-plot", TracePlot), self.query_one("#coh-plot", TracePlot))
         self.set_interval(1.0, self.refresh_header)
@@ -175,7 +175,7 @@ class MonitorScreen(Screen):
         table.add_row(*row_cells(self.state.steps[-1]))
         table.move_cursor(row=table.row_count - 1)
         self.log_line(f"step {p.step}: load {e.load_n:.1f} N · bounce {e.bounce_hz:.2f} Hz · "
-                      f"k {e.roller_stiffness_n_per_m:.3e} N/m", "cyan")
+                      f"k {e.roller_stiffness_n_per_m * 1e-6:.2f} N/µm", "cyan")
         self.frf.show(e.frequencies_hz, e.h1_magnitude, e.coherence, e.channels, e.bounce_hz, e.tilt_hz, "")
         self.query_one("#frf-panel").border_title = (f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), "
                                                      f"tilt {tilt} Hz (orange)")

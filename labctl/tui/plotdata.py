@@ -17,6 +17,35 @@ from labctl.physics.references import reference_curves
 MODEL_LABELS = {"tripp": "Tripp", "fit-ra0.2": "Eq. 5 (Ra 0.2 µm)", "fit-ra0.03": "Eq. 6 (Ra 0.03 µm)",
                 "hertz": "Hertz"}
 N_PER_UM = 1e6  # stiffness is drawn in N/µm (4.65e7 N/m = 46.5 N/µm)
+FRF_SPAN_HZ = 2000.0  # the FRF is always shown over the same span: the paper's range of interest
+NICE_STEPS = (1.0, 2.0, 5.0, 10.0)
+
+
+def nice_ticks(lo: float, hi: float, count: int = 5) -> tuple[list[float], list[str]]:
+    """Tick positions on a 1-2-5 grid covering [lo, hi] with about ``count`` intervals, and their labels
+    (as many decimals as the step needs, no more)."""
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+        return [], []
+    raw = (hi - lo) / max(count, 1)
+    magnitude = 10.0 ** np.floor(np.log10(raw))
+    step = next(m * magnitude for m in NICE_STEPS if m * magnitude >= raw * (1 - 1e-9))
+    first, last = int(np.ceil(lo / step - 1e-9)), int(np.floor(hi / step + 1e-9))
+    ticks = [float(k * step) for k in range(first, last + 1)]
+    decimals = max(0, -int(np.floor(np.log10(step) + 1e-9)))
+    return ticks, [f"{t:.{decimals}f}" for t in ticks]
+
+
+def nice_range(lo: float, hi: float, count: int = 5) -> tuple[float, float]:
+    """[lo, hi] widened to the 1-2-5 ticks around it (a flat trace gets a range of its own)."""
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return 0.0, 1.0
+    if hi <= lo:
+        pad = abs(lo) * 0.1 or 1.0
+        lo, hi = lo - pad, hi + pad
+    raw = (hi - lo) / max(count, 1)
+    magnitude = 10.0 ** np.floor(np.log10(raw))
+    step = next(m * magnitude for m in NICE_STEPS if m * magnitude >= raw * (1 - 1e-9))
+    return float(np.floor(lo / step + 1e-9) * step), float(np.ceil(hi / step - 1e-9) * step)
 
 
 def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,7 @@ from textual_plotext import PlotextPlot
 from labctl.tui import plotdata as pd
 
 RUN_COLORS = ("cyan", "magenta", "yellow", "green", "blue", "white")
+RUN_MARKERS = ("●", "■", "▲", "◆", "✚", "✖")  # repetitions differ in shape as well as colour
 MODEL_COLORS = {"Tripp": "red", "Hertz": "red"}
 
 
@@ -26,10 +27,17 @@ class TracePlot(PlotextPlot):
         self.lines: dict[str, tuple[list[float], list[float]]] = {}
         self.marks: list[tuple[float, str]] = []  # vertical lines (x, colour)
         self.log_y = False
+        self.y_range: tuple[float, float] | None = None  # fixed y span (coherence: 0–1)
+        self.x_range: tuple[float, float] | None = None  # fixed x span (FRF: 0–2000 Hz)
         self.redraw()
 
     def set_lines(self, lines: dict[str, tuple[Sequence[float], Sequence[float]]], title: str | None = None,
                   marks: list[tuple[float, str]] | None = None) -> None:
+        """Replace the lines (with ``log_y`` the y values are drawn on a log axis: kept as log10, >0 only)."""
+        if self.log_y:
+            lines = {k: (np.asarray(x, dtype=float)[np.asarray(y, dtype=float) > 0],
+                         np.log10(np.asarray(y, dtype=float)[np.asarray(y, dtype=float) > 0]))
+                     for k, (x, y) in lines.items()}
         self.lines = {k: pd.finite_pairs(x, y) for k, (x, y) in lines.items()}
         self.lines = {k: v for k, v in self.lines.items() if v[0]}
         self.marks = [(x, c) for x, c in (marks or []) if math.isfinite(x)]
@@ -46,13 +54,33 @@ class TracePlot(PlotextPlot):
         plt.title(self.title_text)
         plt.xlabel(self.xlabel)
         plt.ylabel(self.ylabel)
-        if self.log_y and self.lines:
-            plt.yscale("log")
         for i, (label, (x, y)) in enumerate(self.lines.items()):
             self.draw_line(label, x, y, i)
         for x, color in self.marks:
             plt.vline(x, color)
+        self._axes()
         self.refresh()
+
+    def _axes(self) -> None:
+        """Limits and 1-2-5 ticks on the linear axes (plotext's own ticks fall on odd values)."""
+        xs = [v for x, _ in self.lines.values() for v in x]
+        ys = [v for _, y in self.lines.values() for v in y]
+        if not xs:
+            return
+        x_lo, x_hi = self.x_range or pd.nice_range(min(xs), max(xs))
+        self.plt.xlim(x_lo, x_hi)
+        self.plt.xticks(*pd.nice_ticks(x_lo, x_hi))
+        if self.log_y:  # the lines hold log10 values: ticks at whole decades, labelled with the value
+            lo, hi = math.floor(min(ys)), math.ceil(max(ys))
+            hi = hi if hi > lo else lo + 1
+            every = max(1, math.ceil((hi - lo) / 5))
+            decades = list(range(lo, hi + 1, every))
+            self.plt.ylim(lo, hi)
+            self.plt.yticks(decades, [f"{10.0 ** k:g}" for k in decades])
+            return
+        y_lo, y_hi = self.y_range or pd.nice_range(min(ys), max(ys))
+        self.plt.ylim(y_lo, y_hi)
+        self.plt.yticks(*pd.nice_ticks(y_lo, y_hi, 4))
 
     def draw_line(self, label: str, x: list[float], y: list[float], index: int) -> None:
         self.plt.plot(x, y, label=label if len(self.lines) > 1 else None,
@@ -82,10 +110,14 @@ class FrfPlots:
     def __init__(self, magnitude: TracePlot, coherence: TracePlot) -> None:
         self.magnitude, self.coherence = magnitude, coherence
         self.magnitude.log_y = True
+        self.magnitude.ylabel = "|H1| [(m/s²)/N]"
+        self.coherence.ylabel = "coherence"
+        self.coherence.y_range = (0.0, 1.0)  # never auto-scaled: a dip from 1 to 0.9 must look small
+        self.magnitude.x_range = self.coherence.x_range = (0.0, pd.FRF_SPAN_HZ)
 
     def show(self, frequencies_hz: np.ndarray, h1_magnitude: np.ndarray, coherence: np.ndarray,
              channels: Sequence[str], bounce_hz: float, tilt_hz: Sequence[float], title: str) -> None:
-        f_max = pd.frf_limit_hz(bounce_hz)
+        f_max = pd.FRF_SPAN_HZ  # the same span every step
         h1, coh = np.atleast_2d(np.abs(h1_magnitude)), np.atleast_2d(coherence)
         idx = pd.vertical_channels(channels)[:4]
         name = [channels[i] if i < len(channels) else f"ch{i}" for i in idx]
@@ -128,4 +160,5 @@ class StiffnessPlot(TracePlot):
             self.plt.plot(x, y, label=label, color=color, marker="braille")
         else:
             run_index = list(self.runs).index(label)
-            self.plt.scatter(x, y, label=label, color=RUN_COLORS[run_index % len(RUN_COLORS)], marker="●")
+            self.plt.scatter(x, y, label=label, color=RUN_COLORS[run_index % len(RUN_COLORS)],
+                             marker=RUN_MARKERS[run_index % len(RUN_MARKERS)])

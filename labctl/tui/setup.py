@@ -68,8 +68,8 @@ class SetupScreen(Screen):
             with Horizontal():
                 yield Static("campaign file", classes="row-label")
                 yield Input(placeholder="<protocol>-<date>-<time>.h5", id="out")
-            yield Checkbox("simulated rig: confirm prompts by themselves after a few seconds", value=True,
-                           id="auto")
+            yield Checkbox("simulated rig: confirm prompts by themselves after a few seconds",
+                           value=not self.settings.no_auto_confirm, id="auto")
             yield Static("", id="error")
             with Horizontal():
                 yield Button("Start", id="start", variant="primary")
@@ -118,7 +118,8 @@ class SetupScreen(Screen):
         s = self.settings
         s.protocol, s.out = protocol, Path(out) if out else None
         s.backend = "hw" if self.query_one("#hw", RadioButton).value else "sim"
-        s.auto_confirm_s = DEFAULT_AUTO_CONFIRM_S if self.query_one("#auto", Checkbox).value else None
+        auto = self.query_one("#auto", Checkbox).value and s.backend == "sim"
+        s.auto_confirm_s = (s.auto_confirm_s or DEFAULT_AUTO_CONFIRM_S) if auto else None
         self.dismiss(s)
 
 

@@ -39,9 +39,9 @@ def tilt_text(tilt_hz: tuple[float, ...] | list[float]) -> str:
 
 
 def row_cells(row: StepRow) -> tuple[str, ...]:
-    """A step's cells in the on-screen table (run, step, load, bounce, tilt, stiffness, coherence)."""
+    """A step's cells in the on-screen table (run, step, load N, bounce Hz, tilt Hz, stiffness N/µm, coherence)."""
     return (str(row.run), str(row.step), f"{row.load_n:.1f}", f"{row.bounce_hz:.2f}", tilt_text(row.tilt_hz),
-            f"{row.stiffness_n_per_m:.3e}", f"{row.coherence:.3f}")
+            f"{row.stiffness_n_per_m * 1e-6:.2f}", f"{row.coherence:.3f}")
 
 
 def clock(seconds: float | None) -> str:
@@ -93,6 +93,13 @@ class CampaignState:
     eta_at: float | None = None
     last_impact: ev.ImpactAcquired | None = None
     last_step: ev.StepProcessed | None = None
+    paused_at: float | None = None  # local time the engine paused: the ETA stands still until it resumes
+
+    def plan(self, series_total: int, runs_total: int, impacts_per_step: int,
+             steps_estimate: tuple[int, ...] = ()) -> None:
+        """The counters' totals from the protocol's plan, before the engine reports them."""
+        self.series_total, self.runs_total = series_total, runs_total
+        self.impacts_per_step, self.steps_estimate = impacts_per_step, tuple(steps_estimate)
 
     def apply(self, event: ev.Event, now: float | None = None) -> None:
         """Fold one event into the state."""
@@ -122,8 +129,12 @@ class CampaignState:
             self.references = dict(event.reference_n_per_m)
         elif isinstance(event, ev.Paused):
             self.status, self.position = "paused", event.position
+            self.paused_at = now if self.paused_at is None else self.paused_at
         elif isinstance(event, ev.Resumed):
             self.status = "running"
+            if self.paused_at is not None and self.eta_at is not None:
+                self.eta_at += now - self.paused_at  # the pause does not count down the ETA
+            self.paused_at = None
         elif isinstance(event, ev.CampaignFinished):
             self.status, self.message, self.finished_at, self.eta_s = event.status, event.message, now, 0.0
 
@@ -150,12 +161,16 @@ class CampaignState:
         return end - self.started_at
 
     def eta_now_s(self, now: float | None = None) -> float | None:
-        """The engine's last ETA, counted down since it arrived."""
+        """The engine's last ETA, counted down since it arrived, standing still while paused."""
         if self.eta_s is None or self.eta_at is None:
             return None
         if self.finished_at is not None:
             return 0.0
-        return max(self.eta_s - ((time.monotonic() if now is None else now) - self.eta_at), 0.0)
+        t = time.monotonic() if now is None else now
+        if self.paused_at is not None:
+            t = min(t, self.paused_at)
+        floor = 1.0 if self.eta_s > 0 else 0.0  # work is left until the engine says it is done
+        return max(self.eta_s - (t - self.eta_at), floor)
 
     @property
     def running(self) -> bool:
@@ -168,9 +183,14 @@ class CampaignState:
         def n(value: int) -> str:
             return str(value) if value else "-"
 
+        steps_total = self.steps_total
+        if not steps_total and 1 <= p.series <= len(self.steps_estimate):
+            steps_total = self.steps_estimate[p.series - 1]
+        elif not steps_total and len(set(self.steps_estimate)) == 1:
+            steps_total = self.steps_estimate[0]
         parts = [f"series {n(p.series)}/{self.series_total}"] if self.series_total > 1 else []
-        parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{self.steps_total or '-'}",
-                  f"impact {n(p.impact)}/{self.impacts_per_step}"]
+        parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{steps_total or '-'}",
+                  f"impact {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
         return " · ".join(parts)
 
     def header_text(self, now: float | None = None) -> str:
@@ -182,7 +202,7 @@ class CampaignState:
         """The latest step's bounce and tilt frequencies, stiffness and coherence."""
         s = self.last_step
         if s is None:
-            return "bounce -- Hz · tilt -- Hz · k -- N/m"
+            return "bounce -- Hz · tilt -- Hz · k -- N/µm"
         return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt_text(s.tilt_hz)} Hz\n"
-                f"k {s.roller_stiffness_n_per_m:.3e} N/m · coherence {s.coherence_at_bounce:.3f} "
+                f"k {s.roller_stiffness_n_per_m * 1e-6:.2f} N/µm · coherence {s.coherence_at_bounce:.3f} "
                 f"(step {s.position.step})")

@@ -160,6 +160,8 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
         if binary is None:
             binary = ascii_size_bytes(reader, steps, selection) > ASCII_LIMIT_BYTES
         summary = ExportSummary(str(out), binary)
+        if progress is not None:
+            progress(0, len(steps))
         writer = _Out(tmp)
         try:
             for series, run, step in steps:

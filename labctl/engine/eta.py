@@ -1,0 +1,134 @@
+"""Time left in a campaign, from measured load-step times.
+
+A load step (loading, settling, its impacts, identification) is the unit of work: the plan says how many
+steps the campaign has, the file says how many are done (a resumed campaign's steps count as done), and the
+median active time of the steps measured so far says how long one takes. Time spent paused does not count.
+Before this session has measured a step, the gaps between the stored impacts' timestamps of completed steps
+stand in; a new campaign shows no estimate until its first step is done, a resumed one without usable
+timestamps the impacts' record time (a rough guess, replaced as soon as a step has been measured). Once
+based on measured step times, the estimate never rises above the previous estimate (counted down) plus the
+last measured step time, so it does not jump about.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from labctl import events as ev
+from labctl.storage import schema
+
+MIN_ETA_S = 1.0  # shown while work is left, however fast the estimate says it goes
+
+
+def stored_step_times_s(first_impact_times_s: Iterable[tuple[tuple[int, int], int, float]]) -> list[float]:
+    """Durations of completed steps from the time of each step's first impact: ((series, run), step, t).
+
+    The gap between consecutive steps of one repetition is one step's time (loading, settling, impacts)."""
+    by_run: dict[tuple[int, int], list[tuple[int, float]]] = {}
+    for run, step, t in first_impact_times_s:
+        by_run.setdefault(run, []).append((step, t))
+    gaps = []
+    for steps in by_run.values():
+        steps.sort()
+        gaps += [b[1] - a[1] for a, b in zip(steps, steps[1:], strict=False) if b[0] == a[0] + 1 and b[1] > a[1]]
+    return gaps
+
+
+@dataclass
+class EtaEstimator:
+    """Subscribe to the engine's events; ``eta_s(now)`` gives the time left (None when nothing is known).
+
+    ``now`` is the engine clock (``Event.time_s``): seconds since the engine started."""
+
+    steps_total: int
+    steps_done: int = 0
+    prior_step_s: float | None = None  # a step's time before this session measured one
+    prior_measured: bool = True  # False: the prior is only a lower bound (the records' length), not a step time
+    step_times_s: list[float] = field(default_factory=list)
+    _step_key: tuple[int, int, int] | None = None
+    _step_active_start: float | None = None
+    _paused_total: float = 0.0
+    _paused_at: float | None = None
+    _last: tuple[float, float] | None = None  # (eta, active time) of the last estimate
+    _finished: bool = False
+
+    def active(self, now: float) -> float:
+        """Engine time not spent paused."""
+        paused = self._paused_total + (now - self._paused_at if self._paused_at is not None else 0.0)
+        return now - paused
+
+    def __call__(self, event: ev.Event) -> None:
+        if isinstance(event, ev.Paused) and self._paused_at is None:
+            self._paused_at = event.time_s
+        elif isinstance(event, ev.Resumed) and self._paused_at is not None:
+            self._paused_total += event.time_s - self._paused_at
+            self._paused_at = None
+        elif isinstance(event, ev.StepStarted):
+            key = (event.position.series, event.position.run, event.position.step)
+            if key == self._step_key:
+                return
+            now = self.active(event.time_s)
+            if self._step_key is not None and self._step_active_start is not None:
+                self.step_times_s.append(now - self._step_active_start)
+                self.steps_done += 1
+            self._step_key, self._step_active_start = key, now
+        elif isinstance(event, ev.CampaignFinished):
+            self._finished = True
+
+    @property
+    def step_s(self) -> float | None:
+        """The typical time of one step: the median measured this session, else the prior."""
+        if self.step_times_s:
+            return statistics.median(self.step_times_s)
+        return self.prior_step_s
+
+    def eta_s(self, now: float) -> float | None:
+        """Time left: the steps not yet started times a step's time, plus what the current step still needs."""
+        step = self.step_s
+        if step is None:
+            return None
+        if self._finished:
+            return 0.0
+        t = self.active(now)
+        remaining = max(self.steps_total - self.steps_done, 1)  # more steps than planned: at least this one
+        in_step = t - self._step_active_start if self._step_active_start is not None else 0.0
+        raw = (remaining - 1) * step + max(step - in_step, 0.0) if self._step_key is not None else remaining * step
+        if self._last is not None and self.step_times_s and (self.prior_measured or len(self.step_times_s) > 1):
+            last_eta, last_t = self._last
+            raw = min(raw, max(last_eta - (t - last_t), 0.0) + self.step_times_s[-1])
+        eta = max(raw, MIN_ETA_S)
+        self._last = (eta, t)
+        return eta
+
+
+def _seconds(stamp: Any) -> float | None:
+    try:
+        return datetime.fromisoformat(str(stamp)).timestamp()
+    except ValueError:
+        return None
+
+
+def campaign_estimator(h5: Any, steps_total: int, impacts_per_step: int, record_s: float) -> EtaEstimator:
+    """An estimator for a campaign file about to be run or resumed: its completed steps count as done, and the
+    stored impacts' timestamps give a step's time. A new campaign has no estimate until a step is measured; a
+    resumed one without usable timestamps starts from the impacts' record time (a rough guess)."""
+    done = 0
+    firsts: list[tuple[tuple[int, int], int, float]] = []
+    for step in schema.all_steps(h5):
+        if not step.attrs.get(schema.COMPLETE):
+            continue
+        done += 1
+        times = [t for g in schema.children(step, "impact_") if (t := _seconds(g.attrs.get("timestamp_utc")))]
+        if times:
+            run = step.parent
+            firsts.append(((schema.number(run.parent), schema.number(run)), schema.number(step), min(times)))
+    gaps = stored_step_times_s(firsts)
+    if gaps:
+        return EtaEstimator(steps_total, done, statistics.median(gaps))
+    if done == 0:  # a new campaign: no estimate until its first step has been measured
+        return EtaEstimator(steps_total, done, None)
+    return EtaEstimator(steps_total, done, impacts_per_step * record_s, prior_measured=False)

@@ -1,0 +1,96 @@
+"""Time left and counters the technician sees: the engine's ETA from measured step times (paused time does not
+count, a resumed file's steps are done, no jumps) and the screen's counters from the plan."""
+
+from __future__ import annotations
+
+import pytest
+
+from labctl import events as ev
+from labctl.campaign import run_campaign
+from labctl.engine import RunControl
+from labctl.engine.eta import MIN_ETA_S, EtaEstimator, stored_step_times_s
+from labctl.tui.state import CampaignState
+from tests.engine_util import Recorder
+
+
+def _start(eta: EtaEstimator, t: float, step: int, run: int = 1) -> None:
+    eta(ev.StepStarted(t, ev.Position(1, run, step), 10, 0.0, 38.0))
+
+
+def test_eta_counts_steps_left_times_the_measured_step_time_and_stands_still_while_paused():
+    eta = EtaEstimator(steps_total=10, prior_step_s=5.0, prior_measured=False)
+    assert eta.eta_s(0.0) == pytest.approx(50.0)  # prior (a lower bound): nothing measured yet
+    _start(eta, 0.0, 1)
+    _start(eta, 10.0, 2)  # step 1 took 10 s
+    assert eta.step_times_s == [10.0] and eta.steps_done == 1
+    at_11 = eta.eta_s(11.0)
+    assert at_11 == pytest.approx(8 * 10.0 + 9.0)  # 8 steps after this one, 9 s left of this one
+    measured_prior = EtaEstimator(steps_total=10, prior_step_s=5.0)  # e.g. from a resumed file's timestamps
+    assert measured_prior.eta_s(0.0) == pytest.approx(50.0)
+    _start(measured_prior, 0.0, 1)
+    _start(measured_prior, 10.0, 2)
+    assert measured_prior.eta_s(11.0) == pytest.approx(50.0 - 11.0 + 10.0)  # rises by one step time at most
+    eta(ev.Paused(12.0, ev.Position(1, 1, 2, 1)))
+    paused = [eta.eta_s(t) for t in (12.0, 50.0, 300.0)]
+    assert paused == pytest.approx([at_11 - 1.0] * 3)  # still while paused
+    eta(ev.Resumed(400.0, ev.Position(1, 1, 2, 1)))
+    assert eta.eta_s(401.0) == pytest.approx(at_11 - 2.0)  # the pause did not count as work
+    _start(eta, 408.0, 3)  # step 2: 10 s of work around a 388 s pause
+    assert eta.step_times_s == [10.0, 10.0]
+
+
+def test_eta_never_rises_by_more_than_the_last_step_time_and_stays_positive_with_work_left():
+    eta = EtaEstimator(steps_total=6, prior_step_s=1.0)
+    durations = [2.0, 2.0, 30.0, 30.0, 30.0]  # steps suddenly take much longer
+    t = 0.0
+    _start(eta, t, 1)
+    last = eta.eta_s(t)
+    for i, d in enumerate(durations, start=2):
+        t += d
+        _start(eta, t, i)
+        now = eta.eta_s(t)
+        assert now - last <= d + 1e-9, (i, last, now)
+        last = now
+    assert eta.eta_s(t + 1000.0) == MIN_ETA_S  # overdue, but the last step is still to do
+    eta(ev.CampaignFinished(t + 1001.0, "complete", "x.h5"))
+    assert eta.eta_s(t + 1001.0) == 0.0
+
+
+def test_stored_step_times_are_the_gaps_between_consecutive_steps_of_a_run():
+    firsts = [((1, 1), 1, 100.0), ((1, 1), 2, 112.0), ((1, 1), 3, 125.0), ((1, 2), 1, 500.0), ((1, 2), 3, 530.0)]
+    assert stored_step_times_s(firsts) == [12.0, 13.0]  # run 2's gap spans a missing step: not one step
+
+
+def test_resumed_campaign_counts_stored_steps_as_done_and_shows_a_positive_eta(tmp_path):
+    out = tmp_path / "qc.h5"
+    control = RunControl()
+
+    def stop_after_step_2(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 2:
+            control.stop()
+
+    fresh = Recorder()
+    first = run_campaign("quick_check", out=out, seed=1, subscribers=(stop_after_step_2, fresh), control=control)
+    assert first.status == "interrupted"
+    etas = {(p.position.step, p.eta_s is None) for p in fresh.of(ev.Progress)}
+    assert etas == {(1, True), (2, False)}  # no guess before a step has been measured, then one
+    seen = Recorder()
+    again = run_campaign("quick_check", out=out, resume=True, subscribers=(seen,))
+    assert again.status == "complete"
+    progress = seen.of(ev.Progress)
+    assert progress and progress[0].eta_s is not None and progress[0].eta_s > 0  # a step is left
+    assert progress[-1].impacts_done == progress[-1].impacts_total
+
+
+def test_state_eta_stands_still_while_paused_and_counters_come_from_the_plan():
+    s = CampaignState()
+    s.plan(1, 3, 3, (11,))
+    assert s.progress_text() == "run -/3 · step -/11 · impact -/3"
+    s.apply(ev.CampaignStarted(0.0, "roller_stiffness", "x.h5", "sim", 1, 3, (11,), 3), now=0.0)
+    s.apply(ev.Progress(1.0, ev.Position(1, 1, 1, 1), 1, 99, 600.0), now=10.0)
+    assert s.eta_now_s(now=20.0) == pytest.approx(590.0)
+    s.apply(ev.Paused(2.0, ev.Position(1, 1, 1, 4)), now=30.0)
+    assert s.eta_now_s(now=30.0) == s.eta_now_s(now=500.0) == pytest.approx(580.0)
+    assert s.progress_text() == "run 1/3 · step 1/11 · impact 3/3"  # never "impact 4/3"
+    s.apply(ev.Resumed(3.0, ev.Position(1, 1, 1, 4)), now=500.0)
+    assert s.eta_now_s(now=510.0) == pytest.approx(570.0)
