@@ -276,12 +276,15 @@ def test_results_sidecar_is_written_once_and_goes_stale_when_the_campaign_change
     results_path(f).write_text("{not json", encoding="utf-8")
     with pytest.raises(InputError, match="results.json"):
         read_results(f)
+    db = tmp_path / "s.db"
+    index(db, [tmp_path])  # a damaged sidecar: the campaign's own results are catalogued
+    rows = query(db).rows
+    assert {r["result_source"] for r in rows} == {"acquisition"} and {r["results_current"] for r in rows} == {0}
 
     from labctl.archive import process_files
 
     (out,) = process_files([f], workers=0)
-    assert out.ok and out.written
-    db = tmp_path / "s.db"
+    assert out.ok and out.written and out.cpu_seconds > 0
     index(db, [tmp_path])
     assert {r["result_source"] for r in query(db).rows} == {"reprocessed"}
     with h5py.File(f, "r+") as h5:  # e.g. the campaign was resumed after its reprocessing

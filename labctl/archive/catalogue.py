@@ -208,11 +208,8 @@ def _index_one(conn: sqlite3.Connection, path: Path, report: IndexReport) -> Non
                 "indexed_utc": utc_now(), "error": error}
         children: dict[str, list[dict[str, Any]]] = {}
         if record is not None:
-            try:
-                fields, children = _record_rows(record, st)
-                base.update(fields)
-            except LabctlError as exc:  # e.g. a malformed results sidecar
-                base["error"] = str(exc)
+            fields, children = _record_rows(record, st)
+            base.update(fields)
         cid = _insert(conn, "campaign_file", base)
         for table, rows in children.items():
             for r in rows:
@@ -264,7 +261,10 @@ def _result_columns(result: dict[str, Any] | None) -> dict[str, Any]:
 
 def _reprocessed_steps(record: CampaignRecord, st: _Stat) -> tuple[dict[str, Any] | None, bool]:
     """The sidecar document and whether it belongs to the campaign as it is now (same size and root hash)."""
-    doc = read_results(record.path)
+    try:
+        doc = read_results(record.path)
+    except InputError:  # a damaged sidecar: show the results stored in the campaign file
+        return {}, False
     if doc is None:
         return None, False
     src = doc.get("source", {})

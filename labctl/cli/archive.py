@@ -132,7 +132,7 @@ def run_process(args: argparse.Namespace) -> int:
     outcomes = process_files(files, workers=workers, scheduler=args.scheduler,
                              progress=None if args.quiet or args.json else sys.stderr)
     failed = [o for o in outcomes if not o.ok]
-    indexed = index(args.db, [o.path for o in outcomes if o.ok]).to_dict() if args.db else None
+    indexed = index(args.db, files).to_dict() if args.db else None
     result = {"files": len(outcomes), "processed": len(outcomes) - len(failed), "failed": len(failed),
               "written": sum(o.written for o in outcomes), "workers": workers, "scheduler": args.scheduler,
               "outcomes": [o.to_dict() for o in outcomes], "db": args.db, "index": indexed}
