@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from labctl import __version__
-from labctl.archive import index, query, read_only_connection, stiffness_points
+from labctl.archive import index, process_files, query, read_only_connection, reprocess_file, stiffness_points
 from labctl.campaign import run_campaign
 from labctl.errors import InputError
 from labctl.reprocess import process_campaign
@@ -237,6 +237,12 @@ def test_process_with_two_local_workers_matches_sequential_and_isolates_a_corrup
     assert {f: results_path(f).stat().st_mtime_ns for f in files} == stamps
 
 
+def _dies_on_first_type(path: str):
+    if "type1_" in path:
+        raise RuntimeError("worker lost")
+    return reprocess_file(path)
+
+
 def test_process_on_an_existing_scheduler(archive, tmp_path, capsys):
     from distributed import LocalCluster
 
@@ -248,11 +254,14 @@ def test_process_on_an_existing_scheduler(archive, tmp_path, capsys):
         assert cluster.scheduler_address.startswith("tcp://")
         proc = labctl_here(capsys, "archive", "process", *map(str, [*files, corrupt]), "--scheduler",
                            cluster.scheduler_address, "--json")
+        # a task that dies outside the per-file guard (as when a worker is lost) is that file's failure only
+        lost = process_files(files[:3], scheduler=cluster.scheduler_address, task=_dies_on_first_type)
     assert proc.returncode == 1
     out = json.loads(proc.stdout)
     assert out["processed"] == 6 and [o["path"] for o in out["outcomes"] if not o["ok"]] == [str(corrupt.resolve())]
     assert out["scheduler"] == cluster.scheduler_address
     _check_processed(files, raw_sha)
+    assert [o.ok for o in lost] == [False, False, True] and all("worker lost" in o.error for o in lost[:2])
 
 
 def test_unreachable_scheduler_and_bad_paths_are_one_line_errors(archive, tmp_path, capsys, monkeypatch):
@@ -281,8 +290,6 @@ def test_results_sidecar_is_written_once_and_goes_stale_when_the_campaign_change
     rows = query(db).rows
     assert {r["result_source"] for r in rows} == {"acquisition"} and {r["results_current"] for r in rows} == {0}
 
-    from labctl.archive import process_files
-
     (out,) = process_files([f], workers=0)
     assert out.ok and out.written and out.cpu_seconds > 0
     index(db, [tmp_path])
@@ -292,3 +299,15 @@ def test_results_sidecar_is_written_once_and_goes_stale_when_the_campaign_change
     index(db, [tmp_path])
     rows = query(db).rows
     assert {r["result_source"] for r in rows} == {"acquisition"} and {r["results_current"] for r in rows} == {0}
+
+
+def test_dask_is_imported_only_when_a_cluster_is_used():
+    import subprocess
+    import sys
+
+    code = ("import sys, labctl.cli, labctl.archive\nlabctl.cli.build_parser()\n"
+            "print(sorted(m for m in ('dask', 'distributed', 'tqdm') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          cwd=Path(__file__).resolve().parents[1])
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
