@@ -172,7 +172,10 @@ def test_index_rereads_only_new_or_changed_files(archive, tmp_path, monkeypatch)
     assert (files[0].stat().st_size, files[0].stat().st_mtime_ns) == (st.st_size, st.st_mtime_ns)
     files[1].unlink()
     shutil.copy2(archive / "type6/ra0.2_seed1.h5", tmp_path / "lab" / "new.h5")
+    with h5py.File(tmp_path / "lab" / "foreign.h5", "w") as h5:  # some other program's HDF5 file
+        h5["x"] = np.arange(3)
     report = index(db, [tmp_path / "lab"])
+    assert [(Path(p).name, "not a labctl campaign file" in e) for p, e in report.failed] == [("foreign.h5", True)]
     assert [Path(p).name for p in report.updated] == [files[0].name]
     assert [Path(p).name for p in report.new] == ["new.h5"]
     assert [Path(p).name for p in report.removed] == [files[1].name]
@@ -184,7 +187,8 @@ def test_index_rereads_only_new_or_changed_files(archive, tmp_path, monkeypatch)
 
     reads.clear()
     report = index(db, [tmp_path / "lab"])
-    assert len(report.unchanged) == 3 and reads == []
+    assert len(report.unchanged) == 3 and len(report.failed) == 1 and reads == []
+    assert [r["file_name"] for r in query(db, "error != ''", view="campaigns").rows] == ["foreign.h5"]
 
 
 def _sequential(path: Path) -> dict:
