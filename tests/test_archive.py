@@ -229,6 +229,10 @@ def test_process_with_two_local_workers_matches_sequential_and_isolates_a_corrup
     assert bad["path"] == str(corrupt.resolve()) and "corrupt.h5" in bad["error"]
     assert len({o["worker"] for o in out["outcomes"] if o["ok"]}) >= 1
     _check_processed(files, raw_sha)
+    cli = labctl_here_json(capsys, "process", str(files[0]))  # the sequential command's own output
+    doc = read_results(files[0])
+    assert [(s["step"], s["bounce_hz"], s["roller_stiffness_n_per_m"]) for s in cli["steps"]] == [
+        (s["step"], s["result"]["bounce_hz"], s["result"]["roller_stiffness_n_per_m"]) for s in doc["steps"]]
     rows = query(db, "1").rows
     assert len(rows) == 18 and {r["result_source"] for r in rows} == {"reprocessed"}
     assert {r["processed_software_version"] for r in rows} == {__version__}
