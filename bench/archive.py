@@ -122,6 +122,9 @@ def main() -> None:
         "sequential_s": [round(s, 3) for s in seq], "parallel_s": [round(s, 3) for s in par],
         "speedup_median": round(t_seq / t_par, 3),
         "speedup_per_round": [round(s / p, 3) for s, p in zip(seq, par, strict=True)],
+        # CPU time the tasks got per second of wall time: how many cores the machine's load left us
+        "cores_sequential": [round(c / w, 2) for c, w in zip(cpu_seq, seq, strict=True)],
+        "cores_parallel": [round(c / w, 2) for c, w in zip(cpu_par, par, strict=True)],
         "speedup_with_startup": round(t_seq / (t_par + startup_s), 3),
         "cluster_startup_s": round(startup_s, 2), "per_campaign_s": round(t_seq / n, 4),
         "cpu_per_campaign_s_sequential": round(statistics.median(cpu_seq) / n, 4),
@@ -145,6 +148,8 @@ def main() -> None:
           f"{size_mb / t_seq:.0f} MB/s per worker (wall, sequential)")
     print(f"CPU per campaign: {result['cpu_per_campaign_s_sequential']:.3f} s in one process, "
           f"{result['cpu_per_campaign_s_workers']:.3f} s in a worker")
+    print(f"cores obtained (task CPU s per wall s): sequential {result['cores_sequential']}, "
+          f"{args.workers} workers {result['cores_parallel']}")
 
 
 if __name__ == "__main__":

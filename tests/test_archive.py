@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from labctl import __version__
-from labctl.archive import index, query, read_only_connection, stiffness_points
+from labctl.archive import index, process_files, query, read_only_connection, reprocess_file, stiffness_points
 from labctl.campaign import run_campaign
 from labctl.errors import InputError
 from labctl.reprocess import process_campaign
@@ -172,7 +172,10 @@ def test_index_rereads_only_new_or_changed_files(archive, tmp_path, monkeypatch)
     assert (files[0].stat().st_size, files[0].stat().st_mtime_ns) == (st.st_size, st.st_mtime_ns)
     files[1].unlink()
     shutil.copy2(archive / "type6/ra0.2_seed1.h5", tmp_path / "lab" / "new.h5")
+    with h5py.File(tmp_path / "lab" / "foreign.h5", "w") as h5:  # some other program's HDF5 file
+        h5["x"] = np.arange(3)
     report = index(db, [tmp_path / "lab"])
+    assert [(Path(p).name, "not a labctl campaign file" in e) for p, e in report.failed] == [("foreign.h5", True)]
     assert [Path(p).name for p in report.updated] == [files[0].name]
     assert [Path(p).name for p in report.new] == ["new.h5"]
     assert [Path(p).name for p in report.removed] == [files[1].name]
@@ -184,7 +187,8 @@ def test_index_rereads_only_new_or_changed_files(archive, tmp_path, monkeypatch)
 
     reads.clear()
     report = index(db, [tmp_path / "lab"])
-    assert len(report.unchanged) == 3 and reads == []
+    assert len(report.unchanged) == 3 and len(report.failed) == 1 and reads == []
+    assert [r["file_name"] for r in query(db, "error != ''", view="campaigns").rows] == ["foreign.h5"]
 
 
 def _sequential(path: Path) -> dict:
@@ -225,6 +229,10 @@ def test_process_with_two_local_workers_matches_sequential_and_isolates_a_corrup
     assert bad["path"] == str(corrupt.resolve()) and "corrupt.h5" in bad["error"]
     assert len({o["worker"] for o in out["outcomes"] if o["ok"]}) >= 1
     _check_processed(files, raw_sha)
+    cli = labctl_here_json(capsys, "process", str(files[0]))  # the sequential command's own output
+    doc = read_results(files[0])
+    assert [(s["step"], s["bounce_hz"], s["roller_stiffness_n_per_m"]) for s in cli["steps"]] == [
+        (s["step"], s["result"]["bounce_hz"], s["result"]["roller_stiffness_n_per_m"]) for s in doc["steps"]]
     rows = query(db, "1").rows
     assert len(rows) == 18 and {r["result_source"] for r in rows} == {"reprocessed"}
     assert {r["processed_software_version"] for r in rows} == {__version__}
@@ -235,6 +243,12 @@ def test_process_with_two_local_workers_matches_sequential_and_isolates_a_corrup
     again = labctl_here(capsys, "archive", "process", *map(str, files), "--workers", "0", "--json")
     assert again.returncode == 0 and json.loads(again.stdout)["written"] == 0
     assert {f: results_path(f).stat().st_mtime_ns for f in files} == stamps
+
+
+def _dies_on_first_type(path: str):
+    if "type1_" in path:
+        raise RuntimeError("worker lost")
+    return reprocess_file(path)
 
 
 def test_process_on_an_existing_scheduler(archive, tmp_path, capsys):
@@ -248,11 +262,14 @@ def test_process_on_an_existing_scheduler(archive, tmp_path, capsys):
         assert cluster.scheduler_address.startswith("tcp://")
         proc = labctl_here(capsys, "archive", "process", *map(str, [*files, corrupt]), "--scheduler",
                            cluster.scheduler_address, "--json")
+        # a task that dies outside the per-file guard (as when a worker is lost) is that file's failure only
+        lost = process_files(files[:3], scheduler=cluster.scheduler_address, task=_dies_on_first_type)
     assert proc.returncode == 1
     out = json.loads(proc.stdout)
     assert out["processed"] == 6 and [o["path"] for o in out["outcomes"] if not o["ok"]] == [str(corrupt.resolve())]
     assert out["scheduler"] == cluster.scheduler_address
     _check_processed(files, raw_sha)
+    assert [o.ok for o in lost] == [False, False, True] and all("worker lost" in o.error for o in lost[:2])
 
 
 def test_unreachable_scheduler_and_bad_paths_are_one_line_errors(archive, tmp_path, capsys, monkeypatch):
@@ -276,12 +293,13 @@ def test_results_sidecar_is_written_once_and_goes_stale_when_the_campaign_change
     results_path(f).write_text("{not json", encoding="utf-8")
     with pytest.raises(InputError, match="results.json"):
         read_results(f)
-
-    from labctl.archive import process_files
+    db = tmp_path / "s.db"
+    index(db, [tmp_path])  # a damaged sidecar: the campaign's own results are catalogued
+    rows = query(db).rows
+    assert {r["result_source"] for r in rows} == {"acquisition"} and {r["results_current"] for r in rows} == {0}
 
     (out,) = process_files([f], workers=0)
-    assert out.ok and out.written
-    db = tmp_path / "s.db"
+    assert out.ok and out.written and out.cpu_seconds > 0
     index(db, [tmp_path])
     assert {r["result_source"] for r in query(db).rows} == {"reprocessed"}
     with h5py.File(f, "r+") as h5:  # e.g. the campaign was resumed after its reprocessing
@@ -289,3 +307,15 @@ def test_results_sidecar_is_written_once_and_goes_stale_when_the_campaign_change
     index(db, [tmp_path])
     rows = query(db).rows
     assert {r["result_source"] for r in rows} == {"acquisition"} and {r["results_current"] for r in rows} == {0}
+
+
+def test_dask_is_imported_only_when_a_cluster_is_used():
+    import subprocess
+    import sys
+
+    code = ("import sys, labctl.cli, labctl.archive\nlabctl.cli.build_parser()\n"
+            "print(sorted(m for m in ('dask', 'distributed', 'tqdm') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          cwd=Path(__file__).resolve().parents[1])
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from labctl.archive.source import CampaignRecord, read_campaign, root_sha256
-from labctl.errors import InputError, LabctlError
+from labctl.errors import InputError
 from labctl.storage.results import read_results, results_path
 from labctl.storage.writer import utc_now
 
@@ -184,41 +184,38 @@ def _index_one(conn: sqlite3.Connection, path: Path, report: IndexReport) -> Non
     row = conn.execute("SELECT size_bytes, mtime_ns, root_sha256, results_size, results_mtime_ns, error "
                        "FROM campaign_file WHERE path = ?", (str(path),)).fetchone()
     try:
-        root = root_sha256(path)
-    except (LabctlError, OSError) as exc:
-        root, error = "", str(exc)
-    else:
-        error = ""
+        root, error = root_sha256(path), ""
+    except Exception as exc:  # noqa: BLE001 — one unreadable file must not stop the index
+        root, error = "", _message(path, exc)
     if row is not None and tuple(row[:5]) == (st.size, st.mtime_ns, root, st.results_size, st.results_mtime_ns):
         if row[5]:
             report.failed.append((str(path), row[5]))
         else:
             report.unchanged.append(str(path))
         return
-    record = None
+    fields: dict[str, Any] = {}
+    children: dict[str, list[dict[str, Any]]] = {}
     if not error:
         try:
-            record = read_campaign(path)
-        except (LabctlError, OSError, KeyError, ValueError) as exc:
-            error = f"{path}: {exc}"
+            fields, children = _record_rows(read_campaign(path), st)
+        except Exception as exc:  # noqa: BLE001 — a damaged campaign is catalogued with its error
+            error = _message(path, exc)
     with conn:
         conn.execute("DELETE FROM campaign_file WHERE path = ?", (str(path),))
         base = {"path": str(path), "file_name": path.name, "size_bytes": st.size, "mtime_ns": st.mtime_ns,
                 "root_sha256": root, "results_size": st.results_size, "results_mtime_ns": st.results_mtime_ns,
-                "indexed_utc": utc_now(), "error": error}
-        children: dict[str, list[dict[str, Any]]] = {}
-        if record is not None:
-            try:
-                fields, children = _record_rows(record, st)
-                base.update(fields)
-            except LabctlError as exc:  # e.g. a malformed results sidecar
-                base["error"] = str(exc)
+                "indexed_utc": utc_now(), "error": error, **fields}
         cid = _insert(conn, "campaign_file", base)
         for table, rows in children.items():
             for r in rows:
                 _insert(conn, table, {"campaign_id": cid, **r})
     (report.failed.append((str(path), base["error"])) if base["error"]
      else (report.updated if row is not None else report.new).append(str(path)))
+
+
+def _message(path: Path, exc: Exception) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if str(path) in text else f"{path}: {type(exc).__name__}: {text}"
 
 
 def _insert(conn: sqlite3.Connection, table: str, row: dict[str, Any]) -> int:
@@ -264,7 +261,10 @@ def _result_columns(result: dict[str, Any] | None) -> dict[str, Any]:
 
 def _reprocessed_steps(record: CampaignRecord, st: _Stat) -> tuple[dict[str, Any] | None, bool]:
     """The sidecar document and whether it belongs to the campaign as it is now (same size and root hash)."""
-    doc = read_results(record.path)
+    try:
+        doc = read_results(record.path)
+    except InputError:  # a damaged sidecar: show the results stored in the campaign file
+        return {}, False
     if doc is None:
         return None, False
     src = doc.get("source", {})

@@ -104,7 +104,9 @@ def run_query(args: argparse.Namespace) -> int:
     def text(r: dict[str, Any]) -> str:
         table = [list(columns)] + [[_fmt(row[c]) for c in columns] for row in r["rows"]]
         widths = [max(len(line[i]) for line in table) for i in range(len(columns))]
-        lines = ["  ".join(cell.rjust(w) for cell, w in zip(line, widths, strict=True)) for line in table]
+        numeric = [all(isinstance(row[c], int | float | None) for row in r["rows"]) for c in columns]
+        lines = ["  ".join((cell.rjust(w) if num else cell.ljust(w)) for cell, w, num in
+                           zip(line, widths, numeric, strict=True)).rstrip() for line in table]
         lines.append(f"{r['count']} rows")
         if r["csv"]:
             lines.append(f"stiffness table: {r['points']} points → {r['csv']}"
@@ -132,7 +134,7 @@ def run_process(args: argparse.Namespace) -> int:
     outcomes = process_files(files, workers=workers, scheduler=args.scheduler,
                              progress=None if args.quiet or args.json else sys.stderr)
     failed = [o for o in outcomes if not o.ok]
-    indexed = index(args.db, [o.path for o in outcomes if o.ok]).to_dict() if args.db else None
+    indexed = index(args.db, files).to_dict() if args.db else None
     result = {"files": len(outcomes), "processed": len(outcomes) - len(failed), "failed": len(failed),
               "written": sum(o.written for o in outcomes), "workers": workers, "scheduler": args.scheduler,
               "outcomes": [o.to_dict() for o in outcomes], "db": args.db, "index": indexed}
