@@ -15,7 +15,7 @@ from labctl.data import data_path
 from labctl.physics.rig_config import DEFAULT_RIG
 from labctl.reprocess import process_campaign, rig_of
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage import CampaignReader
+from labctl.storage import CampaignReader, result_summary
 from labctl.storage.results import attrs_sha256
 
 
@@ -80,7 +80,8 @@ def read_campaign(path: str | Path) -> CampaignRecord:
     with CampaignReader(path) as reader:
         attrs = reader.attrs
         specimens = {series: reader.specimen(series) for series in reader.series_indices()}
-        steps = [StepRecord(st.series, run.run, st.step, run.complete, st.complete, st.attrs, st.result,
+        steps = [StepRecord(st.series, run.run, st.step, run.complete, st.complete, st.attrs,
+                            result_summary(st.result) if st.result and st.result.identified else None,
                             len(st.impacts), st.accepted_count)
                  for series in specimens for run in reader.runs(series) for st in run.steps]
         return CampaignRecord(str(path), attrs, attrs_sha256(attrs), reader.config_text("protocol.toml"),
@@ -101,5 +102,6 @@ def reprocess(path: str | Path) -> Reprocessed:
     with CampaignReader(path) as reader:
         rig, root = _rig_used(reader), attrs_sha256(reader.attrs)
     steps = [{"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
-              "knob_angle_deg": r.knob_angle_deg, "result": r.result, "error": r.error} for r in done.rows]
+              "knob_angle_deg": r.knob_angle_deg,
+              "result": result_summary(r.result) if r.result.identified else None, "error": r.error} for r in done.rows]
     return Reprocessed(str(path), done.status, Path(path).stat().st_size, root, rig, steps, list(done.points))

@@ -14,10 +14,11 @@ from labctl.storage.records import (
     StepFrf,
     StepResult,
     Verdict,
+    result_summary,
 )
 from labctl.storage.table import campaign_stiffness_points
 from labctl.storage.writer import CampaignWriter
 
 __all__ = ["Calibration", "CampaignReader", "CampaignWriter", "CheckSummary", "ImpactInfo", "ImpactOutcome",
            "ImpactRecord", "ModeResult", "RepetitionCurve", "RunInfo", "StepFrf", "StepInfo", "StepResult",
-           "Verdict", "campaign_stiffness_points"]
+           "Verdict", "campaign_stiffness_points", "result_summary"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -308,3 +308,17 @@ def curve_from_steps(series: int, run: int, specimen: str, steps: Sequence[tuple
     cols = [np.array([row[i] for row in rows], dtype=float) for i in range(len(CURVE_COLUMNS))]
     cols[0] = cols[0].astype(int)
     return RepetitionCurve(series, run, specimen, *cols)
+
+
+def result_summary(result: StepResult) -> dict[str, Any]:
+    """A StepResult as plain JSON values (no spectra): for catalogues, sidecars and ``--json`` output."""
+    def plain(value: Any) -> Any:
+        if is_dataclass(value):
+            return {k: plain(v) for k, v in asdict(value).items()}
+        if isinstance(value, dict):
+            return {str(k): plain(v) for k, v in value.items()}
+        if isinstance(value, list | tuple):
+            return [plain(v) for v in value]
+        return value.item() if isinstance(value, np.generic) else value
+
+    return {f.name: plain(getattr(result, f.name)) for f in fields(StepResult) if f.name != "frf"}
