@@ -1,4 +1,4 @@
-"""The stiffness-table CSV contract (DESIGN.md §4): exact header names, round trip, defaults, clear errors."""
+"""The stiffness-table CSV contract: exact header names, round trip, defaults, clear errors."""
 
 from __future__ import annotations
 
