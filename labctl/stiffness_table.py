@@ -1,4 +1,4 @@
-"""The stiffness-table CSV (DESIGN.md §4): one measured roller stiffness per row, read and written.
+"""The stiffness-table CSV: one measured roller stiffness per row, read and written.
 
 Units live only in the column names (mm, µm, GPa at this edge; SI in :class:`StiffnessPoint`). Optional
 columns default to a bearing-steel roller (1.3505: 210 GPa, ν 0.29, HRC 60) between bearing-steel rails; the

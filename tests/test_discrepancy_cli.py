@@ -41,7 +41,7 @@ def test_json_names_roughness_and_reports_the_gap_per_step(eq5_tables, tmp_path)
     assert step["gap_after"] == out["gap_after"] <= 0.05
     assert step["evidence"]["delta_bic"] >= 10 and step["evidence"]["held_out"]["gap_with"] < 0.05
     assert 0.005 < out["noise_floor"] < 0.04
-    for name in ("stiffness.png", "residuals.png", "gap.png", "discrepancy.json", "summary.txt"):
+    for name in ("stiffness.png", "residuals.png", "gap.png", "steps.png", "discrepancy.json", "summary.txt"):
         assert (report / name).stat().st_size > 500, name
     assert (report / "stiffness.png").read_bytes()[:4] == b"\x89PNG"
 
@@ -89,3 +89,39 @@ def test_a_file_that_is_no_campaign_is_a_one_line_error(tmp_path):
     path.write_bytes(b"not hdf5")
     assert_one_line_error(labctl("discrepancy", str(path)), "campaign.h5")
     assert_one_line_error(labctl("discrepancy", str(tmp_path / "missing.hdf5")), "missing.hdf5", "not found")
+
+
+def _campaign(path, points, rig_text):
+    """A campaign file holding only processed step results (as the engine stores them) and its rig."""
+    from labctl.storage.writer import CampaignWriter
+
+    types = sorted({p.roller_type for p in points})
+    with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=1, config_files={"rig.toml": rig_text},
+                               description={}) as w:
+        for series, t in enumerate(types, 1):
+            mine = [p for p in points if p.roller_type == t]
+            p0 = mine[0]
+            w.series(series, {"label": f"type {t}", "roller_type": t, "diameter_m": p0.diameter_m,
+                              "contact_length_m": p0.contact_length_m, "roller_length_m": p0.roller_length_m,
+                              "rail_ra_m": p0.rail_ra_m, "material": "1.3505", "rail_material": "1.3505"})
+            for rep in sorted({p.repetition for p in mine}):
+                w.run(series, rep)
+                for step, p in enumerate([q for q in mine if q.repetition == rep], 1):
+                    w.step(series, rep, step, {"load_n": p.load_n})
+                    w.write_step_result(series, rep, step, {"roller_stiffness_n_per_m": p.stiffness_n_per_m})
+
+
+def test_a_campaign_file_is_analysed_with_the_rig_stored_in_it(tmp_path):
+    from labctl.data import data_path
+
+    text = data_path("rigs/paper_rig.toml").read_text(encoding="utf-8")
+    stored = text.replace("setup_stiffness_n_per_m = 1.45e9", "setup_stiffness_n_per_m = 2.9e9")
+    assert stored != text
+    path = tmp_path / "c.h5"
+    _campaign(path, synthesize(_eq5, types=[1, 4, 6], noise=NoiseModel(0.03, 0.01), seed=22), stored)
+    out = labctl_json("discrepancy", str(path))
+    assert out["nominal_setup_stiffness_n_per_m"] == 2.9e9 and out["n_cases"] == 3
+    assert [e["name"] for e in out["effects"]] == ["surface_roughness"]
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text, encoding="utf-8")
+    assert labctl_json("discrepancy", str(path), "--rig", str(rig))["nominal_setup_stiffness_n_per_m"] == 1.45e9

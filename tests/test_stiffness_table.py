@@ -1,4 +1,4 @@
-"""The stiffness-table CSV contract (DESIGN.md §4): exact header names, round trip, defaults, clear errors."""
+"""The stiffness-table CSV contract: exact header names, round trip, defaults, clear errors."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import pytest
 
 from labctl.errors import InputError
 from labctl.physics import TrippContact, material, roller
+from labctl.physics.materials import materials
 from labctl.stiffness_table import REQUIRED, StiffnessPoint, read_stiffness_table, write_stiffness_table
 
 FULL = StiffnessPoint(
@@ -140,3 +141,22 @@ def test_written_numbers_survive_unit_conversion_exactly_enough(tmp_path):
     (q,) = read_stiffness_table(path)
     for name in ("diameter_m", "contact_length_m", "rail_ra_m", "load_n", "stiffness_n_per_m"):
         assert getattr(q, name) == pytest.approx(getattr(p, name), rel=1e-11)
+
+
+def test_rail_material_column_is_read_written_and_used_for_the_contact(tmp_path):
+    other = "Si3N4"  # a ceramic rail: much stiffer than bearing steel
+    point = StiffnessPoint(diameter_m=3e-3, contact_length_m=1.793e-3, rail_ra_m=0.2e-6, load_n=440.0,
+                           stiffness_n_per_m=4.5e7, rail_material=other)
+    path = tmp_path / "k.csv"
+    write_stiffness_table(path, [point, MINIMAL])
+    assert _header(path)[-1] == "rail_material"
+    back = read_stiffness_table(path)
+    assert back == [point, MINIMAL]
+    case = back[0].case()
+    assert case.rail == materials()[other]
+    assert case.effective_modulus_pa > 1.15 * MINIMAL.case().effective_modulus_pa
+    bad = tmp_path / "bad.csv"
+    bad.write_text("diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m,rail_material\n"
+                   "3,1.793,0.2,440,4.5e7,unobtainium\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"bad.csv: row 2, column rail_material: unknown rail material 'unobtainium'"):
+        read_stiffness_table(bad)

@@ -174,7 +174,7 @@ class Fit:
 
     @property
     def gap(self) -> float:
-        """DESIGN.md §4: rms over all points of ln(k_model/k_measured)."""
+        """The gap: rms over all points of ln(k_model/k_measured)."""
         return math.sqrt(self.rss / self.n_points)
 
     @property

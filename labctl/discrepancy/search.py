@@ -223,7 +223,7 @@ class Search:
 
     def _pair(self, current: Fit, baseline: Fit, ranked: list[Candidate]) -> list[Step]:
         """Two terms that complete the explanation together, each with its own evidence; [] if none."""
-        firsts = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE][:1]
+        firsts = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE][:2]
         for first in firsts:
             check1 = self.held_out(current.spec, first.fit.spec)
             if check1 is not None and not check1.passed:

@@ -115,6 +115,8 @@ class DiscrepancyResult:
             "baseline": self.baseline.spec.baseline,
             "baseline_parameters": self.baseline.baseline_parameters(),
             "final_baseline_parameters": self.final.baseline_parameters(),
+            "nominal_setup_stiffness_n_per_m":
+                self.baseline.spec.fixed.get("setup_compliance", {}).get("nominal_setup_n_per_m"),
             "n_points": self.data.n_points,
             "n_cases": len(self.data.cases),
             "gap_before": self.baseline.gap,

@@ -1,4 +1,4 @@
-"""Physical effects the measured roller stiffness shows and Tripp lacks (DESIGN.md §3), as model terms.
+"""Physical effects the measured roller stiffness shows and Tripp lacks, as model terms.
 
 Each effect transforms the stiffness of a baseline contact model for one contact case; its parameters are
 physical, in SI, with bounds. The simulator hides them in its world and the discrepancy workflow fits them:
