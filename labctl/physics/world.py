@@ -4,7 +4,8 @@ A world is a contact law (a library baseline or a world law of ``labctl.physics.
 or a safe expression — followed by effect terms of ``labctl.physics.effects``), the rig's true setup stiffness
 relative to its nominal value, per-seating scatter of law parameters, optional overrides of the simulated
 instruments and the rates and sizes of instrument faults. The simulator evaluates it; the discrepancy workflow
-must find what it hides.
+must find what it hides. Every table is read with ``labctl.data.schema`` (one error format, NaN/inf refused) and
+every edge unit converted by ``labctl.data.units``, like the other configuration files.
 """
 
 from __future__ import annotations
