@@ -193,9 +193,12 @@ def test_world_rig_table_sets_the_true_rig_and_composes_with_setup_compliance(tw
 
 
 @pytest.mark.parametrize(("table", "message"), [
-    ("[rig.upper]\nmass_kg = 11.0\n", "rig.upper: unknown rig table; expected one of upper_disc"),
-    ("[rig.upper_disc]\nmass = 11.0\n", "rig.upper_disc.mass: unknown key; expected one of mass_kg"),
-    ("[rig.contacts]\nsetup_stiffness_n_per_m = -1.0\n", "rig.contacts.setup_stiffness_n_per_m = -1.0"),
+    ("[rig.upper]\nmass_kg = 11.0\n",
+     "rig: unknown key(s) upper (did you mean 'upper_disc'?); expected one of contacts, damping"),
+    ("[rig.upper_disc]\nmass = 11.0\n",
+     "rig.upper_disc: unknown key(s) mass (did you mean 'mass_kg'?); expected one of inertia_kg_m2, mass_kg"),
+    ("[rig.contacts]\nsetup_stiffness_n_per_m = -1.0\n",
+     "rig.contacts.setup_stiffness_n_per_m = -1.0: expected a positive number"),
     ("[rig]\nupper_disc = 3\n", "rig.upper_disc = 3: expected a table"),
 ])
 def test_world_rig_table_errors_name_table_and_key(tmp_path, table, message):

@@ -37,8 +37,11 @@ def test_training_world_turns_every_fault_on_and_bad_fault_settings_are_refused(
     assert f.intermittent_channel_rate > 0 and f.dead_channel_rate > 0 and f.mains_hum_m_per_s2 > 0
     assert f.creep_rate > 0 and f.load_cell_timeout_rate > 0 and f.load_cell_garbled_rate > 0
     assert f.unequal_seating_rate > 0 and f.unequal_seating_gap_m == pytest.approx(0.5e-6)
-    for rates, message in [({"double_hit_rate": 2.0}, "double_hit_rate = 2.0: expected a probability"),
-                           ({"hum": 1.0}, "faults: unknown setting(s) hum")]:
+    for rates, message in [
+        ({"double_hit_rate": 2.0}, "faults: fault setting double_hit_rate = 2.0: expected a probability in [0, 1]"),
+        ({"double_hit_rat": 0.1}, "faults: unknown key(s) double_hit_rat (did you mean 'double_hit_rate'?); expected"),
+        ({"hum": 1.0}, "faults: unknown key(s) hum; expected one of creep_n_per_s, creep_rate"),
+    ]:
         path = faults_world(tmp_path, **rates)
         with pytest.raises(InputError) as exc:
             sim_rig(world=path)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from labctl.backends import make_rig, sim_settings
+from labctl.data.units import to_si
 from labctl.errors import InputError
 from labctl.physics import (
     EQ5,
@@ -20,7 +21,8 @@ from labctl.physics import (
     roller,
     static_load_rating_n,
 )
-from labctl.physics.world import load_world, shipped_worlds, to_si
+from labctl.physics.rig_config import load_rig
+from labctl.physics.world import load_world, shipped_worlds
 from labctl.physics.world_laws import ConformingContact, ExpressionLaw, check_expression
 
 STEEL = material("1.3505")
@@ -162,26 +164,37 @@ BAD = [
     ('[baseline]\nmodel = "hertz"\ndepth_mm = 2.0\n', "baseline: unknown key(s) depth_mm"),
     ('[baseline]\nmodel = "tripp"\ndepth_mm = -1.0\n', "baseline.depth_mm = -1.0"),
     ('[baseline]\nmodel = "tripp"\n[effects.lubrication]\nviscosity = 1.0\n',
-     "effects.lubrication: unknown effect; expected one of surface_roughness"),
+     "effects: unknown key(s) lubrication; expected one of end_effects, material_hardness"),
     ('[baseline]\nmodel = "tripp"\n[effects.misalignment]\ntilt_deg = 1.0\n',
-     "effects.misalignment.tilt_deg: unknown parameter; expected tilt_mrad, tilt_rel"),
+     "effects.misalignment: unknown key(s) tilt_deg (did you mean 'tilt_rel'?); expected one of tilt_mrad, tilt_rel"),
     ('[baseline]\nmodel = "tripp"\n[effects.misalignment]\ntilt_mrad = 50.0\n',
      "effects.misalignment.tilt_mrad = 50.0: expected a number in [0, 5]"),
     ('[baseline]\nmodel = "tripp"\n[effects.surface_roughness]\nasperity_scale = "big"\n',
-     "effects.surface_roughness.asperity_scale = 'big': expected float"),
+     "effects.surface_roughness.asperity_scale = 'big': expected float (a number in [0, 20])"),
     ('[baseline]\nmodel = "tripp"\n[effects.setup_compliance]\nstiffness_factor = 1.2\nstiffness_factor_rel = 0.1\n',
-     "no per-seating scatter"),
-    ('[baseline]\nmodel = "tripp"\n[scatter]\nstiffness_rel = 2.0\n', "scatter.stiffness_rel = 2.0"),
-    ('[baseline]\nmodel = "tripp"\n[scatter]\nroughness = 0.1\n', "scatter: unknown key(s) roughness"),
+     "effects.setup_compliance: the setup stiffness has no per-seating scatter"),
+    ('[baseline]\nmodel = "tripp"\n[scatter]\nstiffness_rel = 2.0\n',
+     "scatter.stiffness_rel = 2.0: expected a number in [0, 1]"),
+    ('[baseline]\nmodel = "tripp"\n[scatter]\nroughness = 0.1\n',
+     "scatter: unknown key(s) roughness; expected one of stiffness_rel"),
     ('[baseline]\nmodel = "tripp"\n[effect.end_effects]\nedge_length_mm = 0.1\n', "unknown key(s) effect"),
     ('[baseline\nmodel = "tripp"\n', "not valid TOML"),
-    ('[baseline]\nmodel = "table"\n', "baseline: missing key 'tables'"),
-    (TABLE_HEAD + "load_n = [1.0, 0.5]\nstiffness_n_per_m = [1.0, 2.0]\n", "load_n must rise strictly"),
+    ('[baseline]\nmodel = "table"\n', "baseline: missing key 'tables'; expected an array of tables"),
+    (TABLE_HEAD + "load_n = [1.0, 0.5]\nstiffness_n_per_m = [1.0, 2.0]\n",
+     "baseline.tables[0]: load_n must rise strictly"),
     (TABLE_HEAD + "load_n = [1.0, 2.0]\nstiffness_n_per_m = [1.0, -2.0]\n",
-     "stiffness_n_per_m = [1.0, -2.0]: expected a list of positive numbers"),
-    ('[baseline]\nmodel = "conforming"\ndepth_mm = 500.0\n', "baseline.depth_mm = 500.0: expected a number in"),
-    ('[baseline]\nmodel = "conforming"\nroughness = 1.0\n', "baseline.roughness: unknown parameter"),
-    ('[baseline]\nmodel = "tripp"\n[faults]\ndouble_hit_rate = "often"\n', "faults.double_hit_rate = 'often'"),
+     "baseline.tables[0].stiffness_n_per_m = -2.0: expected a positive number"),
+    ('[baseline]\nmodel = "conforming"\ndepth_mm = 500.0\n',
+     "baseline.depth_mm = 500.0: expected a number in [0.1, 100]"),
+    ('[baseline]\nmodel = "conforming"\nroughness = 1.0\n',
+     "baseline: unknown key(s) roughness; expected one of asperity_scale"),
+    ('[baseline]\nmodel = "tripp"\n[faults]\nunequal_seating_gap_um = 0.5\nunequal_seating_gap_m = 5e-7\n',
+     "faults: unequal_seating_gap_um and unequal_seating_gap_m both set unequal_seating_gap_m; give one"),
+    ('[baseline]\nmodel = "tripp"\n[faults]\ncreep_n_per_ms = 1.0\n', "faults: unknown key(s) creep_n_per_ms"),
+    ('[baseline]\nmodel = "expression"\nexpression = "F"\ntables = []\n',
+     "baseline: unknown key(s) tables; expected one of expression, model"),
+    ('[baseline]\nmodel = "tripp"\n[faults]\ndouble_hit_rate = "often"\n',
+     "faults.double_hit_rate = 'often': expected float (a number)"),
 ]
 
 
@@ -194,10 +207,59 @@ def test_bad_world_files_name_file_key_and_expectation(tmp_path, text, message):
     assert str(path) in str(exc.value) and message in str(exc.value)
 
 
-def test_bad_instrument_settings_are_refused_when_the_rig_is_built(tmp_path):
+CONFORMING = '[baseline]\nmodel = "conforming"\n'
+TRIPP = '[baseline]\nmodel = "tripp"\n'
+# (a table with {} for a number, "TABLE.KEY = nan: expected ...", "TABLE: unknown key(s) K (did you mean ...")
+ONE_FORMAT = [
+    (CONFORMING + "conformity = {}\n", "baseline.conformity = nan: expected a finite number in [0.01, 10]",
+     "baseline: unknown key(s) conformty (did you mean 'conformity'?); expected one of asperity_scale"),
+    (TRIPP + "depth_mm = {}\n",
+     "baseline.depth_mm = nan: expected a finite number in [0.001, 1000]",
+     "baseline: unknown key(s) depth (did you mean 'depth_mm'?); expected one of depth_mm, model"),
+    (TRIPP + "[faults]\ndouble_hit_rate = {}\n", "faults.double_hit_rate = nan: expected a finite number",
+     "faults: unknown key(s) double_hit_rat (did you mean 'double_hit_rate'?); expected one of creep_n_per_s"),
+    (TRIPP + "[rig.support]\nstiffness_n_per_m = {}\n",
+     "rig.support.stiffness_n_per_m = nan: expected a finite positive number",
+     "rig.support: unknown key(s) stiffnes_n_per_m (did you mean 'stiffness_n_per_m'?); expected one of damping_ratio"),
+    (TRIPP + "[rig.upper_disc]\nthickness_mm = {}\n", "rig.upper_disc.thickness_mm = nan: expected a finite positive",
+     "rig.upper_disc: unknown key(s) thicknes_mm (did you mean 'thickness_mm'?); expected one of inertia_kg_m2"),
+    (TRIPP + "[instruments]\npulse_width_min_ms = {}\n", "instruments.pulse_width_min_ms = nan: expected a finite",
+     "instruments: unknown key(s) pulse_width_min_mms (did you mean 'pulse_width_min_ms'?); expected one of"),
+    (TRIPP + "[effects.end_effects]\nedge_length_mm = {}\n",
+     "effects.end_effects.edge_length_mm = nan: expected a finite number in [0, 2]",
+     "effects.end_effects: unknown key(s) edge_lenght_mm (did you mean 'edge_length_mm'?); expected one of"),
+]
+
+
+@pytest.mark.parametrize("text, nan_message, typo_message", ONE_FORMAT)
+def test_nan_and_misspelt_keys_are_reported_in_the_one_format(tmp_path, text, nan_message, typo_message):
+    path = tmp_path / "world.toml"
+    key = typo_message.split("unknown key(s) ")[1].split(" ")[0]
+    right = typo_message.split("did you mean '")[1].split("'")[0]
+    for body, message in [(text.format("nan"), nan_message), (text.format("-inf"), nan_message.replace("nan", "-inf")),
+                          (text.format("1.0").replace(f"{right} =", f"{key} ="), typo_message)]:
+        path.write_text(body)
+        with pytest.raises(InputError) as exc:
+            load_world(path)
+        assert str(exc.value).startswith(f"{path}: {message}"), str(exc.value)
+
+
+def test_world_rig_overrides_and_fault_sizes_convert_through_the_one_unit_table(tmp_path):
+    path = tmp_path / "world.toml"
+    path.write_text(TRIPP + "[rig.upper_disc]\nthickness_mm = 25.0\n[faults]\nunequal_seating_gap_mm = 0.002\n"
+                    "[instruments]\nload_cell_read_ms = 50.0\n")
+    world = load_world(path)
+    assert world.rig_overrides == (("upper_disc", "thickness_mm", 25.0),)  # kept in the rig file's units
+    assert world.faults == {"unequal_seating_gap_m": pytest.approx(2e-6)}
+    assert world.instruments == {"load_cell_read_s": pytest.approx(0.05)}
+    assert world.true_rig(load_rig(None)).upper.thickness_m == pytest.approx(0.025)
+
+
+def test_bad_instrument_settings_are_refused_with_the_world(tmp_path):
     case = ContactCase(roller(1), STEEL, 0.2e-6)
-    for text, message in [("accel_noise_g = 0.1", "instruments: unknown setting(s) accel_noise_g"),
-                          ("force_noise_n = -1.0", "force_noise_n = -1.0")]:
+    for text, message in [("accel_noise_g = 0.1", "instruments: unknown key(s) accel_noise_g"),
+                          ("force_noise_n = -1.0",
+                           "instruments: simulator setting force_noise_n = -1.0: expected a finite number >= 0")]:
         path = tmp_path / "w.toml"
         path.write_text(f'[baseline]\nmodel = "tripp"\n[instruments]\n{text}\n')
         with pytest.raises(InputError) as exc:

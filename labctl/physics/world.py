@@ -4,19 +4,38 @@ A world is a contact law (a library baseline or a world law of ``labctl.physics.
 or a safe expression — followed by effect terms of ``labctl.physics.effects``), the rig's true setup stiffness
 relative to its nominal value, per-seating scatter of law parameters, optional overrides of the simulated
 instruments and the rates and sizes of instrument faults. The simulator evaluates it; the discrepancy workflow
-must find what it hides.
+must find what it hides. Every table is read with ``labctl.data.schema`` (one error format, NaN/inf refused) and
+every edge unit converted by ``labctl.data.units``, like the other configuration files.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from labctl.data import data_path, read_toml, require
+from drivers.sim import FaultSettings, SimSettings
+from labctl.data import data_path, read_toml
+from labctl.data.schema import (
+    Integer,
+    Number,
+    Numbers,
+    Spec,
+    Table,
+    Tables,
+    Text,
+    Where,
+    bounded,
+    check_keys,
+    read,
+    value,
+    value_name,
+)
+from labctl.data.units import AUTO_UNITS, MM, edge_name, to_si
 from labctl.errors import InputError
 from labctl.physics.catalogue import Roller
 from labctl.physics.effects import EFFECTS, ContactCase, Effect, SetupCompliance
@@ -28,21 +47,8 @@ from labctl.physics.world_laws import WORLD_BASELINES, ConformingContact, Expres
 
 DEFAULT_WORLD = "default"
 WORLDS_DIR = "worlds"
-# edge unit suffix -> (SI suffix, factor to SI)
-UNITS: dict[str, tuple[str, float]] = {
-    "_mm": ("_m", 1e-3), "_um": ("_m", 1e-6), "_mrad": ("_rad", 1e-3), "_ms": ("_s", 1e-3), "_gpa": ("_pa", 1e9),
-}
 SI_SUFFIXES = ("_m", "_rad", "_s", "_pa")
-TOP_LEVEL = {"description", "baseline", "effects", "scatter", "instruments", "faults", "rig"}
 BASE = -1  # index of a world law's own baseline in Scatter.parameters (effects count from 0)
-
-
-def to_si(key: str, value: float) -> tuple[str, float]:
-    """``("edge_length_mm", 0.1)`` → ``("edge_length_m", 1e-4)``; keys without an edge unit pass unchanged."""
-    for suffix, (si, factor) in UNITS.items():
-        if key.endswith(suffix):
-            return key[: -len(suffix)] + si, value * factor
-    return key, value
 
 
 def _stem(si_name: str) -> str:
@@ -149,28 +155,29 @@ def world_path(world: str | Path | None) -> Path:
     raise InputError(f"world {str(world)!r}: no such file or shipped world; shipped: {', '.join(shipped_worlds())}")
 
 
+TOP: dict[str, Spec] = {
+    "description": Text(default=""), "baseline": Table(), "effects": Table(default={}), "scatter": Table(default={}),
+    "instruments": Table(default={}), "faults": Table(default={}), "rig": Table(default={}),
+}
+
+
 def load_world(path: str | Path | None = None) -> World:
-    """Read a world scenario file (the shipped default without a path), naming the file and key of any error."""
+    """Read a world scenario file (the shipped default without a path), naming the file, table and key of any
+    error in the one format of ``labctl.data.schema``."""
     p = world_path(path)
-    doc = read_toml(p)
-    where = str(p)
-    unknown = sorted(set(doc) - TOP_LEVEL)
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; expected {', '.join(sorted(TOP_LEVEL))}")
-    baseline = require(doc, "baseline", dict, where)
-    law, setup_factor, params = _law(baseline, doc.get("effects", {}), where)
-    scatter_doc = doc.get("scatter", {})
-    _only(scatter_doc, {"stiffness_rel"}, f"{where}: scatter")
-    stiffness_rel = _number(scatter_doc, "stiffness_rel", f"{where}: scatter", 0.0, 0.0, 1.0)
+    top = Where(str(p))
+    doc = read(read_toml(p), TOP, top)
+    law, setup_factor, params = _law(doc["baseline"], doc["effects"], top)
+    scatter = read(doc["scatter"], {"stiffness_rel": Number(ge=0, le=1, default=0.0)}, top.at("scatter"))
     return World(
         law=law,
         setup_stiffness_factor=setup_factor,
-        scatter=Scatter(stiffness_rel, params),
-        instruments=_instruments(doc.get("instruments", {}), f"{where}: instruments"),
-        faults=_instruments(doc.get("faults", {}), f"{where}: faults"),
-        source=where,
-        description=str(doc.get("description", "")),
-        rig_overrides=rig_overrides(doc.get("rig", {}), f"{where}: rig"),
+        scatter=Scatter(scatter["stiffness_rel"], params),
+        instruments=_settings(doc["instruments"], SimSettings, top.at("instruments")),
+        faults=_settings(doc["faults"], FaultSettings, top.at("faults")),
+        source=str(p),
+        description=doc["description"],
+        rig_overrides=rig_overrides(doc["rig"], top.at("rig")),
     )
 
 
@@ -184,39 +191,29 @@ RIG_KEYS: dict[str, tuple[str, ...]] = {
 }
 
 
-def rig_overrides(doc: Any, where: str) -> tuple[tuple[str, str, float], ...]:
-    """Validate a world's ``[rig]`` table: known rig-file tables and keys, positive finite numbers."""
-    if not isinstance(doc, dict):
-        raise InputError(f"{where} = {doc!r}: expected a table of rig-file tables")
+def rig_overrides(doc: dict[str, Any], where: Where) -> tuple[tuple[str, str, float], ...]:
+    """Validate a world's ``[rig]`` table: known rig-file tables and keys, positive finite numbers (kept in the
+    rig file's units, in file order)."""
+    tables = read(doc, dict.fromkeys(RIG_KEYS, Table(default=None)), where)
     out: list[tuple[str, str, float]] = []
-    for table, values in doc.items():
-        if table not in RIG_KEYS:
-            raise InputError(f"{where}.{table}: unknown rig table; expected one of {', '.join(RIG_KEYS)}")
-        if not isinstance(values, dict):
-            raise InputError(f"{where}.{table} = {values!r}: expected a table of rig-file keys")
-        for key in values:
-            if key not in RIG_KEYS[table]:
-                raise InputError(f"{where}.{table}.{key}: unknown key; expected one of {', '.join(RIG_KEYS[table])}")
-            value = require(values, key, float, f"{where}.{table}")
-            if not (math.isfinite(value) and value > 0):
-                raise InputError(f"{where}.{table}.{key} = {value!r}: expected a positive finite number")
-            out.append((table, key, float(value)))
+    for name in doc:
+        values = read(tables[name], dict.fromkeys(RIG_KEYS[name], Number(gt=0, default=None)), where.at(name))
+        out.extend((name, key, values[key]) for key in tables[name])
     return tuple(out)
 
 
 def override_rig(rig: RigConfig, overrides: tuple[tuple[str, str, float], ...]) -> RigConfig:
-    """The rig with a world's ``[rig]`` values (rig-file units: mm converted to m) in place of the file's."""
+    """The rig with a world's ``[rig]`` values (rig-file units, converted to SI) in place of the file's."""
     discs = {"upper_disc": rig.upper, "lower_disc": rig.lower}
     fields: dict[str, Any] = {}
-    for table, key, value in overrides:
-        si = value * 1e-3 if key.endswith("_mm") else value
+    for table, key, edge_value in overrides:
+        name, si = to_si(key, edge_value)
         if table in discs:
-            name = "thickness_m" if key == "thickness_mm" else key
             discs[table] = replace(discs[table], **{name: si})
         else:
-            name = {("contacts", "radius_mm"): "contact_radius_m", ("support", "stiffness_n_per_m"):
-                    "support_stiffness_n_per_m", ("support", "radius_mm"): "support_radius_m",
-                    ("support", "damping_ratio"): "support_damping_ratio"}.get((table, key), key)
+            name = {("contacts", "radius_m"): "contact_radius_m", ("support", "stiffness_n_per_m"):
+                    "support_stiffness_n_per_m", ("support", "radius_m"): "support_radius_m",
+                    ("support", "damping_ratio"): "support_damping_ratio"}.get((table, name), name)
             fields[name] = si
     if not overrides:
         return rig
@@ -224,34 +221,31 @@ def override_rig(rig: RigConfig, overrides: tuple[tuple[str, str, float], ...]) 
 
 
 def _law(
-    baseline: dict[str, Any], effects_doc: Any, where: str
+    baseline: dict[str, Any], effects_doc: dict[str, Any], top: Where
 ) -> tuple[ContactLaw | WorldLaw, float, tuple[tuple[int, str, float], ...]]:
-    b_where = f"{where}: baseline"
-    model = require(baseline, "model", str, b_where)
-    if model not in BASELINES and model not in WORLD_BASELINES:
-        raise InputError(f"{b_where}.model = {model!r}: expected one of {', '.join((*BASELINES, *WORLD_BASELINES))}")
+    b_where = top.at("baseline")
+    model = value(baseline, "model", Text((*BASELINES, *WORLD_BASELINES)), b_where)
     base: ConformingContact | TabulatedLaw | ExpressionLaw | None = None
     scatter: list[tuple[int, str, float]] = []
+    depth_m = DEFAULT_DEPTH_M
     if model in WORLD_BASELINES:
         base, base_rel = _world_baseline(model, baseline, b_where)
         scatter.extend((BASE, param, sigma) for param, sigma in base_rel.items())
     else:
-        _only(baseline, {"model", "depth_mm"} if model == "tripp" else {"model"}, b_where)
-    depth_m = _number(baseline, "depth_mm", b_where, DEFAULT_DEPTH_M / 1e-3, 1e-3, 1e3) * 1e-3
-    if not isinstance(effects_doc, dict):
-        raise InputError(f"{where}: effects = {effects_doc!r}: expected a table of effect tables")
+        schema: dict[str, Spec] = {"model": Text()}
+        if model == "tripp":
+            schema["depth_mm"] = Number(ge=1e-3, le=1e3, unit="mm", default=DEFAULT_DEPTH_M / MM)
+        depth_m = read(baseline, schema, b_where).get("depth_m", DEFAULT_DEPTH_M)
+    e_where = top.at("effects")
+    check_keys(effects_doc, EFFECTS, e_where)
     effects: list[Effect] = []
     setup_factor = 1.0
-    for name, table in effects_doc.items():
-        e_where = f"{where}: effects.{name}"
-        if name not in EFFECTS:
-            raise InputError(f"{e_where}: unknown effect; expected one of {', '.join(EFFECTS)}")
-        if not isinstance(table, dict):
-            raise InputError(f"{e_where} = {table!r}: expected a table of parameters")
-        values, rel = _effect_parameters(EFFECTS[name], table, e_where)
+    for name in effects_doc:  # in file order: effects apply in the order written
+        table = value(effects_doc, name, Table(), e_where)
+        values, rel = _effect_parameters(EFFECTS[name], table, e_where.at(name))
         if name == SetupCompliance.name:
             if rel:
-                raise InputError(f"{e_where}: the setup stiffness has no per-seating scatter")
+                raise e_where.at(name).problem("the setup stiffness has no per-seating scatter")
             setup_factor = values.get("stiffness_factor", SetupCompliance().stiffness_factor)
             continue
         scatter.extend((len(effects), param, sigma) for param, sigma in rel.items())
@@ -261,99 +255,83 @@ def _law(
     return ContactLaw(model, depth_m, tuple(effects)), setup_factor, tuple(scatter)
 
 
+TABLE_ENTRY: dict[str, Spec] = {
+    "roller_type": Integer(), "load_n": Numbers(Number(gt=0)), "stiffness_n_per_m": Numbers(Number(gt=0)),
+}
+
+
 def _world_baseline(
-    model: str, table: dict[str, Any], where: str
+    model: str, table: dict[str, Any], where: Where
 ) -> tuple[ConformingContact | TabulatedLaw | ExpressionLaw, dict[str, float]]:
     """A world's own contact law (``labctl.physics.world_laws``) from its ``[baseline]`` table."""
     if model == "expression":
-        _only(table, {"model", "expression"}, where)
-        text = require(table, "expression", str, where)
+        text = read(table, {"model": Text(), "expression": Text()}, where)["expression"]
         try:
             return ExpressionLaw(text), {}
         except ValueError as exc:
-            raise InputError(f"{where}.expression = {text!r}: {exc}") from None
+            raise where.bad("expression", text, f"a safe arithmetic expression ({exc})") from None
     if model == "table":
-        _only(table, {"model", "tables"}, where)
-        return TabulatedLaw(_tables(require(table, "tables", list, where), f"{where}.tables")), {}
-    params = {k: v for k, v in table.items() if k != "model"}
-    values, rel = _effect_parameters(ConformingContact, params, where)
+        entries = read(table, {"model": Text(), "tables": Tables()}, where)["tables"]
+        return TabulatedLaw(_tables(entries, where)), {}
+    values, rel = _effect_parameters(ConformingContact, table, where, extra={"model": Text()})
     return ConformingContact(**values), rel
 
 
-def _tables(entries: list[Any], where: str) -> tuple[tuple[int, tuple[float, ...], tuple[float, ...]], ...]:
-    out = []
+Curve = tuple[int, tuple[float, ...], tuple[float, ...]]  # (roller type, loads N, stiffnesses N/m)
+
+
+def _tables(entries: list[dict[str, Any]], where: Where) -> tuple[Curve, ...]:
+    out: list[Curve] = []
     for i, entry in enumerate(entries):
-        e_where = f"{where}[{i}]"
-        _only(entry, {"roller_type", "load_n", "stiffness_n_per_m"}, e_where)
-        type_id = require(entry, "roller_type", int, e_where)
-        loads = require(entry, "load_n", list, e_where)
-        ks = require(entry, "stiffness_n_per_m", list, e_where)
-        for key, values in (("load_n", loads), ("stiffness_n_per_m", ks)):
-            if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                       for v in values):
-                raise InputError(f"{e_where}.{key} = {values!r}: expected a list of positive numbers")
+        e_where = where.at("tables").at(i)
+        t = read(entry, TABLE_ENTRY, e_where)
+        loads, ks = t["load_n"], t["stiffness_n_per_m"]
         if len(loads) < 2 or len(loads) != len(ks) or any(b <= a for a, b in zip(loads, loads[1:], strict=False)):
-            raise InputError(f"{e_where}: load_n must rise strictly and match stiffness_n_per_m in length (>= 2)")
-        if type_id in (t[0] for t in out):
-            raise InputError(f"{e_where}.roller_type = {type_id}: a second table for the same roller type")
-        out.append((type_id, tuple(float(v) for v in loads), tuple(float(v) for v in ks)))
+            raise e_where.problem("load_n must rise strictly and match stiffness_n_per_m in length (>= 2)")
+        if t["roller_type"] in (o[0] for o in out):
+            raise e_where.bad("roller_type", t["roller_type"], "a roller type without a table yet (one per type)")
+        out.append((t["roller_type"], loads, ks))
     if not out:
-        raise InputError(f"{where}: expected at least one [[baseline.tables]] entry")
+        raise where.bad("tables", entries, "at least one [[baseline.tables]] entry")
     return tuple(out)
 
 
-def _effect_parameters(cls: type, table: dict[str, Any], where: str) -> tuple[dict[str, float], dict[str, float]]:
-    """An effect's SI parameter values (checked against its BOUNDS) and the σ of those that scatter."""
+def _effect_parameters(
+    cls: type, table: dict[str, Any], where: Where, extra: dict[str, Spec] | None = None
+) -> tuple[dict[str, float], dict[str, float]]:
+    """An effect's (or world law's) SI parameter values, read in their edge units against its ``BOUNDS``, and the
+    lognormal σ of those that scatter per seating (``<stem>_rel``); ``extra`` keys are checked and dropped."""
     bounds: dict[str, tuple[float, float]] = cls.BOUNDS  # type: ignore[attr-defined]
     stems = {f"{_stem(p)}_rel": p for p in bounds}
-    values: dict[str, float] = {}
-    rel: dict[str, float] = {}
+    schema = {**(extra or {}), **bounded(bounds), **dict.fromkeys(stems, Number(ge=0, le=1, default=None))}
+    got = read(table, schema, where)
+    for key in extra or {}:
+        got.pop(key)
+    rel = {stems[k]: got.pop(k) for k in stems if k in got}
+    return got, rel
+
+
+def _settings(table: dict[str, Any], cls: type, where: Where) -> dict[str, float]:
+    """Simulator settings (``SimSettings`` or ``FaultSettings`` fields) the world overrides, read in SI or in an
+    edge unit (``pulse_width_min_ms``, ``unequal_seating_gap_um``; not a rate ``_per_``) and returned under their
+    SI names, checked against the settings' own ranges (``drivers.sim``, their one source of truth)."""
+    schema: dict[str, Spec] = {}
+    for f in dataclass_fields(cls):
+        schema[f.name] = Integer() if f.type in (int, "int") else Number()
+        if "_per_" not in f.name and isinstance(schema[f.name], Number):
+            for unit in AUTO_UNITS:
+                edge = edge_name(f.name, unit)
+                if edge != f.name:
+                    schema[edge] = Number(unit=unit)
+    values = read(table, {k: replace(s, default=None) for k, s in schema.items()}, where)
+    by_si: dict[str, str] = {}
     for key in table:
-        if key in stems:
-            rel[stems[key]] = _number(table, key, where, 0.0, 0.0, 1.0)
-            continue
-        si_key, _ = to_si(key, 0.0)
-        if si_key not in bounds:
-            expected = [*(_edge_name(p) for p in bounds), *stems]
-            raise InputError(f"{where}.{key}: unknown parameter; expected {', '.join(expected)}")
-        lo, hi = bounds[si_key]
-        _, scale = to_si(key, 1.0)
-        values[si_key] = _number(table, key, where, 0.0, lo / scale, hi / scale) * scale
-    return values, rel
-
-
-def _edge_name(si_name: str) -> str:
-    for suffix, (si, factor) in UNITS.items():
-        if si_name.endswith(si) and factor == 1e-3 and suffix in ("_mm", "_mrad"):
-            return si_name[: -len(si)] + suffix
-    return si_name
-
-
-def _instruments(table: Any, where: str) -> dict[str, float]:
-    if not isinstance(table, dict):
-        raise InputError(f"{where} = {table!r}: expected a table of simulator settings")
-    out: dict[str, float] = {}
-    for key in table:
-        value = require(table, key, float, where)
-        if not math.isfinite(value):
-            raise InputError(f"{where}.{key} = {value!r}: expected a finite number")
-        si_key, si_value = to_si(key, value)
-        out[si_key] = si_value
-    return out
-
-
-def _number(table: dict[str, Any], key: str, where: str, default: float, lo: float, hi: float) -> float:
-    if key not in table:
-        return default
-    value = require(table, key, float, where)
-    if not (math.isfinite(value) and lo <= value <= hi):
-        raise InputError(f"{where}.{key} = {value!r}: expected a number in [{lo:g}, {hi:g}]")
-    return float(value)
-
-
-def _only(table: Any, allowed: set[str], where: str) -> None:
-    if not isinstance(table, dict):
-        raise InputError(f"{where} = {table!r}: expected a table")
-    extra = sorted(set(table) - allowed)
-    if extra:
-        raise InputError(f"{where}: unknown key(s) {', '.join(extra)}; expected {', '.join(sorted(allowed))}")
+        si = value_name(key, schema[key])
+        if si in by_si:
+            raise where.problem(f"{by_si[si]} and {key} both set {si}; give one")
+        by_si[si] = key
+    try:
+        cls(**values)  # the settings' own ranges (a rate is a probability, a pulse-width range rises)
+    except ValueError as exc:
+        raise where.problem(str(exc)) from None
+    return {si: values[si] for si in by_si}  # in file order
