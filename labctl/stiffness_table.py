@@ -24,8 +24,11 @@ DEFAULT_ROLLER_RA_M = 0.03e-6
 GEOMETRY_MATCH = 0.01
 
 REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffness_n_per_m")
+# The measured stiffness's 1-σ and its budget by source, as `labctl process` writes them (informative columns).
+BUDGET_COLUMNS = {"modal_fit": "stiffness_std_fit_n_per_m", "disc_mass": "stiffness_std_mass_n_per_m",
+                  "setup_stiffness": "stiffness_std_setup_n_per_m", "rig_model": "stiffness_std_model_n_per_m"}
 OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
-            "repetition", "rail_material")
+            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values())
 COLUMNS = REQUIRED + OPTIONAL
 
 
@@ -47,6 +50,16 @@ class StiffnessPoint:
     repetition: int | None = None
     rail_material: str | None = None
     """Catalogue name of the rails' material (None: 1.3505 bearing steel)."""
+    stiffness_std_n_per_m: float | None = None
+    """1-σ of the measured stiffness (all sources), N/m."""
+    stiffness_std_fit_n_per_m: float | None = None
+    """Its modal-fit share (what repeated measurements on this rig scatter by), N/m."""
+    stiffness_std_mass_n_per_m: float | None = None
+    """Its disc-mass share (common to every point of one rig), N/m."""
+    stiffness_std_setup_n_per_m: float | None = None
+    """Its K_setup share (common to every point of one rig, larger for stiffer contacts), N/m."""
+    stiffness_std_model_n_per_m: float | None = None
+    """Its rig-model share (the 6-DOF idealisation), N/m."""
 
     def roller_material(self) -> Material:
         """The roller's material: catalogue values for a known name, overridden by any explicit column."""
@@ -142,6 +155,8 @@ _SPECS: dict[str, _Spec] = {
     "hardness_hrc": ("hardness_hrc", 0, _number, _positive, "a positive Rockwell C hardness"),
     "repetition": ("repetition", 0, _integer, None, "an integer repetition number"),
     "rail_material": ("rail_material", 0, str, None, "a rail material name"),
+    **{c: (c, 0, _number, _non_negative, "a stiffness uncertainty ≥ 0 in N/m")
+       for c in ("stiffness_std_n_per_m", *BUDGET_COLUMNS.values())},
 }
 
 

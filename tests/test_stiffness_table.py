@@ -160,3 +160,15 @@ def test_rail_material_column_is_read_written_and_used_for_the_contact(tmp_path)
                    "3,1.793,0.2,440,4.5e7,unobtainium\n", encoding="utf-8")
     with pytest.raises(InputError, match=r"bad.csv: row 2, column rail_material: unknown rail material 'unobtainium'"):
         read_stiffness_table(bad)
+
+
+def test_uncertainty_budget_columns_round_trip_and_are_checked(tmp_path):
+    point = StiffnessPoint(3e-3, 3.8e-3, 0.2e-6, 100.0, 2.0e7, stiffness_std_n_per_m=1.1e5,
+                           stiffness_std_fit_n_per_m=2e3, stiffness_std_mass_n_per_m=1e5,
+                           stiffness_std_setup_n_per_m=3e4, stiffness_std_model_n_per_m=6e4)
+    path = tmp_path / "t.csv"
+    write_stiffness_table(path, [point])
+    assert read_stiffness_table(path) == [point]
+    path.write_text(path.read_text().replace("110000", "-5"))
+    with pytest.raises(InputError, match=r"column stiffness_std_n_per_m: '-5' is not a stiffness uncertainty"):
+        read_stiffness_table(path)

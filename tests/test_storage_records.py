@@ -78,6 +78,10 @@ def test_step_result_round_trips_through_the_file(tmp_path):
                         fs_hz=20480.0, window_decay_rate_per_s=3.0, fit_band_hz=(300.0, 700.0),
                         modes=(ModeResult("bounce", 532.1, 0.4, 0.018, 0.001, 0.999, 0.98, 0.01),),
                         impacts=(ImpactOutcome(1, True), ImpactOutcome(2, False, ("low_coherence",))),
+                        roller_stiffness_budget_n_per_m={"modal_fit": 1e3, "disc_mass": 9e4},
+                        roller_stiffnesses_n_per_m=(2.2e7, 2.3e7, 2.28e7), roller_stiffnesses_std_n_per_m=(1e5,) * 3,
+                        roller_stiffnesses_resolved=True, roller_stiffness_condition=3.5, rollers_differing=(1,),
+                        dropped_channels=("A2Z",), small_blow={"shift_hz": -0.2, "shift_std_hz": 0.01},
                         warnings=("w",), frf=StepFrf(np.linspace(0, 3000, 31), np.ones((2, 31), complex),
                                                      np.ones((2, 31))))
     with _writer(tmp_path / "c.h5") as w:

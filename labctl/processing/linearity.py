@@ -74,13 +74,13 @@ class ZeroAmplitude:
     spectrum at the bounce), so the step's H1-weighted frequency sits ``shift_hz`` above the small-blow limit."""
 
     c_hz_per_n2_s2: float  # c, the backbone curve's curvature in the blow's force spectrum at the bounce
-    c_std_hz_per_n2: float
+    c_std_hz_per_n2_s2: float
     a2_eff_n2_s2: float  # the H1 weighting's effective a² (Σa⁴/Σa²)
     shift_hz: float  # step frequency minus its small-blow limit
     shift_std_hz: float
 
     def to_dict(self) -> dict:
-        return {"c_hz_per_n2_s2": self.c_hz_per_n2_s2, "c_std_hz_per_n2": self.c_std_hz_per_n2,
+        return {"c_hz_per_n2_s2": self.c_hz_per_n2_s2, "c_std_hz_per_n2_s2": self.c_std_hz_per_n2_s2,
                 "a2_eff_n2_s2": self.a2_eff_n2_s2, "shift_hz": self.shift_hz, "shift_std_hz": self.shift_std_hz}
 
 

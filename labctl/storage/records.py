@@ -172,12 +172,30 @@ class StepResult:
     """Stiffness with the rig's setup compliance removed when a contact model was given, N/m."""
     roller_only_stiffness_std_n_per_m: float | None = None
     """1-σ of the roller-only stiffness, N/m."""
+    roller_stiffness_budget_n_per_m: dict[str, float] = field(default_factory=dict)
+    """The roller stiffness's 1-σ by source (modal fit, disc mass, K_setup, rig model), N/m."""
+    roller_stiffnesses_n_per_m: tuple[float, ...] = ()
+    """Per-roller stiffness in the rig file's roller order (their mean is the roller stiffness), N/m."""
+    roller_stiffnesses_std_n_per_m: tuple[float, ...] = ()
+    """1-σ of each roller's stiffness (modal fit and rig parameters), N/m."""
+    roller_stiffnesses_resolved: bool = False
+    """Whether the tilt pair told the rollers apart (else equal rollers were assumed)."""
+    roller_stiffness_condition: float | None = None
+    """Condition number of the per-roller inverse."""
+    rollers_differing: tuple[int, ...] = ()
+    """1-based rollers whose stiffness differs from the others' beyond its uncertainty."""
+    linearity: dict[str, Any] | None = None
+    """Each used impact's bounce frequency against its peak force, the slope and the test's verdict."""
+    small_blow: dict[str, Any] | None = None
+    """How far the blows' size moved the modes above their small-blow limit (removed from the frequencies)."""
     coherence_at_bounce: float = NAN
     """Coherence at the bounce over the used impacts, 0..1."""
     channels: tuple[str, ...] = ()
     """Response channels of the FRF, in row order."""
     dead_channels: tuple[str, ...] = ()
     """Channels left out because they carried no signal."""
+    dropped_channels: tuple[str, ...] = ()
+    """Channels saturated in every impact: left out, the step went on with the others."""
     classified_by_shape: bool = True
     """Whether bounce and tilt were told apart by mode shape (else by frequency order)."""
     fs_hz: float = NAN
