@@ -33,7 +33,11 @@ def run(args: argparse.Namespace) -> int:
             item.update({"bounce_hz": res.bounce_hz, "bounce_damping_ratio": res.bounce_damping_ratio,
                          "tilt_hz": list(res.tilt_hz), "roller_stiffness_n_per_m": res.roller_stiffness_n_per_m,
                          "roller_stiffness_std_n_per_m": res.roller_stiffness_std_n_per_m,
-                         "coherence_at_bounce": res.coherence_at_bounce})
+                         "roller_stiffness_budget_n_per_m": dict(res.roller_stiffness_budget_n_per_m),
+                         "roller_stiffnesses_n_per_m": list(res.roller_stiffnesses_n_per_m),
+                         "roller_stiffnesses_std_n_per_m": list(res.roller_stiffnesses_std_n_per_m),
+                         "rollers_differing": list(res.rollers_differing),
+                         "coherence_at_bounce": res.coherence_at_bounce, "warnings": list(res.warnings)})
         else:
             item["error"] = res.error
         steps.append(item)
@@ -43,13 +47,15 @@ def run(args: argparse.Namespace) -> int:
     def text(res: dict) -> str:
         lines = [f"{res['path']} ({res['status']}): {res['points']} stiffness points"
                  + (f" → {res['csv']}" if res["csv"] else "")]
-        lines.append("  run step   load [N]   bounce [Hz]   k [N/m]")
+        lines.append("  run step   load [N]   bounce [Hz]   k [N/m]       1-σ [N/m]")
         for s in res["steps"]:
             if "error" in s:
                 lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   not identified: {s['error']}")
             else:
                 lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   {s['bounce_hz']:10.2f}"
-                             f"   {s['roller_stiffness_n_per_m']:.4e}")
+                             f"   {s['roller_stiffness_n_per_m']:.4e}   {s['roller_stiffness_std_n_per_m']:.2e}"
+                             + (f"   rollers {', '.join(map(str, s['rollers_differing']))} differ"
+                                if s["rollers_differing"] else ""))
         return "\n".join(lines)
 
     emit(result, args.json, text)
