@@ -122,6 +122,7 @@ class OperatorPrompted(Event):
     message: str
     action: str
     answer: str
+    position: Position | None = None  # None: wherever the engine last reported
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,10 @@ class Paused(Event):
 
 @dataclass(frozen=True)
 class Resumed(Event):
+    """The run goes on after a pause, or after a suspend the operator chose to continue past (``reason``)."""
+
     position: Position
+    reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -159,8 +163,13 @@ class CampaignFinished(Event):
 
 @dataclass(frozen=True)
 class Notice(Event):
+    """Something the operator should know; ``kind`` sorts it for the run log (``retry`` when an instrument call
+    or a blow is tried again, ``verdict`` when the operator changed a verdict, else ``notice``)."""
+
     level: str  # info | warning | error
     message: str
+    kind: str = "notice"
+    position: Position | None = None  # None: wherever the engine last reported
 
 
 Subscriber = Callable[[Event], Any]

@@ -12,7 +12,7 @@ from labctl.processing import CheckConfig
 from labctl.protocol import parse_protocol
 from labctl.recording import process_step
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage import CampaignReader, StepResult
+from labctl.storage import CampaignReader, LogEntry, StepResult
 from labctl.storage.table import specimen_point
 
 
@@ -37,6 +37,7 @@ class Processed:
     status: str
     rows: list[StepRow] = field(default_factory=list)
     points: list[StiffnessPoint] = field(default_factory=list)
+    log: list[LogEntry] = field(default_factory=list)  # the run log as stored (retries, suspends, prompts, ...)
 
 
 def rig_of(reader: CampaignReader) -> RigConfig:
@@ -57,7 +58,7 @@ def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None
         checks = checks_of(reader)
         if reader.step_count() == 0:
             raise InputError(f"{path}: the campaign holds no load step yet (nothing was measured)")
-        out = Processed(str(path), str(reader.attrs.get("status", "")))
+        out = Processed(str(path), str(reader.attrs.get("status", "")), log=reader.log())
         for series in reader.series_indices():
             spec = reader.specimen(series)
             for run in reader.runs(series):

@@ -151,5 +151,5 @@ def test_engine_and_processing_catch_the_faults_and_reprocessing_agrees(tmp_path
     assert any("double_hit" in r for r in reasons)  # rejected and hit again
     assert len(dead) == 1  # the pulled cable is left out of the identification
     assert drift >= 1  # the step that crept is marked
-    again = {r.step: r.result["roller_stiffness_n_per_m"] for r in process_campaign(path).rows if r.result}
+    again = {r.step: r.result.roller_stiffness_n_per_m for r in process_campaign(path).rows if r.result.identified}
     assert again == pytest.approx(live, rel=1e-9)

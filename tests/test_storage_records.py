@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from labctl.storage import CampaignReader, CampaignWriter, StepResult
+from labctl.storage import CampaignReader, CampaignWriter, LogEntry, LogSummary, StepResult
 from labctl.storage.records import (
     Calibration,
     CheckSummary,
@@ -20,6 +20,7 @@ from labctl.storage.records import (
     StepFrf,
     Verdict,
 )
+from labctl.storage.runlog import summarize
 from tests.cli_util import assert_one_line_error, labctl_here, labctl_here_json
 
 V1 = Path(__file__).parent / "fixtures" / "campaign_v1.h5"  # written by labctl's schema-1 writer (see its toml)
@@ -158,3 +159,57 @@ def test_process_reproduces_the_stored_results_of_a_new_campaign(tmp_path, capsy
     for s in done["steps"]:
         assert s["roller_stiffness_n_per_m"] == pytest.approx(stored[s["step"]].roller_stiffness_n_per_m, rel=1e-9)
         assert tuple(s["used_impacts"]) == stored[s["step"]].used_attempts
+
+
+def test_run_log_round_trips_in_order_and_is_readable_with_plain_h5py(tmp_path):
+    path = tmp_path / "c.h5"
+    entries = [LogEntry("2026-01-01T00:00:00.000+00:00", 1, 1, 2, 0, "warning", "retry",
+                        "load cell: no answer within 2 s; retrying (1/2)"),
+               LogEntry("2026-01-01T00:00:01.000+00:00", 1, 1, 2, 3, "warning", "suspend", "load drifted — 5 %"),
+               LogEntry("2026-01-01T00:00:02.000+00:00", 1, 1, 2, 3, "info", "prompt", "confirm: ... → continue")]
+    with _writer(path) as w:
+        assert w.log() == []
+        for e in entries:
+            w.append_log(e)
+        assert w.log() == entries
+    with CampaignReader(path) as r:
+        assert r.log() == entries
+    with h5py.File(path) as f:  # no labctl: a compound table with text and integer columns
+        table = f["log/entries"]
+        assert table.shape == (3,) and table.maxshape == (None,)
+        assert table["kind"][1].decode() == "suspend" and int(table["step"][0]) == 2
+        assert table["message"][1].decode().endswith("— 5 %")
+    with CampaignWriter.open_existing(path) as w:  # a resumed campaign appends to the same log
+        w.append_log(entries[0])
+    with CampaignReader(path) as r:
+        assert r.log() == [*entries, entries[0]]
+        assert summarize(r.log()) == LogSummary(4, {"prompt": 1, "retry": 2, "suspend": 1},
+                                                {"info": 1, "warning": 3})
+
+
+def test_run_log_entries_survive_a_process_killed_without_closing_the_file(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "c.h5"
+    script = f"""
+import os
+from labctl.storage import CampaignWriter, LogEntry
+w = CampaignWriter.create({str(path)!r}, protocol_name="t", backend="sim", seed=None, config_files={{}},
+                          description={{}})
+for i in range(3):
+    w.append_log(LogEntry("t", 1, 1, i + 1, 0, "warning", "retry", f"entry {{i}}"))
+os._exit(0)  # like a kill: nothing closed, nothing flushed beyond what the writer did
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+                          cwd=Path(__file__).parent.parent)
+    assert done.returncode == 0, done.stderr
+    with CampaignReader(path) as r:
+        assert [e.message for e in r.log()] == ["entry 0", "entry 1", "entry 2"]
+
+
+def test_v1_fixture_has_an_empty_run_log(capsys):
+    with CampaignReader(V1) as r:
+        assert r.log() == []
+    done = labctl_here_json(capsys, "process", str(V1))
+    assert done["log"] == {"entries": 0, "by_kind": {}, "by_level": {}, "warnings": 0, "errors": 0}

@@ -19,6 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.runlog import summarize
 
     done = process_campaign(args.file, rig=args.rig)
     if args.csv:
@@ -41,12 +42,18 @@ def run(args: argparse.Namespace) -> int:
         else:
             item["error"] = res.error
         steps.append(item)
+    log = summarize(done.log)
     result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
-              "csv": args.csv}
+              "csv": args.csv, "log": {"entries": log.entries, "by_kind": log.by_kind, "by_level": log.by_level,
+                                       "warnings": log.warnings, "errors": log.errors}}
 
     def text(res: dict) -> str:
         lines = [f"{res['path']} ({res['status']}): {res['points']} stiffness points"
                  + (f" → {res['csv']}" if res["csv"] else "")]
+        lg = res["log"]
+        kinds = ", ".join(f"{n} {k}" for k, n in lg["by_kind"].items())
+        lines.append(f"  run log: {lg['warnings']} warning(s), {lg['errors']} error(s)"
+                     + (f" in {lg['entries']} entries ({kinds})" if lg["entries"] else " (no entries)"))
         lines.append("  run step   load [N]   bounce [Hz]   k [N/m]       1-σ [N/m]")
         for s in res["steps"]:
             if "error" in s:

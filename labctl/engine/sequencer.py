@@ -20,6 +20,7 @@ from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import StepPlan, next_load_n, plan_steps
+from labctl.engine.runlog import RunLog
 from labctl.engine.steps import Interlock, StepRunner
 from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
@@ -67,7 +68,9 @@ class Engine:
         self.control = control or RunControl()
         self.t0 = time.monotonic()
         acq = protocol.acquisition
-        self.call = GuardedCaller(acq.timeout_s, acq.retries, on_retry=lambda m: self.notify("warning", m))
+        self.runlog = RunLog(writer, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
+        self.call = GuardedCaller(acq.timeout_s, acq.retries,
+                                  on_retry=lambda m: self.notify("warning", m, kind="retry"))
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
         steps = sum(p.steps_estimate for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
@@ -81,14 +84,17 @@ class Engine:
         return time.monotonic() - self.t0
 
     def emit(self, event: ev.Event) -> None:
+        """Store the event in the file's run log when it is an incident, then deliver it to the subscribers."""
+        self.runlog.record(event)
         self.bus.publish(event)
 
-    def notify(self, level: str, message: str) -> None:
-        self.emit(ev.Notice(self.now(), level, message))
+    def notify(self, level: str, message: str, kind: str = "notice", position: ev.Position | None = None) -> None:
+        self.emit(ev.Notice(self.now(), level, message, kind, position))
 
-    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",)) -> str:
+    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",),
+               position: ev.Position | None = None) -> str:
         answer = rig.operator.prompt(message, choices, action)  # a person may take as long as they need
-        self.emit(ev.OperatorPrompted(self.now(), message, action, answer))
+        self.emit(ev.OperatorPrompted(self.now(), message, action, answer, position))
         return answer
 
     def checkpoint(self, pos: ev.Position) -> None:
@@ -131,6 +137,9 @@ class Engine:
         finally:
             self.call.close()
             outcome.curves = self.writer.curves()
+            unstored = self.runlog.close()
+            if unstored:
+                outcome.message = "; ".join(m for m in (outcome.message, unstored) if m)
             self.writer.set_status(outcome.status, outcome.message)
             self.emit(ev.CampaignFinished(self.now(), outcome.status, self.writer.path, outcome.message))
         return outcome
@@ -149,10 +158,11 @@ class Engine:
             acq = self.protocol.acquisition
             fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
             if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
-                self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)")
+                self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)",
+                            position=ev.Position(index, 0))
             if not self.writer.is_mounted(index):
                 self.prompt(rig, f"Mount {spec.label} between the rails (rail Ra {spec.rail_ra_m * 1e6:g} µm) and "
-                            "set the knobs to the preload", "mount_specimen")
+                            "set the knobs to the preload", "mount_specimen", position=ev.Position(index, 0))
                 self.writer.mark_mounted(index)
             for run in range(1, self.protocol.repetitions.count + 1):
                 if run in runs_done:
@@ -164,7 +174,7 @@ class Engine:
                     self._unload(rig)
                     self.prompt(rig, f"Lift the upper disc and rotate the rollers about "
                                 f"±{self.protocol.repetitions.rotate_rollers_deg:g}°, then lower the disc",
-                                "rotate_rollers")
+                                "rotate_rollers", position=pos)
                 self.writer.run(index, run)
                 self.emit(ev.RunStarted(self.now(), pos, spec.label))
                 self._run(rig, index, run, spec, plan)
@@ -216,5 +226,6 @@ class Engine:
             except (DeviceError, LabctlError) as exc:
                 last = exc
                 if attempt < acq.retries:
-                    self.notify("warning", f"no usable record ({exc}); hit again ({attempt + 1}/{acq.retries})")
+                    self.notify("warning", f"no usable record ({exc}); hit again ({attempt + 1}/{acq.retries})",
+                                kind="retry", position=pos)
         raise HardwareFailure(f"no record after {1 + acq.retries} blow(s): {last}")

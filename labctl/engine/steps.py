@@ -42,8 +42,10 @@ class Services(Protocol):
              ) -> object: ...
     def now(self) -> float: ...
     def emit(self, event: ev.Event) -> None: ...
-    def notify(self, level: str, message: str) -> None: ...
-    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",)) -> str: ...
+    def notify(self, level: str, message: str, kind: str = "notice", position: ev.Position | None = None
+               ) -> None: ...
+    def prompt(self, rig: Rig, message: str, action: str, choices: tuple[str, ...] = ("ok",),
+               position: ev.Position | None = None) -> str: ...
     def checkpoint(self, pos: ev.Position) -> None: ...
     def progress(self, pos: ev.Position) -> None: ...
     def acquire(self, rig: Rig, pos: ev.Position) -> Record: ...
@@ -105,13 +107,14 @@ class StepRunner:
                 continue
             self.e.emit(ev.Suspended(self.e.now(), pos, trip.message))
             if trip.kind == "interlock":
-                self.e.prompt(self.rig, trip.message, "unload")
+                self.e.prompt(self.rig, trip.message, "unload", position=pos)
                 self.e.call("actuator", self.rig.actuator.turn_knobs, -self.rig.actuator.knob_angle_deg,
                             timeout_s=None, retries=0)
                 raise Interlock(trip.message)
-            if self.e.prompt(self.rig, trip.message, "confirm", ("continue", "abort")) == "abort":
+            if self.e.prompt(self.rig, trip.message, "confirm", ("continue", "abort"), position=pos) == "abort":
                 self.e.control.abort()
                 self.e.checkpoint(pos)
+            self.e.emit(ev.Resumed(self.e.now(), pos, f"the operator continued past {trip.condition}"))
             passed.append(trip)
         return passed
 
@@ -156,7 +159,7 @@ class StepRunner:
             rejected = len(infos) - accepted
             if rejected > acq.max_rehits:
                 e.notify("warning", f"step {step}: {rejected} rejected impacts, more than {acq.max_rehits} re-hits; "
-                         "going on with the accepted ones")
+                         "going on with the accepted ones", position=pos)
                 break
             self.safe_point("before_impact", pos, step_load_n=step_load)
             record = e.acquire(self.rig, pos)
@@ -171,7 +174,8 @@ class StepRunner:
             return False
         verdict, target = override
         if target is not None and target != attempt:
-            self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since")
+            self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since",
+                          kind="verdict")
             return False
         infos = self.e.writer.impact_infos(self.series, self.run, step)
         latest = next((i for i in infos if i.attempt == attempt), None)
@@ -179,7 +183,7 @@ class StepRunner:
             return False
         self.e.writer.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
         self.e.notify("info", f"impact {attempt} of step {step} {'accepted' if verdict else 'rejected'} "
-                      "by the operator")
+                      "by the operator", kind="verdict")
         return True
 
     def _store(self, step: int, attempt: int, record: Record, pos: ev.Position) -> None:
@@ -194,14 +198,15 @@ class StepRunner:
         self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
                         info.checks.pulse_width_s, record.sample_rate_hz, impact.force_n, impact.accel_m_per_s2,
                         tuple(record.channels)))
-        verdict = self._review(step, impact)
+        verdict = self._review(step, impact, pos)
         if verdict is not None:
             self.e.writer.set_verdict(self.series, self.run, step, attempt, verdict)
             if verdict.accepted != impact.accepted:
                 verb = "accepted" if verdict.accepted else "rejected"
-                self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator ({verdict.reason})")
+                self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator ({verdict.reason})",
+                              kind="verdict", position=pos)
 
-    def _review(self, step: int, impact: ImpactRecord) -> Verdict | None:
+    def _review(self, step: int, impact: ImpactRecord, pos: ev.Position) -> Verdict | None:
         """The operator's verdict on a stored blow, when the operator reviews blows (else None)."""
         op, info = self.rig.operator, impact.info
         review = ImpactReview(self.series, self.run, step, impact.attempt, info.checks.accepted, info.checks.reasons,
@@ -211,9 +216,10 @@ class StepRunner:
             if answer is None:
                 return None
             choice, reason = answer
-            self.e.emit(ev.OperatorPrompted(self.e.now(), review.message(), "review_impact", choice))
+            self.e.emit(ev.OperatorPrompted(self.e.now(), review.message(), "review_impact", choice, pos))
         elif getattr(op, "reviews_impacts", False):
-            choice, reason = self.e.prompt(self.rig, review.message(), "review_impact", REVIEW_CHOICES), "operator"
+            choice = self.e.prompt(self.rig, review.message(), "review_impact", REVIEW_CHOICES, position=pos)
+            reason = "operator"
         else:
             return None
         return Verdict(choice == "accept", OPERATOR, reason or "operator")

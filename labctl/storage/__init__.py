@@ -16,9 +16,10 @@ from labctl.storage.records import (
     Verdict,
     result_summary,
 )
+from labctl.storage.runlog import LogEntry, LogSummary
 from labctl.storage.table import campaign_stiffness_points
 from labctl.storage.writer import CampaignWriter
 
 __all__ = ["Calibration", "CampaignReader", "CampaignWriter", "CheckSummary", "ImpactInfo", "ImpactOutcome",
-           "ImpactRecord", "ModeResult", "RepetitionCurve", "RunInfo", "StepFrf", "StepInfo", "StepResult",
-           "Verdict", "campaign_stiffness_points", "result_summary"]
+           "ImpactRecord", "LogEntry", "LogSummary", "ModeResult", "RepetitionCurve", "RunInfo", "StepFrf",
+           "StepInfo", "StepResult", "Verdict", "campaign_stiffness_points", "result_summary"]

@@ -32,6 +32,7 @@ from labctl.storage.records import (
     failed_step,
     result_from_mapping,
 )
+from labctl.storage.runlog import LogEntry, read_entries
 
 OPERATOR_REASONS = ("operator_accepted", "operator_rejected")
 
@@ -240,6 +241,11 @@ class CampaignReader:
             raise InputError(f"{self.path}: has no stored /config/{name}; the campaign cannot be reprocessed "
                              "without the configuration it ran with")
         return text
+
+    def log(self) -> list[LogEntry]:
+        """The run log in the order written: retries, suspends, resumes, prompts, warnings (empty for a file
+        written without one, e.g. schema 1)."""
+        return read_entries(self.h5)
 
     def series_indices(self) -> list[int]:
         return sorted(s.index_of(k) for k in self.h5 if k.startswith("series_"))

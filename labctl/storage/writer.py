@@ -29,6 +29,7 @@ from labctl.storage.records import (
     Verdict,
     curve_from_steps,
 )
+from labctl.storage.runlog import LogEntry, append_entry, read_entries
 
 
 def utc_now() -> str:
@@ -328,6 +329,13 @@ class CampaignWriter:
                 if curve is not None:
                     out.append(curve)
         return out
+
+    def append_log(self, entry: LogEntry) -> None:
+        """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""
+        append_entry(self.h5, entry)
+
+    def log(self) -> list[LogEntry]:
+        return read_entries(self.h5)
 
     def set_status(self, status: str, message: str = "") -> None:
         self.h5.attrs["status"] = status
