@@ -110,12 +110,12 @@ def test_stiffness_csv_opens_cleanly_in_a_spreadsheet(demo):
     header, body = rows[0], rows[1:]
     assert header[0] == "diameter_mm" and all(h.isascii() and h.strip() == h and h for h in header)
     units = ("_mm", "_um", "_n", "_n_per_m", "_gpa")
-    unitless = {"roller_type", "material", "poisson_ratio", "hardness_hrc", "repetition"}
+    unitless = {"roller_type", "material", "poisson_ratio", "hardness_hrc", "repetition", "rail_material"}
     assert all(h.endswith(units) or h in unitless for h in header), header
     assert len(body) == 33 and all(len(r) == len(header) for r in body)
     for r in body:
         for h, cell in zip(header, r, strict=True):
-            if h != "material":
+            if h not in ("material", "rail_material"):
                 float(cell)  # every numeric cell is a plain number, no index or unit text
 
 

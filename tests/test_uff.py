@@ -175,7 +175,8 @@ def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tm
     for a, b in zip(original, imported, strict=True):
         assert b["load_n"] == pytest.approx(a["load_n"], rel=1e-9)
         assert b["bounce_hz"] == pytest.approx(a["bounce_hz"], rel=1e-9)
-        assert b["roller_stiffness_n_per_m"] == pytest.approx(a["roller_stiffness_n_per_m"], rel=1e-9)
+        # the mean of three per-roller stiffnesses leans on the tilt pair: UFF's single-precision samples move it
+        assert b["roller_stiffness_n_per_m"] == pytest.approx(a["roller_stiffness_n_per_m"], rel=1e-8)
     from labctl.storage import CampaignReader
 
     with CampaignReader(back) as r:
