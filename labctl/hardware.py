@@ -25,7 +25,7 @@ from labctl.errors import InputError, LabctlError
 
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
-ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # DESIGN §4: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
+ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # docs/contracts.md: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
 EXAMPLE = "the output of 'labctl devices example'"
 
 

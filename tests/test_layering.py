@@ -1,4 +1,4 @@
-"""The floors of DESIGN.md §2: every module imports only from its own floor or below; drivers import no labctl.
+"""The floors of docs/architecture.md: every module imports only from its own floor or below; drivers import no labctl.
 
 Checked two ways: an AST scan of every import statement (including imports inside functions and under
 TYPE_CHECKING), and a fresh interpreter that imports the drivers and must not have loaded any labctl module.

@@ -1,4 +1,4 @@
-"""Elastic materials and the effective contact modulus (DESIGN.md §3)."""
+"""Elastic materials and the effective contact modulus (docs/contracts.md, physics conventions)."""
 
 from __future__ import annotations
 

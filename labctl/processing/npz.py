@@ -1,4 +1,4 @@
-"""Reader for the impacts NPZ contract (DESIGN.md §4): ``fs``, ``force``, ``accel``, ``channels``.
+"""Reader for the impacts NPZ contract (docs/contracts.md): ``fs``, ``force``, ``accel``, ``channels``.
 
 Loaded with ``allow_pickle=False``: a file that hides Python objects is refused, never executed. Every
 error names the file, the key and what was expected.
