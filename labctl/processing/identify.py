@@ -421,8 +421,10 @@ def identify(
     if lin is not None and lin.warning():
         warnings.append(lin.warning())
     small_blow = _small_blow_limit(modes, spectra, used, lin, fs_hz)
-    if small_blow is not None:
+    if small_blow is not None and small_blow.significant:
         modes = _shifted(modes, small_blow)
+        warnings.append(f"the blows' size moved the contact modes by {small_blow.shift_hz:+.3f} Hz at the bounce "
+                        f"(z {small_blow.z:+.1f}): reported at their small-blow limit")
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
                      dropped)
     result.linearity = lin.to_dict() if lin is not None else None

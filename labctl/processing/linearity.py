@@ -18,6 +18,9 @@ import numpy as np
 from scipy.stats import norm
 
 LINEARITY_LEVEL = 0.001  # two-sided level of the "frequency depends on the peak force" test
+# The a² backbone is the first-order term, and a blow's modal amplitude also depends on where the hammer lands:
+# this share of the removed shift is kept as its uncertainty.
+MODEL_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -78,22 +81,31 @@ class ZeroAmplitude:
     a2_eff_n2_s2: float  # the H1 weighting's effective a² (Σa⁴/Σa²)
     shift_hz: float  # step frequency minus its small-blow limit
     shift_std_hz: float
+    z: float  # c over its 1-σ
+    level: float
+    significant: bool  # the blows' size moves the modes at the stated level: the shift is removed
+
+    @property
+    def applied_shift_hz(self) -> float:
+        """The shift taken out of the step's frequencies (none unless the curvature is significant)."""
+        return self.shift_hz if self.significant else 0.0
 
     def to_dict(self) -> dict:
         return {"c_hz_per_n2_s2": self.c_hz_per_n2_s2, "c_std_hz_per_n2_s2": self.c_std_hz_per_n2_s2,
-                "a2_eff_n2_s2": self.a2_eff_n2_s2, "shift_hz": self.shift_hz, "shift_std_hz": self.shift_std_hz}
+                "a2_eff_n2_s2": self.a2_eff_n2_s2, "shift_hz": self.shift_hz, "shift_std_hz": self.shift_std_hz,
+                "z": self.z, "level": self.level, "significant": self.significant}
 
 
 def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], bounce_hz_std: Sequence[float],
-                   half_bandwidth_hz: float = math.inf) -> ZeroAmplitude | None:
+                   half_bandwidth_hz: float = math.inf, level: float = LINEARITY_LEVEL) -> ZeroAmplitude | None:
     """The small-blow limit of the bounce over a step's impacts (None: fewer than two impacts or blows of one size).
 
     A smooth contact nonlinearity moves a mode's frequency with the square of its amplitude (the backbone
     curve ω(A) = ω0 + κA² + O(A⁴)), and a blow's modal amplitude is proportional to its force spectrum at the
     mode. The H1 average weights impact i by a_i², so the step's frequency is f0 + c·Σa⁴/Σa²; the shift is
-    that term with the uncertainty of c carried along, whether or not the slope is significant. The impacts'
-    frequencies are first-order estimates, good to about (f_i - f̄)²/Γ for a mode of half-power half-bandwidth
-    Γ: that bound is added to the shift's uncertainty.
+    that term. It is removed (with the uncertainty of c, and the bound (f_i - f̄)²/Γ of the impacts' first-order
+    frequencies for a mode of half-power half-bandwidth Γ) only when c differs from zero at ``level``: blows of
+    nearly one size cannot pin c, and extrapolating with it would add noise where there is no evidence of a shift.
     """
     a, f, s = (np.asarray(v, float) for v in (amplitude_n_s, bounce_hz, bounce_hz_std))
     if len(a) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(a))):
@@ -111,4 +123,8 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     c_std = 1.0 / math.sqrt(sxx)
     a2_eff = float(np.sum(x**2) / np.sum(x))
     linearisation = float(np.max((f - fm) ** 2)) / half_bandwidth_hz
-    return ZeroAmplitude(c, c_std, a2_eff, c * a2_eff, math.hypot(c_std * a2_eff, linearisation))
+    z = c / c_std
+    shift = c * a2_eff
+    model = MODEL_SHARE * abs(shift)
+    return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
+                         level, bool(abs(z) > norm.isf(level / 2)))
