@@ -93,7 +93,7 @@ def test_a_file_that_is_no_campaign_is_a_one_line_error(tmp_path):
 
 def _campaign(path, points, rig_text):
     """A campaign file holding only processed step results (as the engine stores them) and its rig."""
-    from labctl.storage.writer import CampaignWriter
+    from labctl.storage import CampaignWriter, StepResult
 
     types = sorted({p.roller_type for p in points})
     with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=1, config_files={"rig.toml": rig_text},
@@ -108,7 +108,7 @@ def _campaign(path, points, rig_text):
                 w.run(series, rep)
                 for step, p in enumerate([q for q in mine if q.repetition == rep], 1):
                     w.step(series, rep, step, {"load_n": p.load_n})
-                    w.write_step_result(series, rep, step, {"roller_stiffness_n_per_m": p.stiffness_n_per_m})
+                    w.write_step_result(series, rep, step, StepResult(roller_stiffness_n_per_m=p.stiffness_n_per_m))
 
 
 def test_a_campaign_file_is_analysed_with_the_rig_stored_in_it(tmp_path):
