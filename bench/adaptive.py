@@ -20,8 +20,10 @@ hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -30,9 +32,10 @@ import numpy as np
 from labctl.campaign import run_campaign
 from labctl.discrepancy.data import build_dataset
 from labctl.discrepancy.model import ModelSpec, fit_model
-from labctl.discrepancy.noise import estimate_noise
+from labctl.discrepancy.noise import NoiseFloor, estimate_noise
 from labctl.physics.world import load_world
 from labctl.planning.rivals import from_fit
+from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.table import campaign_stiffness_points
 
 PROTOCOL = """
@@ -56,11 +59,12 @@ count = {reps}
 """
 
 
-def effect_se(path: Path, effect: str, baseline: str) -> tuple[float, float, int]:
-    """The hidden effect's fitted parameter, its standard error and the number of points of a campaign file."""
-    points = campaign_stiffness_points(path)
+def effect_se(points: list[StiffnessPoint], effect: str, baseline: str, noise: NoiseFloor | None = None
+              ) -> tuple[float, float, int]:
+    """The hidden effect's fitted parameter, its standard error and the number of points of a campaign (the
+    noise model estimated from its own points, or the one given)."""
     data = build_dataset(points)
-    noise = estimate_noise(data)
+    noise = noise or estimate_noise(data)
     sigma = noise.sigma_at(data)
     spec = ModelSpec(baseline, (effect,), {"setup_compliance": {"nominal_setup_n_per_m": 1.45e9}})
     fit = fit_model(data, spec, sigma=sigma, seating_sigma=noise.seating_sigma)
@@ -85,6 +89,14 @@ def accepted_impacts(path: Path) -> int:
     return n
 
 
+def added_loads(path: Path) -> list[list[float]]:
+    """The loads the planner added to each repetition (from the stored plan)."""
+    with h5py.File(path, "r") as f:
+        sg = f["series_01"]
+        return [[round(a["target_load_n"]) for a in json.loads(sg[r].attrs.get("added_steps", "[]"))]
+                for r in sorted(sg) if r.startswith("run_")]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=4)
@@ -94,6 +106,7 @@ def main() -> None:
     ap.add_argument("--type", type=int, default=1)
     ap.add_argument("--cap", type=float, default=400.0)
     ap.add_argument("--world", default="surface_roughness")
+    ap.add_argument("--verbose", action="store_true", help="print the loads the planner added")
     args = ap.parse_args()
     world = load_world(args.world)
     effects = list(world.law.effects)
@@ -102,13 +115,15 @@ def main() -> None:
     print(f"world {args.world}: hidden effect {effect}; type {args.type}, cap {args.cap:g} N, {args.reps} reps, "
           f"fixed {args.base + args.budget} steps vs adaptive {args.base} + {args.budget} planned")
     print(f"{'seed':>4} {'impacts F/A':>12} {'value F':>10} {'SE fixed':>10} {'value A':>10} {'SE adapt':>10} "
-          f"{'ratio':>6} {'time s':>7}")
-    ratios = []
+          f"{'ratio':>6} {'SE F pool':>10} {'SE A pool':>10} {'ratio':>6} {'time s':>7}")
+    ratios: list[float] = []
+    shared: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         for seed in range(1, args.seeds + 1):
             t0 = time.perf_counter()
-            res = {}
+            res: dict[str, tuple[float, float, int, int]] = {}
+            points: dict[str, list[StiffnessPoint]] = {}
             for mode, steps in (("fixed", args.base + args.budget), ("adaptive", args.base)):
                 proto = d / f"{mode}.toml"
                 proto.write_text(PROTOCOL.format(name=mode, type_id=args.type, cap=args.cap, steps=steps,
@@ -117,14 +132,24 @@ def main() -> None:
                 o = run_campaign(proto, out=out, seed=seed, world=args.world, adaptive=mode == "adaptive",
                                  budget_steps=args.budget)
                 assert o.status == "complete", o.message
-                res[mode] = (*effect_se(out, effect, baseline), accepted_impacts(out))
+                points[mode] = campaign_stiffness_points(out)
+                res[mode] = (*effect_se(points[mode], effect, baseline), accepted_impacts(out))
+                if mode == "adaptive" and args.verbose:
+                    print(f"     added loads per repetition (N): {added_loads(out)}")
             (vf, sf, _, nf), (va, sa, _, na) = res["fixed"], res["adaptive"]
+            # the same rig's noise for both: one noise model from both campaigns' points (seatings kept apart)
+            pooled = points["fixed"] + [replace(p, repetition=p.repetition + args.reps) for p in points["adaptive"]]
+            noise = estimate_noise(build_dataset(pooled))
+            sf2 = effect_se(points["fixed"], effect, baseline, noise)[1]
+            sa2 = effect_se(points["adaptive"], effect, baseline, noise)[1]
             ratios.append(sa / sf)
+            shared.append(sa2 / sf2)
             print(f"{seed:>4} {nf:>5}/{na:<6} {vf:>10.4g} {sf:>10.3g} {va:>10.4g} {sa:>10.3g} {sa / sf:>6.2f} "
-                  f"{time.perf_counter() - t0:>7.1f}")
-    r = np.array(ratios)
-    print(f"SE ratio adaptive/fixed: median {np.median(r):.2f}, max {r.max():.2f}, "
-          f"{int(np.sum(r <= 0.7))}/{r.size} seeds ≤ 0.7")
+                  f"{sf2:>10.3g} {sa2:>10.3g} {sa2 / sf2:>6.2f} {time.perf_counter() - t0:>7.1f}")
+    for label, values in (("own noise model", ratios), ("shared noise model", shared)):
+        r = np.array(values)
+        print(f"SE ratio adaptive/fixed ({label}): median {np.median(r):.2f}, max {r.max():.2f}, "
+              f"{int(np.sum(r <= 0.7))}/{r.size} seeds ≤ 0.7")
 
 
 if __name__ == "__main__":
