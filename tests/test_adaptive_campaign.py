@@ -54,8 +54,9 @@ def _steps(path) -> list[dict]:  # noqa: ANN001
 def test_adaptive_run_adds_planned_steps_within_cap_and_budget_and_process_reads_them(tmp_path, capsys):
     proto, out = _protocol(tmp_path), tmp_path / "a.h5"
     rig = load_rig()
-    outcome = run_campaign(proto, out=out, seed=3, world="end_effects", adaptive=True, budget_steps=2)
-    assert outcome.status == "complete"
+    ran = labctl_here_json(capsys, "run", str(proto), "--out", str(out), "--seed", "3", "--world", "end_effects",
+                           "--adaptive", "--budget-steps", "2")
+    assert ran["status"] == "complete"
     steps = _steps(out)
     base = [s for s in steps if "added_by" not in s]
     added = [s for s in steps if s.get("added_by") == "plan"]
@@ -70,7 +71,7 @@ def test_adaptive_run_adds_planned_steps_within_cap_and_budget_and_process_reads
         stored = json.loads(f["series_01/run_01"].attrs["added_steps"])
     assert [a["angle_deg"] for a in stored] == [s["knob_angle_deg"] for s in added]
     done = labctl_here_json(capsys, "process", str(out))
-    assert done["points"] == len(steps) == outcome.curves[0].load_n.size
+    assert done["points"] == len(steps) == len(ran["runs"][0]["load_n"])
 
 
 def test_interrupted_adaptive_campaign_resumes_the_stored_plan(tmp_path):
