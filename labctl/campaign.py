@@ -116,8 +116,13 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
                  world: str | Path | None = None, seed: int | None = None, rig: str | Path | None = None,
                  devices: str | Path | None = None, operator: Operator | None = None,
                  subscribers: Iterable[Callable[[Event], object]] = (), control: RunControl | None = None,
-                 conditions: Sequence[Condition] = ()) -> Outcome:
+                 conditions: Sequence[Condition] = (), adaptive: bool = False,
+                 budget_steps: int | None = None) -> Outcome:
     """Run a protocol (or continue an interrupted campaign with ``resume=True``) and return how it ended.
+
+    ``adaptive``: after each repetition's base steps, add up to ``budget_steps`` (default
+    ``DEFAULT_BUDGET_STEPS``) load steps the planner ranks highest for the mounted specimen (docs/planning.md).
+    A resumed campaign keeps the adaptive setting and budget it was started with.
 
     Every input (protocol, rig, world, devices, output path) is read and checked before a new file is
     created, so a bad input leaves no file behind. ``conditions`` are extra safe-point checks for the engine.
@@ -138,14 +143,29 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
         seed_attr = int(stored_attrs.get("seed", -1))
         seed = seed if seed is not None else (None if seed_attr < 0 else seed_attr)
         world = world if world is not None else desc.get("world_file") or None
+        stored_budget = int(desc.get("adaptive_budget_steps", 0) or 0)
+        adaptive, budget_steps = stored_budget > 0, stored_budget or None
     else:
         proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
         if out.exists():
             raise InputError(f"{out}: already exists; use --resume to continue it or choose another --out")
         if out.parent.exists() and not out.parent.is_dir():
             raise InputError(f"{out}: its folder {out.parent} is a file")
+    if budget_steps is None:
+        from labctl.planning.plan import DEFAULT_BUDGET_STEPS
+
+        budget_steps = DEFAULT_BUDGET_STEPS
+    if adaptive and budget_steps < 1:
+        if resume:
+            writer.close()
+        raise InputError(f"--budget-steps {budget_steps}: expected at least 1 load step")
     try:
         rig_config = load_rig(rig)
+        if adaptive:
+            for spec in proto.specimens:
+                if spec.kind != "roller":
+                    raise InputError(f"{proto.source_path}: specimen {spec.label!r} is a {spec.kind}; "
+                                     "--adaptive plans roller specimens only")
         for spec in proto.specimens:
             spec.case()
             plan_steps(proto, spec, rig_config)
@@ -167,12 +187,19 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
         writer = CampaignWriter.create(out, protocol_name=proto.name, backend=backend, seed=seed,
                                        config_files=_config_files(proto, rig_config, world, devices),
                                        description={"world_file": "" if world is None else str(world),
-                                                    "rig_file": rig_config.source})
+                                                    "rig_file": rig_config.source,
+                                                    "adaptive_budget_steps": budget_steps if adaptive else 0})
     bus = EventBus()
     for sub in subscribers:
         bus.subscribe(sub)
     try:
-        engine = Engine(proto, rig_config, factory, writer, bus, control, conditions)
+        advisor = None
+        if adaptive:
+            from labctl.planning.adaptive import PlanAdvisor
+
+            advisor = PlanAdvisor(rig_config)
+        engine = Engine(proto, rig_config, factory, writer, bus, control, conditions, advisor=advisor,
+                        budget_steps=budget_steps if adaptive else 0)
     except BaseException:
         writer.close()
         if not resume:

@@ -26,6 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--operator", metavar="FILE.toml",
                    help="scripted operator: verdicts on chosen impacts ([[review]] series/run/step/attempt, "
                         "verdict accept|reject, reason) and prompt answers ([answers]); see docs/storage.md")
+    p.add_argument("--adaptive", action="store_true",
+                   help="after each repetition's base steps, add the load steps the planner ranks highest for the "
+                        "mounted specimen (why each was added is stored with the step; docs/planning.md)")
+    p.add_argument("--budget-steps", type=int, metavar="N",
+                   help="with --adaptive: extra load steps per repetition (default 5)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     add_json(p)
     p.set_defaults(func=run)
@@ -55,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
     outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume, world=args.world,
                            seed=args.seed, rig=args.rig, devices=args.devices, operator=operator, subscribers=subs,
-                           control=control)
+                           control=control, adaptive=args.adaptive, budget_steps=args.budget_steps)
     result = {"status": outcome.status, "path": outcome.path, "message": outcome.message,
               "runs": [{"series": c.series, "run": c.run, "specimen": c.specimen, "step": c.step.tolist(),
                         "load_n": c.load_n.tolist(), "stiffness_n_per_m": c.stiffness_n_per_m.tolist()}

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from labctl.physics.rig_config import RigConfig
-from labctl.protocol import Protocol, SpecimenSpec
+from labctl.protocol import Protocol as LabProtocol
+from labctl.protocol import SpecimenSpec
+from labctl.stiffness_table import StiffnessPoint
 
 
 @dataclass(frozen=True)
@@ -16,7 +20,7 @@ class StepPlan:
     cap_n: float
 
 
-def plan_steps(protocol: Protocol, spec: SpecimenSpec, rig: RigConfig) -> StepPlan:
+def plan_steps(protocol: LabProtocol, spec: SpecimenSpec, rig: RigConfig) -> StepPlan:
     """Knob angle per step (a multiple of the protocol's step, so at most ``max_steps`` steps reach the cap)."""
     per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
     span = max(spec.max_load_n - rig.preload_per_roller_n, 0.0)
@@ -31,3 +35,31 @@ def next_load_n(loads: list[float], step_angle_deg: float, rig: RigConfig) -> fl
     if len(loads) >= 2 and loads[-1] > loads[-2]:
         return loads[-1] + (loads[-1] - loads[-2])
     return loads[-1] + rig.load_per_knob_degree_n * step_angle_deg
+
+
+@dataclass(frozen=True)
+class AddedStep:
+    """A load step an adaptive campaign adds after a repetition's base steps, and why."""
+
+    angle_deg: float
+    """Knob angle from the preload: a multiple of the specimen's knob step, within its load cap."""
+    target_load_n: float
+    reason: str
+    score: float
+
+
+class StepAdvisor(Protocol):
+    """Chooses the extra load steps for the mounted specimen from the points measured so far (the planner)."""
+
+    def extra_steps(self, points: Sequence[StiffnessPoint], spec: SpecimenSpec, budget_steps: int
+                    ) -> list[AddedStep]: ...
+
+
+def knob_angle_for(load_n: float, spec: SpecimenSpec, rig: RigConfig) -> float | None:
+    """The knob angle (a whole number of knob steps) nearest ``load_n`` whose nominal load is within the cap."""
+    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
+    n_cap = int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+    if n_cap < 0:
+        return None
+    n = min(max(round((load_n - rig.preload_per_roller_n) / per_step), 0), n_cap)
+    return n * spec.knob_step_deg

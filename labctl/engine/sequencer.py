@@ -7,10 +7,11 @@ After each repetition the stiffness-vs-load curve is stored. Resuming continues 
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Sequence
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 from drivers.errors import DeviceError
 from drivers.interfaces import Record, Rig, TriggerSpec
@@ -19,7 +20,7 @@ from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
-from labctl.engine.plan import StepPlan, next_load_n, plan_steps
+from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
 from labctl.engine.runlog import RunLog
 from labctl.engine.steps import Interlock, StepRunner
 from labctl.errors import LabctlError
@@ -30,6 +31,8 @@ from labctl.storage.records import RepetitionCurve
 from labctl.storage.writer import CampaignWriter
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
+ADDED_ATTR = "added_steps"
+"""Run attribute: JSON list of the steps an adaptive campaign added to the repetition (``AddedStep`` fields)."""
 NOTHING_LEFT = "nothing left to do: every repetition of this campaign is complete"
 
 
@@ -60,8 +63,13 @@ class Engine:
 
     def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, writer: CampaignWriter,
                  bus: ev.EventBus | None = None, control: RunControl | None = None,
-                 conditions: Sequence[Condition] = ()) -> None:
-        """``conditions`` are checked at every safe point after the load interlock and the load-drift check."""
+                 conditions: Sequence[Condition] = (), advisor: StepAdvisor | None = None,
+                 budget_steps: int = 0) -> None:
+        """``conditions`` are checked at every safe point after the load interlock and the load-drift check.
+
+        With an ``advisor`` (adaptive campaign), each repetition gets up to ``budget_steps`` extra load steps
+        after its base steps, chosen by the advisor from everything measured so far in the file.
+        """
         self.protocol, self.rig_config, self.rig_factory, self.writer = protocol, rig_config, rig_factory, writer
         self.conditions: tuple[Condition, ...] = (*DEFAULT_CONDITIONS, *conditions)
         self.bus = bus or ev.EventBus()
@@ -71,8 +79,9 @@ class Engine:
         self.runlog = RunLog(writer, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
         self.call = GuardedCaller(acq.timeout_s, acq.retries,
                                   on_retry=lambda m: self.notify("warning", m, kind="retry"))
+        self.advisor, self.budget_steps = advisor, budget_steps if advisor is not None else 0
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
-        steps = sum(p.steps_estimate for p in self.plans)
+        steps = sum(p.steps_estimate + self.budget_steps for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
         self._session_start = (time.monotonic(), self.impacts_done)
         self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
@@ -200,7 +209,35 @@ class Engine:
             if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + 1e-6):
                 break
             step += 1
+        if self.advisor is not None:
+            self._added_steps(steps, series, run, spec, step)
         return self._store_curve(series, run, spec)
+
+    def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> None:
+        """Ask the advisor once per repetition (the answer is stored in the file before the first added step,
+        so a resumed campaign runs exactly the steps planned), then run them as ordinary steps."""
+        assert self.advisor is not None
+        stored = self.writer.run_attrs(series, run).get(ADDED_ATTR)
+        if stored is None:
+            try:
+                added = self.advisor.extra_steps(self.writer.stiffness_points(), spec, self.budget_steps)
+            except LabctlError as exc:
+                self.notify("warning", f"no steps added: the planner could not plan ({exc})",
+                            position=ev.Position(series, run))
+                added = []
+            added = added[: self.budget_steps]
+            self.writer.set_run_attrs(series, run, {ADDED_ATTR: json.dumps([asdict(a) for a in added]),
+                                                    "base_steps": base_steps})
+        else:
+            added = [AddedStep(**a) for a in (json.loads(stored) if isinstance(stored, str) else stored)]
+        total = base_steps + len(added)
+        for k, a in enumerate(added, start=1):
+            step = base_steps + k
+            if steps.completed_load(step) is not None:
+                continue
+            self.checkpoint(ev.Position(series, run, step))
+            steps.run_step(step, a.angle_deg, total, {"added_by": "plan", "plan_reason": a.reason,
+                                                      "plan_score": a.score, "plan_load_n": a.target_load_n})
 
     def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> RepetitionCurve:
         curve = self.writer.store_curve(series, run)

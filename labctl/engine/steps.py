@@ -8,7 +8,7 @@ does not import the sequencer, and it keeps no counters: what was taken is what 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -119,8 +119,12 @@ class StepRunner:
         return passed
 
     # --- the step ---------------------------------------------------------------------------------------
-    def run_step(self, step: int, angle_deg: float, steps_estimate: int) -> float:
-        """Run (or finish) a step and return its load (a step that cannot be identified is stored as failed)."""
+    def run_step(self, step: int, angle_deg: float, steps_estimate: int, attrs: Mapping[str, object] | None = None
+                 ) -> float:
+        """Run (or finish) a step and return its load (a step that cannot be identified is stored as failed).
+
+        ``attrs`` are stored with the step when it is created (e.g. why an adaptive campaign added it).
+        """
         e, pos = self.e, ev.Position(self.series, self.run, step)
         delta = angle_deg - self.rig.actuator.knob_angle_deg
         expected = e.rig_config.preload_per_roller_n + angle_deg * e.rig_config.load_per_knob_degree_n
@@ -132,7 +136,7 @@ class StepRunner:
         if e.writer.step_load(self.series, self.run, step) is None:
             e.writer.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
-                "load_stable": stable, "expected_load_n": expected})
+                "load_stable": stable, "expected_load_n": expected, **(attrs or {})})
         step_load = e.writer.step_load(self.series, self.run, step)
         assert step_load is not None
         self._take_impacts(step, step_load)

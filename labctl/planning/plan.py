@@ -190,6 +190,35 @@ def _would_change(score: Score, models: list[ModelAt]) -> bool:
     return False
 
 
+def score_specimen(result: DiscrepancyResult, play: list[Rival], weights: np.ndarray, spec: Specimen,
+                   budget_steps: int) -> tuple[Recommendation, float, bool] | None:
+    """The best ``budget_steps`` loads of one specimen for the models in play: the recommendation, its score and
+    whether it could change the verdict (None when no model in play predicts any of its loads)."""
+    spec_ok = _predictable(spec, play)
+    if spec_ok is None:
+        return None
+    design = _design_data(spec_ok)
+    sigma = result.noise.sigma_at(design)
+    noise_cov = np.diag(sigma**2) + result.noise.seating_sigma**2
+    models = []
+    for rival, w in zip(play, weights, strict=True):
+        mu, jac = rival.jacobian(design)
+        models.append(ModelAt(rival, float(w), mu, jac, _term_rows(rival, result.final.spec.fits_depth)))
+    idx, score = greedy_loads(models, noise_cov, budget_steps)
+    loads = spec_ok.loads_n[idx]
+    rec = Recommendation(spec_ok.type_id, round(spec_ok.rail_ra_m * 1e6, 6), tuple(round(float(f), 1) for f in loads),
+                         _reason(spec_ok, loads, score, models, result.data), float(f"{float(score.total[0]):.4g}"))
+    return rec, float(score.total[0]), _would_change(score, models)
+
+
+def models_in_play(result: DiscrepancyResult, candidates: Sequence[str] | None = None
+                   ) -> tuple[list[Rival], np.ndarray]:
+    """The final model first, then its rivals still in play, with their BIC weights."""
+    final, play = rivals_in_play(result, candidate_terms() if candidates is None else candidates)
+    play = [final, *play[1:]]
+    return play, _weights(play)
+
+
 def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | None = None,
                      budget_steps: int = DEFAULT_BUDGET_STEPS, rig: RigConfig | None = None,
                      protocol: Protocol | None = None, top: int = TOP) -> Plan:
@@ -198,31 +227,17 @@ def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | N
         raise InputError(f"--budget-steps {budget_steps}: expected at least 1 load step")
     rig = rig or load_rig()
     protocol = protocol or load_protocol(DEFAULT_PROTOCOL)
-    data, noise = result.data, result.noise
-    final, play = rivals_in_play(result, candidate_terms() if candidates is None else candidates)
-    play = [final, *play[1:]]
-    weights = _weights(play)
-    rail = data.cases[0].case.rail
-    tau2 = noise.seating_sigma**2
+    play, weights = models_in_play(result, candidates)
+    rail = result.data.cases[0].case.rail
     ranked: list[tuple[float, Recommendation]] = []
     change = False
     for spec in candidate_specimens(protocol, rig, rail, RAIL_RA_UM):
-        spec = _predictable(spec, play)
-        if spec is None:
+        scored = score_specimen(result, play, weights, spec, budget_steps)
+        if scored is None:
             continue
-        design = _design_data(spec)
-        sigma = noise.sigma_at(design)
-        noise_cov = np.diag(sigma**2) + tau2
-        models = []
-        for rival, w in zip(play, weights, strict=True):
-            mu, jac = rival.jacobian(design)
-            models.append(ModelAt(rival, float(w), mu, jac, _term_rows(rival, result.final.spec.fits_depth)))
-        idx, score = greedy_loads(models, noise_cov, budget_steps)
-        change = change or _would_change(score, models)
-        loads = spec.loads_n[idx]
-        rec = Recommendation(spec.type_id, round(spec.rail_ra_m * 1e6, 6), tuple(round(float(f), 1) for f in loads),
-                             _reason(spec, loads, score, models, data), float(f"{float(score.total[0]):.4g}"))
-        ranked.append((float(score.total[0]), rec))
+        rec, total, would_change = scored
+        change = change or would_change
+        ranked.append((total, rec))
     ranked.sort(key=lambda t: -t[0])
     return Plan(tuple(r for _, r in ranked[:top]), not change, result, tuple(m.label for m in play))
 

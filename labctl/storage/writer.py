@@ -19,6 +19,7 @@ import numpy as np
 
 from labctl import __version__
 from labctl.errors import InputError
+from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
 from labctl.storage.reader import attrs_of, complete_impacts, curve_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
@@ -30,6 +31,7 @@ from labctl.storage.records import (
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
+from labctl.storage.table import specimen_point
 
 
 def utc_now() -> str:
@@ -302,6 +304,28 @@ class CampaignWriter:
             if info.result is not None:
                 out.append((info.step, info.load_n, info.knob_angle_deg, info.result))
         return out
+
+    def run_attrs(self, series: int, run: int) -> dict[str, Any]:
+        """A repetition's attributes (decoded), e.g. the load steps an adaptive campaign added to it."""
+        g = self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}")
+        return {} if g is None else attrs_of(g)
+
+    def set_run_attrs(self, series: int, run: int, attrs: Mapping[str, Any]) -> None:
+        """Set attributes of a started repetition (nested values are stored as JSON)."""
+        _attrs(self.h5[f"{s.series_name(series)}/{s.run_name(run)}"], attrs)
+        self.h5.flush()
+
+    def stiffness_points(self) -> list[StiffnessPoint]:
+        """The identified steps measured so far in this file, as stiffness table rows (what a planner needs)."""
+        points: list[StiffnessPoint] = []
+        for sg in s.children(self.h5, "series_"):
+            spec = attrs_of(sg)
+            for rg in s.children(sg, "run_"):
+                for _, load, _, result in self.step_results(s.number(sg), s.number(rg)):
+                    if result.identified:
+                        points.append(specimen_point(spec, s.number(rg), load, result.roller_stiffness_n_per_m,
+                                                     result))
+        return points
 
     def store_curve(self, series: int, run: int) -> RepetitionCurve:
         """Build a repetition's stiffness-vs-load table from its stored step results, store it, return it."""

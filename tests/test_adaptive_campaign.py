@@ -1,0 +1,113 @@
+"""Adaptive campaigns: the planner's extra load steps stay within the cap, the knob step and the budget, are
+stored with their reason, are processed like any step, and an interrupted campaign resumes the stored plan."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import pytest
+
+from labctl import events as ev
+from labctl.campaign import run_campaign
+from labctl.engine import RunControl
+from labctl.errors import InputError
+from labctl.physics import load_rig
+from labctl.planning.adaptive import PlanAdvisor, knob_loads
+from labctl.protocol import load_protocol
+from tests.cli_util import labctl_here_json
+
+PROTOCOL = """
+[protocol]
+name = "adaptive_short"
+[specimen]
+roller_type = 1
+rail_ra_um = 0.2
+max_load_n = 300.0
+knob_step_deg = 90.0
+[acquisition]
+samples = 8192
+impacts_per_step = 2
+timeout_s = 5.0
+[loading]
+settle_poll_s = 0.0
+settle_timeout_s = 5.0
+max_steps = 3
+[repetitions]
+count = {reps}
+"""
+
+
+def _protocol(tmp_path, reps: int = 1):  # noqa: ANN001, ANN202
+    path = tmp_path / "adaptive.toml"
+    path.write_text(PROTOCOL.format(reps=reps))
+    return path
+
+
+def _steps(path) -> list[dict]:  # noqa: ANN001
+    with h5py.File(path, "r") as f:
+        runs = f["series_01"]
+        return [{"run": r, "step": s, **dict(runs[r][s].attrs)} for r in sorted(runs) if r.startswith("run_")
+                for s in sorted(runs[r]) if s.startswith("step_")]
+
+
+def test_adaptive_run_adds_planned_steps_within_cap_and_budget_and_process_reads_them(tmp_path, capsys):
+    proto, out = _protocol(tmp_path), tmp_path / "a.h5"
+    rig = load_rig()
+    ran = labctl_here_json(capsys, "run", str(proto), "--out", str(out), "--seed", "3", "--world", "end_effects",
+                           "--adaptive", "--budget-steps", "2")
+    assert ran["status"] == "complete"
+    steps = _steps(out)
+    base = [s for s in steps if "added_by" not in s]
+    added = [s for s in steps if s.get("added_by") == "plan"]
+    assert len(base) == 3 and 1 <= len(added) <= 2
+    per_deg = rig.load_per_knob_degree_n
+    for s in added:
+        assert s["knob_angle_deg"] % 90.0 == pytest.approx(0.0)
+        assert rig.preload_per_roller_n + per_deg * s["knob_angle_deg"] <= 300.0 + 1e-9
+        assert s["plan_reason"] and "type 1" in s["plan_reason"] and s["plan_score"] > 0
+        assert s["load_n"] == pytest.approx(s["plan_load_n"], rel=0.05)  # the rig reached the planned load
+    with h5py.File(out, "r") as f:
+        stored = json.loads(f["series_01/run_01"].attrs["added_steps"])
+    assert [a["angle_deg"] for a in stored] == [s["knob_angle_deg"] for s in added]
+    done = labctl_here_json(capsys, "process", str(out))
+    assert done["points"] == len(steps) == len(ran["runs"][0]["load_n"])
+
+
+def test_interrupted_adaptive_campaign_resumes_the_stored_plan(tmp_path):
+    proto, out = _protocol(tmp_path), tmp_path / "r.h5"
+    control = RunControl()
+
+    def stop_in_first_added_step(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 4:
+            control.stop()
+
+    first = run_campaign(proto, out=out, seed=5, world="end_effects", adaptive=True, budget_steps=2,
+                         control=control, subscribers=[stop_in_first_added_step])
+    assert first.status == "interrupted"
+    with h5py.File(out, "r") as f:
+        planned = f["series_01/run_01"].attrs["added_steps"]
+    assert len(json.loads(planned)) == 2
+    again = run_campaign(proto, out=out, resume=True)  # adaptive and its budget come from the file
+    assert again.status == "complete"
+    with h5py.File(out, "r") as f:
+        assert f["series_01/run_01"].attrs["added_steps"] == planned
+    added = [s for s in _steps(out) if s.get("added_by") == "plan"]
+    assert [s["knob_angle_deg"] for s in added] == [a["angle_deg"] for a in json.loads(planned)]
+    assert again.curves[0].load_n.size == 5
+
+
+def test_advisor_candidates_are_the_mounted_specimens_knob_grid_below_its_cap(tmp_path):
+    rig = load_rig()
+    spec = load_protocol(_protocol(tmp_path)).specimens[0]
+    loads = knob_loads(spec, rig)
+    assert loads[0] == pytest.approx(rig.preload_per_roller_n) and loads[-1] <= spec.max_load_n
+    assert loads.size == int((spec.max_load_n - rig.preload_per_roller_n) / (rig.load_per_knob_degree_n * 90)) + 1
+    assert PlanAdvisor(rig).extra_steps([], spec, 3) == []
+
+
+def test_adaptive_refuses_a_zero_budget_before_creating_a_file(tmp_path):
+    proto, out = _protocol(tmp_path), tmp_path / "z.h5"
+    with pytest.raises(InputError, match="budget-steps 0"):
+        run_campaign(proto, out=out, adaptive=True, budget_steps=0)
+    assert not out.exists()
