@@ -60,6 +60,7 @@ class _Problem:
 
     def __init__(self, freqs_hz: np.ndarray, h: np.ndarray, decay_rate: float, weights: np.ndarray) -> None:
         self.s = TWO_PI * 1j * freqs_hz + decay_rate
+        self.s2 = (self.s**2)[:, None]  # s² per line, reused by every evaluation
         sn = self.s / (TWO_PI * float(np.mean(freqs_hz)))
         terms = np.stack([sn ** float(p) for p in RESIDUAL_POWERS], axis=1)
         self.rb = _stack(np.concatenate([terms, 1j * terms], axis=1))
@@ -69,6 +70,7 @@ class _Problem:
         self.n_fixed = self.rb.shape[1]
         self.x: np.ndarray | None = None
         self.cost = math.inf
+        self._normal: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (x, JᵀJ, Jᵀr) last computed
 
     def _perp_residual(self, v: np.ndarray) -> np.ndarray:
         return v - self.rb @ (self.rb_pinv @ v)
@@ -81,10 +83,11 @@ class _Problem:
         omega = TWO_PI * x[0::2]
         zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
         s = self.s[:, None]
-        d = s**2 + 2.0 * zeta * omega * s + omega**2
-        self.g = self._perp_residual(_stack(s**2 / d))
-        self.gram = _gram_factor(self.g)
-        self.coef = _cho_solve(self.gram, self.g.T @ self.y)
+        d = self.s2 + (2.0 * zeta * omega) * s + omega**2
+        self.q = self.s2 / d  # the mode columns s²/d before projection
+        self.g = self._perp_residual(_stack(self.q))
+        self.gram = _gram_inverse(self.g)
+        self.coef = _apply_inverse(self.gram, self.g.T @ self.y)
         self.resid = self.y - self.g @ self.coef
         self.d, self.zeta, self.omega = d, zeta, omega
         self.cost = float(np.sum(self.resid**2))
@@ -93,27 +96,30 @@ class _Problem:
     def project_out(self, v: np.ndarray) -> np.ndarray:
         """The part of ``v`` orthogonal to the residual terms and the mode columns."""
         vr = self._perp_residual(v)
-        return vr - self.g @ _cho_solve(self.gram, self.g.T @ vr)
+        return vr - self.g @ _apply_inverse(self.gram, self.g.T @ vr)
 
     def inverse_gram_diagonal(self) -> np.ndarray:
         """Diagonal of the mode block of (BᵀB)⁻¹: how well each mode's constants are determined."""
-        low, scale = self.gram
-        return np.sum(np.abs(np.linalg.inv(low)) ** 2, axis=0) * scale**2
+        inv, scale = self.gram
+        return np.diag(inv) * scale**2
 
     def projected_derivatives(self) -> np.ndarray:
         """∂(mode columns)/∂θ at the last solved point, projected off the residual terms and the mode columns."""
-        s, d = self.s[:, None], self.d
-        deriv = np.empty((2 * len(self.s), 2 * d.shape[1]))
-        deriv[:, 0::2] = _stack(-(s**2) * (2.0 * self.zeta * s + 2.0 * self.omega) / d**2 * TWO_PI)
-        deriv[:, 1::2] = _stack(-(s**2) * (2.0 * self.omega * s) * self.zeta / d**2)
+        s, qd = self.s[:, None], self.q / self.d  # s²/d²
+        deriv = np.empty((2 * len(self.s), 2 * qd.shape[1]))
+        deriv[:, 0::2] = _stack(qd * (-TWO_PI) * (2.0 * self.zeta * s + 2.0 * self.omega))
+        deriv[:, 1::2] = _stack(qd * (-2.0 * self.omega * self.zeta) * s)
         return self.project_out(deriv)
 
     def normal_equations(self) -> tuple[np.ndarray, np.ndarray]:
-        """JᵀJ and Jᵀr at the last solved point."""
+        """JᵀJ and Jᵀr at the last solved point (remembered: the fit's covariance reuses the last step's)."""
+        if self._normal is not None and self.x is not None and np.array_equal(self._normal[0], self.x):
+            return self._normal[1], self._normal[2]
         pdb = self.projected_derivatives()
         c = np.repeat(self.coef, 2, axis=0)  # mode r's constants for both its parameters
         jtj = (pdb.T @ pdb) * (c @ c.T)
         jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
+        self._normal = (self.x.copy(), jtj, jtr)
         return jtj, jtr
 
 
@@ -123,6 +129,23 @@ def _gram_factor(basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     gram = (np.ascontiguousarray(basis.conj().T) @ basis) * np.outer(scale, scale)
     gram = gram + 1e-13 * np.eye(len(gram))
     return np.linalg.cholesky(gram), scale
+
+
+def _gram_inverse(basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of the column-scaled Gram matrix of a real basis with few columns (the mode columns: one
+    evaluation's every solve reuses it) and the scale."""
+    gram = basis.T @ basis
+    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    scaled = gram * np.outer(scale, scale) + 1e-13 * np.eye(len(gram))
+    if not np.all(np.isfinite(scaled)):
+        raise np.linalg.LinAlgError("mode columns are not finite")
+    return np.linalg.inv(scaled), scale
+
+
+def _apply_inverse(factor: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
+    """(BᵀB)⁻¹ rhs from :func:`_gram_inverse`."""
+    inv, scale = factor
+    return (inv @ (rhs * scale[:, None])) * scale[:, None]
 
 
 def _cho_solve(factor: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
