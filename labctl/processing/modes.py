@@ -71,6 +71,7 @@ class _Problem:
         self.x: np.ndarray | None = None
         self.cost = math.inf
         self._normal: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (x, JᵀJ, Jᵀr) last computed
+        self._previous: dict | None = None
 
     def _perp_residual(self, v: np.ndarray) -> np.ndarray:
         return v - self.rb @ (self.rb_pinv @ v)
@@ -79,6 +80,12 @@ class _Problem:
         """Project out the linear constants at poles ``x``; return the cost (remembered for the last ``x``)."""
         if self.x is not None and np.array_equal(x, self.x):
             return self.cost
+        state = self._state()
+        if self._previous is not None and np.array_equal(x, self._previous["x"]):  # back from a rejected step
+            self.__dict__.update(self._previous)
+            self._previous = state
+            return self.cost
+        self._previous = state
         self.x = x.copy()
         omega = TWO_PI * x[0::2]
         zeta = np.exp(np.clip(x[1::2], LOG_ZETA_MIN, 0.0))
@@ -92,6 +99,12 @@ class _Problem:
         self.d, self.zeta, self.omega = d, zeta, omega
         self.cost = float(np.sum(self.resid**2))
         return self.cost
+
+    _FIELDS = ("x", "q", "g", "gram", "coef", "resid", "d", "zeta", "omega", "cost", "_normal")
+
+    def _state(self) -> dict | None:
+        """The evaluated point's arrays (kept for one more point: LM returns to it after a rejected step)."""
+        return None if self.x is None else {k: getattr(self, k) for k in self._FIELDS}
 
     def project_out(self, v: np.ndarray) -> np.ndarray:
         """The part of ``v`` orthogonal to the residual terms and the mode columns."""
