@@ -137,3 +137,26 @@ async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hi
     flagged = [i for i in rest if not i.checks.accepted]
     assert clean and all(i.verdict.accepted and i.verdict.source == "checks" for i in clean)
     assert all(not i.verdict.accepted and i.verdict.source == "operator" for i in flagged)
+
+
+async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_path):
+    from labctl.tui.dialogs import ConfirmDialog
+
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        await next_dialog(pilot, app)
+        await pilot.press("enter")  # mount
+        gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and app.screen, what="the gate")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("n")  # not aborted: the gate is still waiting, nothing was armed meanwhile
+        await pilot.pause(0.5)
+        assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("y")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert app.outcome.status == "aborted" and len(events.of(ev.ImpactAcquired)) == 1
+    with CampaignReader(tmp_path / "gate.h5") as reader:
+        assert reader.attrs["status"] == "aborted"

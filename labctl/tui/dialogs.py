@@ -178,8 +178,8 @@ def review_body(request: PromptRequest) -> str:
     assert r is not None
     said = "passed every check" if r.checks_accepted else f"the checks reject it: {reason_text(r.reasons)}"
     return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms · "
-            f"{said}.\nThe force, the response and the step's FRF so far are on the screen behind; "
-            "the next blow is armed after your verdict.")
+            f"{said}.\nIts force and response are in the impact panel above (range use on its lower border); "
+            "the next blow is armed only after your verdict.")
 
 
 class ReviewDialog(ModalScreen[str]):

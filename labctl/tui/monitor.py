@@ -214,7 +214,7 @@ class MonitorScreen(Screen):
     def _finished(self, e: ev.CampaignFinished) -> None:
         style = "bold green" if e.status == "complete" else "bold red"
         self.log_line(f"campaign {e.status}: {e.path}" + (f" ({e.message})" if e.message else ""), style)
-        for line in self.state.end_summary():
+        for line in self.state.end_summary(pd.MODEL_LABELS):
             self.log_line(line, "bold")
         if e.status == "complete":
             self.log_line("o: browse this file · q: quit")

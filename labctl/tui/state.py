@@ -233,8 +233,9 @@ class CampaignState:
         rollers = [w for w in event.warnings if "roller" in w.lower()]
         return text + (f" · WARNING {rollers[0]}" if rollers else "")
 
-    def end_summary(self) -> list[str]:
-        """The end of the run: steps done, rejected blows and why, measured stiffness against the models."""
+    def end_summary(self, labels: dict[str, str] | None = None) -> list[str]:
+        """The end of the run: steps done, rejected blows and why, measured stiffness against the models
+        (``labels`` names the models as the plots do)."""
         lines = [f"{len(self.steps)} steps identified" + (f", {self.steps_failed} failed" if self.steps_failed else "")]
         if self.rejected:
             lines.append("hits not used: " + ", ".join(f"{n}× {why}" for why, n in
@@ -249,7 +250,8 @@ class CampaignState:
         for model, ratios in ratios_by_model.items():
             if ratios:
                 mean = sum(ratios) / len(ratios)
-                lines.append(f"measured/{model}: {mean:.2f} on average ({min(ratios):.2f}–{max(ratios):.2f})")
+                name = (labels or {}).get(model, model)
+                lines.append(f"measured/{name}: {mean:.2f} on average ({min(ratios):.2f}–{max(ratios):.2f})")
         return lines
 
     def range_text(self, limit: int = 6) -> str:
@@ -266,6 +268,7 @@ class CampaignState:
         if s is None:
             return "bounce -- Hz · tilt -- Hz · k -- N/µm"
         return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt_text(s.tilt_hz)} Hz\n"
-                f"k {s.roller_stiffness_n_per_m * 1e-6:.2f}{sigma_text(s.roller_stiffness_std_n_per_m)} N/µm (1σ) · "
+                f"k {s.roller_stiffness_n_per_m * 1e-6:.2f}{sigma_text(s.roller_stiffness_std_n_per_m)} N/µm"
+                f"{' (1σ)' if math.isfinite(s.roller_stiffness_std_n_per_m) else ''} · "
                 f"coherence {s.coherence_at_bounce:.3f} "
                 f"(step {s.position.step})")
