@@ -207,6 +207,9 @@ class LabApp(App[Outcome | None]):
             if not request.review.checks_accepted:
                 self.bell()
             return
+        if request.action != "strike":  # the DAQ is not waiting for a blow while the technician reads this
+            self.monitor.state.trigger = ""
+            self.monitor.refresh_header()
         hint = self.rejection if request.action == "strike" else ""
         self.push_screen(PromptDialog(request, hint, self.auto_confirm_after_s))
         self.bell()
