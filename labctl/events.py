@@ -81,6 +81,7 @@ class ImpactAcquired(Event):
     force_n: np.ndarray = field(repr=False)
     accel_m_per_s2: np.ndarray = field(repr=False)
     channels: tuple[str, ...] = ()
+    range_use: dict[str, float] = field(default_factory=dict)  # channel → peak of this blow / channel range
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,10 @@ class StepProcessed(Event):
     h1_magnitude: np.ndarray = field(repr=False)  # (n_ch, n_f)
     coherence: np.ndarray = field(repr=False)
     channels: tuple[str, ...] = ()
+    roller_stiffness_std_n_per_m: float = float("nan")  # 1-σ of the roller stiffness
+    used_attempts: tuple[int, ...] = ()  # the blows identification averaged
+    rejected: dict[int, str] = field(default_factory=dict)  # attempt → why it was not used
+    warnings: tuple[str, ...] = ()  # what identification could not vouch for (e.g. rollers differing)
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,8 @@ def panel_titles(lines: list[str]) -> list[str]:
 
 
 def quick_settings(tmp_path: Path, **kw) -> TuiSettings:
+    """quick_check without the per-hit gate (tests/test_tui_gate.py drives the gate)."""
+    kw.setdefault("review_hits", False)
     return TuiSettings(protocol=load_protocol("quick_check"), out=tmp_path / "qc.h5", seed=1, **kw)
 
 
@@ -124,7 +126,7 @@ async def test_rotate_rollers_dialog_between_repetitions_and_operator_verdict(tm
     first impact makes the engine hit again and keeps the rejected impact in the file with the reason."""
     paused_once = threading.Event()
     settings = TuiSettings(protocol=short_protocol(max_load=80.0, reps=2), out=tmp_path / "s.h5", seed=2,
-                           autostart=True)
+                           autostart=True, review_hits=False)
     app = LabApp(settings)
 
     def pause_after_first_impact(event: ev.Event) -> None:
@@ -200,7 +202,7 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
     """A rejected impact turns the impact panel red with its reason; a manual strike prompt then says why."""
     import numpy as np
 
-    app = LabApp(TuiSettings(protocol=load_protocol("quick_check"), backend="hw"))
+    app = LabApp(TuiSettings(protocol=load_protocol("quick_check"), backend="hw", review_hits=False))
     async with app.run_test(size=SIZE) as pilot:
         force = np.zeros(2048)
         force[300:306] = [50, 200, 250, 200, 50, 0]

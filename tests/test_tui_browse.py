@@ -74,7 +74,7 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
 
 async def test_setup_screen_runs_the_chosen_shipped_protocol(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    app = LabApp(TuiSettings(seed=1))
+    app = LabApp(TuiSettings(seed=1, review_hits=False))
     async with app.run_test(size=SIZE) as pilot:
         screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
         options = screen.query_one("#protocols")
@@ -121,7 +121,7 @@ async def test_setup_screen_honours_no_auto_confirm(tmp_path, monkeypatch, no_au
     from textual.widgets import Checkbox
 
     monkeypatch.chdir(tmp_path)
-    app = LabApp(TuiSettings(seed=1, no_auto_confirm=no_auto_confirm))
+    app = LabApp(TuiSettings(seed=1, no_auto_confirm=no_auto_confirm, review_hits=False))
     async with app.run_test(size=SIZE) as pilot:
         screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
         assert screen.query_one("#auto", Checkbox).value is not no_auto_confirm

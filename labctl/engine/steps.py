@@ -201,7 +201,7 @@ class StepRunner:
         cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
         self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
                         info.checks.pulse_width_s, record.sample_rate_hz, impact.force_n, impact.accel_m_per_s2,
-                        tuple(record.channels)))
+                        tuple(record.channels), range_use(self.rig, record)))
         verdict = self._review(step, impact, pos)
         if verdict is not None:
             self.e.writer.set_verdict(self.series, self.run, step, attempt, verdict)
@@ -239,4 +239,18 @@ class StepRunner:
         assert frf is not None
         e.emit(ev.StepProcessed(e.now(), pos, load, result.bounce_hz, tuple(result.tilt_hz),
                                 result.roller_stiffness_n_per_m, result.coherence_at_bounce, frf.frequencies_hz,
-                                np.abs(frf.h1), frf.coherence, tuple(result.channels)))
+                                np.abs(frf.h1), frf.coherence, tuple(result.channels),
+                                result.roller_stiffness_std_n_per_m, result.used_attempts,
+                                {i.attempt: ", ".join(i.reasons) for i in result.impacts if not i.used},
+                                tuple(result.warnings)))
+
+
+def range_use(rig: Rig, record: Record) -> dict[str, float]:
+    """Each channel's peak in this blow as a fraction of its range (1.0: at the clipping level)."""
+    ranges = {c.name: c.range_units for c in rig.daq.channels if c.range_units > 0}
+    use = {c.name: float(np.max(np.abs(record.force_n))) / c.range_units
+           for c in rig.daq.channels if c.kind == "force" and c.range_units > 0}
+    for name, trace in zip(record.channels, record.accel_m_per_s2, strict=False):
+        if name in ranges:
+            use[name] = float(np.max(np.abs(trace))) / ranges[name]
+    return use

@@ -19,7 +19,7 @@ from textual.worker import Worker, WorkerState
 from labctl import events as ev
 from labctl.engine import Outcome, RunControl
 from labctl.protocol import Protocol
-from labctl.tui.dialogs import ConfirmDialog, PromptDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
 from labctl.tui.monitor import MonitorScreen
 from labctl.tui.operator import PromptRequest, TuiOperator
 from labctl.tui.state import reason_text
@@ -42,6 +42,7 @@ class TuiSettings:
     rig: str | None = None
     devices: str | None = None
     no_auto_confirm: bool = False  # --no-auto-confirm: the setup screen's auto-confirm box starts unticked
+    review_hits: bool = True  # the per-hit gate: every stored blow waits for the technician's verdict
 
     def out_path(self) -> Path:
         """The campaign file: as given, or ``<protocol>-<date>-<time>.h5`` in the working directory."""
@@ -85,7 +86,7 @@ class LabApp(App[Outcome | None]):
         super().__init__()
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
         self.control = RunControl()
-        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell)
+        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
             else DEFAULT_AUTO_CONFIRM_S
@@ -118,6 +119,7 @@ class LabApp(App[Outcome | None]):
             self.exit()
             return
         self.settings = settings
+        self.operator.reviews_hits = settings.review_hits
         self.monitor.protocol = settings.protocol
         self._plan_counters()
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
@@ -199,7 +201,15 @@ class LabApp(App[Outcome | None]):
 
     # --- prompts --------------------------------------------------------------------------------------------
     def show_prompt(self, request: PromptRequest) -> None:
-        """Open the dialog for an engine prompt (UI thread)."""
+        """Open the dialog for an engine prompt (UI thread); a blow to judge opens the per-hit gate."""
+        if request.review is not None:
+            self.push_screen(ReviewDialog(request, self.auto_confirm_after_s))
+            if not request.review.checks_accepted:
+                self.bell()
+            return
+        if request.action != "strike":  # the DAQ is not waiting for a blow while the technician reads this
+            self.monitor.state.trigger = ""
+            self.monitor.refresh_header()
         hint = self.rejection if request.action == "strike" else ""
         self.push_screen(PromptDialog(request, hint, self.auto_confirm_after_s))
         self.bell()
@@ -213,7 +223,7 @@ class LabApp(App[Outcome | None]):
             self.notify("auto-confirm is only for the simulated rig: a person turns the knobs", severity="warning")
             return
         self.auto_confirm = not self.auto_confirm
-        if isinstance(self.screen, PromptDialog):
+        if isinstance(self.screen, PromptDialog | ReviewDialog):
             self.screen.restart_countdown()
         state = f"on ({self.auto_confirm_delay_s:g} s)" if self.auto_confirm else "off"
         self.monitor.log_line(f"auto-confirm of prompts {state}")
@@ -263,6 +273,12 @@ class LabApp(App[Outcome | None]):
         self.operator.stop(status)
         self.monitor.set_status("stopping")
         self.monitor.log_line(f"stopping ({status}) after the current impact…", "bold yellow")
+
+    def on_unmount(self) -> None:
+        """The screen is going away (also in tests): never leave the engine waiting on a dialog nobody sees."""
+        if self.running:
+            self.control.stop()
+            self.operator.stop("interrupted")
 
     async def action_quit(self) -> None:
         """Quit; mid-run the engine is stopped cleanly first (the file stays resumable)."""

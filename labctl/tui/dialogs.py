@@ -9,9 +9,10 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Label, Static
+from textual.widgets import Button, Input, Label, Static
 
 from labctl.tui.operator import PromptRequest
+from labctl.tui.state import reason_text
 
 ACTION_TITLES = {
     "mount_specimen": "Mount the specimen",
@@ -33,6 +34,19 @@ PromptDialog .message, ConfirmDialog .message { margin: 1 0; width: 100%; }
 PromptDialog .countdown { color: $text-muted; width: 100%; }
 PromptDialog Horizontal, ConfirmDialog Horizontal { height: auto; width: 100%; }
 PromptDialog Button, ConfirmDialog Button { margin-right: 2; }
+ReviewDialog { align: center bottom; background: $background 20%; }
+ReviewDialog > Vertical {
+    width: 100; max-width: 98%; height: auto; border: thick $success; background: $surface; padding: 0 2;
+}
+ReviewDialog.-flagged > Vertical { border: thick $error; }
+ReviewDialog .title { text-style: bold; color: $success; width: 100%; }
+ReviewDialog.-flagged .title { color: $error; }
+ReviewDialog .message { margin: 0 0 1 0; width: 100%; }
+ReviewDialog Horizontal { height: auto; width: 100%; }
+ReviewDialog Button { margin-right: 2; }
+ReviewDialog Input { display: none; }
+ReviewDialog.-reason Input { display: block; }
+ReviewDialog .countdown { color: $text-muted; width: 100%; }
 """
 
 
@@ -146,3 +160,129 @@ class ConfirmDialog(ModalScreen[bool]):
 
     def action_answer(self, yes: bool) -> None:
         self.dismiss(yes)
+
+
+def review_title(request: PromptRequest) -> str:
+    """The gate's headline: which blow, and what the checks made of it."""
+    r = request.review
+    assert r is not None
+    where = f"Impact {r.attempt} of step {r.step}"
+    if r.checks_accepted:
+        return f"{where}: CLEAN — accept (y) or reject (r)?"
+    return f"{where}: FLAGGED ({reason_text(r.reasons)}) — reject (r) or accept anyway (y)?"
+
+
+def review_body(request: PromptRequest) -> str:
+    """What the technician judges by, besides the plots: peak force, pulse width and the checks' reasons."""
+    r = request.review
+    assert r is not None
+    said = "passed every check" if r.checks_accepted else f"the checks reject it: {reason_text(r.reasons)}"
+    return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms · "
+            f"{said}.\nIts force and response are in the impact panel above (range use on its lower border); "
+            "the next blow is armed only after your verdict.")
+
+
+class ReviewDialog(ModalScreen[str]):
+    """The per-hit gate: accept or reject the blow just stored; overriding the checks asks for a reason.
+
+    Sits at the bottom of the screen so the impact and FRF plots stay visible. ``auto_delay_s`` as for
+    ``PromptDialog``, but only a clean blow is ever accepted by itself; a flagged one waits for a person.
+    """
+
+    DEFAULT_CSS = DIALOG_CSS
+    BINDINGS = [Binding("y", "choose('accept')", "accept hit"), Binding("r", "choose('reject')", "reject hit"),
+                Binding("escape", "back", "back", show=False)] + [
+        Binding(key, f"app.{action}", show=False) for key, action in (
+            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
+
+    def __init__(self, request: PromptRequest, auto_delay_s: Callable[[], float | None] = lambda: None) -> None:
+        super().__init__()
+        assert request.review is not None
+        self.request, self.auto_delay_s = request, auto_delay_s
+        self.shown_at = time.monotonic()
+        self.closed = False
+        self.touched = False  # the technician started answering: no countdown any more
+        self.pending: str | None = None  # the override waiting for its reason
+        self.note = ""  # what the reason line says (e.g. that a reason is needed)
+
+    @property
+    def clean(self) -> bool:
+        return bool(self.request.review and self.request.review.checks_accepted)
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label(review_title(self.request), classes="title")
+            yield Static(review_body(self.request), classes="message")
+            with Horizontal():
+                yield Button("y accept", id="accept", variant="success" if self.clean else "default")
+                yield Button("r reject", id="reject", variant="default" if self.clean else "error")
+            yield Input(placeholder="why? (Enter to confirm, Esc to go back)", id="reason")
+            yield Static("", classes="countdown", id="countdown")
+
+    def on_mount(self) -> None:
+        self.set_class(not self.clean, "-flagged")
+        self.query_one("#accept" if self.clean else "#reject", Button).focus()
+        self.set_interval(0.1, self.tick)
+        self.tick()
+
+    def tick(self) -> None:
+        if self.closed:
+            return
+        if self.request.done.is_set():  # withdrawn: the campaign is stopping
+            self.finish()
+            return
+        label = self.query_one("#countdown", Static)
+        if self.pending is not None:
+            label.update(self.note or f"{self.pending} overrides the checks: type the reason, Enter (Esc: back)")
+            return
+        delay = self.auto_delay_s()
+        if not self.clean or delay is None or self.touched:
+            label.update("waiting for your verdict" + ("" if self.clean else " (a flagged hit never accepts itself)"))
+            return
+        left = self.shown_at + delay - time.monotonic()
+        if left <= 0:
+            self.request.reply("accept", automatic=True)
+            self.finish()
+        else:
+            label.update(f"simulated rig: a clean hit is accepted by itself in {left:.0f} s  (t: auto-confirm off)")
+
+    def restart_countdown(self) -> None:
+        self.shown_at = time.monotonic()
+
+    def action_choose(self, verdict: str) -> None:
+        self.touched = True
+        if (verdict == "accept") != self.clean:  # an override: the reason first
+            self.pending, self.note = verdict, ""
+            self.add_class("-reason")
+            self.query_one("#reason", Input).focus()
+            self.tick()
+            return
+        self.request.reply(verdict)
+        self.finish()
+
+    def action_back(self) -> None:
+        self.pending = None
+        self.remove_class("-reason")
+        self.query_one("#accept" if self.clean else "#reject", Button).focus()
+        self.tick()
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        reason = event.value.strip()
+        if self.pending is None:
+            return
+        if not reason:
+            self.note = f"an override needs a reason: type why you {self.pending} this hit, then Enter (Esc: back)"
+            self.tick()
+            return
+        self.request.reply(self.pending, reason)
+        self.finish()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        event.stop()
+        self.action_choose(str(event.button.id))
+
+    def finish(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self.dismiss(self.request.answer or "")

@@ -165,6 +165,11 @@ class MonitorScreen(Screen):
         panel = self.query_one("#impact-panel")
         panel.set_class(rejected, "-rejected")
         panel.border_title = title
+        panel.border_subtitle = self.state.range_text()
+        full = [name for name, use in e.range_use.items() if use >= 1.0]
+        clipped = sorted({r.partition(":")[2] for r in e.reasons if r.startswith("clipped:")} | set(full))
+        if clipped:
+            self.log_line(f"OVERLOAD on {', '.join(clipped)}: hit softer or raise that channel's range", "bold red")
         self.impact.show(e.force_n, e.accel_m_per_s2, e.channels, e.sample_rate_hz, "")
 
     def _step_processed(self, e: ev.StepProcessed) -> None:
@@ -174,8 +179,7 @@ class MonitorScreen(Screen):
         table = self.query_one("#steps", DataTable)
         table.add_row(*row_cells(self.state.steps[-1]))
         table.move_cursor(row=table.row_count - 1)
-        self.log_line(f"step {p.step}: load {e.load_n:.1f} N · bounce {e.bounce_hz:.2f} Hz · "
-                      f"k {e.roller_stiffness_n_per_m * 1e-6:.2f} N/µm", "cyan")
+        self.log_line(f"load {e.load_n:.1f} N · " + self.state.step_summary(e), "cyan")
         self.frf.show(e.frequencies_hz, e.h1_magnitude, e.coherence, e.channels, e.bounce_hz, e.tilt_hz, "")
         self.query_one("#frf-panel").border_title = (f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), "
                                                      f"tilt {tilt} Hz (orange)")
@@ -210,6 +214,8 @@ class MonitorScreen(Screen):
     def _finished(self, e: ev.CampaignFinished) -> None:
         style = "bold green" if e.status == "complete" else "bold red"
         self.log_line(f"campaign {e.status}: {e.path}" + (f" ({e.message})" if e.message else ""), style)
+        for line in self.state.end_summary(pd.MODEL_LABELS):
+            self.log_line(line, "bold")
         if e.status == "complete":
             self.log_line("o: browse this file · q: quit")
 

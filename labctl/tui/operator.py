@@ -1,7 +1,8 @@
 """The technician at the screen as the engine's Operator: a prompt becomes a dialog and the engine waits for it.
 
-``prompt`` is called in the engine's worker thread; it hands the request to the UI thread with
-``call_from_thread`` and blocks until the dialog is answered. When the campaign is stopped or aborted from
+``prompt`` and ``review_impact`` are called in the engine's worker thread; they hand the request to the UI
+thread with ``call_from_thread`` and block until the dialog is answered (the engine arms the next blow only
+after that). When the campaign is stopped or aborted from
 the UI while a dialog is open, the waiting prompt ends with ``StopRequested`` so the engine finishes cleanly.
 """
 
@@ -12,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from drivers.errors import DeviceDisconnected, DeviceError
-from drivers.interfaces import OperatorAction
+from drivers.interfaces import REVIEW_CHOICES, ImpactReview, OperatorAction
 from labctl.engine import StopRequested
 
 
@@ -26,12 +27,15 @@ class PromptRequest:
     answer: str | None = None
     cancelled: str | None = None  # the stop status when the prompt was withdrawn
     done: threading.Event = field(default_factory=threading.Event)
+    review: ImpactReview | None = None  # set for the per-hit gate: the blow the verdict is about
+    reason: str = ""  # the technician's reason for a verdict (required when it overrides the checks)
+    automatic: bool = False  # answered by the auto-accept countdown, not by a person
 
-    def reply(self, answer: str) -> None:
+    def reply(self, answer: str, reason: str = "", automatic: bool = False) -> None:
         if answer not in self.choices:
             raise ValueError(f"answer {answer!r} is not one of {list(self.choices)}")
         if not self.done.is_set():
-            self.answer = answer
+            self.answer, self.reason, self.automatic = answer, reason, automatic
             self.done.set()
 
     def withdraw(self, status: str) -> None:
@@ -45,13 +49,16 @@ class TuiOperator:
 
     ``show`` runs in the UI thread and must display the request (and eventually call ``reply``);
     ``tell`` shows a notice. Both are the app's callbacks, so this class knows nothing of widgets.
+    With ``reviews_hits`` every stored blow is put to the technician (``review_impact``); without it the
+    checks' verdicts stand.
     """
 
     name = "operator@tui"
 
     def __init__(self, call_in_ui: Callable[..., object], show: Callable[[PromptRequest], object],
-                 tell: Callable[[str], object]) -> None:
+                 tell: Callable[[str], object], reviews_hits: bool = False) -> None:
         self._call, self._show, self._tell = call_in_ui, show, tell
+        self.reviews_hits = reviews_hits
         self._lock = threading.Lock()
         self._pending: PromptRequest | None = None
         self._stopped: str | None = None
@@ -64,7 +71,20 @@ class TuiOperator:
     def prompt(self, message: str, choices: tuple[str, ...] = ("ok",), action: OperatorAction = "confirm") -> str:
         if not choices:
             raise DeviceError(self.name, "prompt", f"no choices offered for {message!r}")
-        request = PromptRequest(message, tuple(choices), action)
+        return self._ask(PromptRequest(message, tuple(choices), action))
+
+    def review_impact(self, review: ImpactReview) -> tuple[str, str] | None:
+        """The technician's verdict on a stored blow: ("accept" | "reject", reason), or None when the checks'
+        verdict stands (no gate, or a clean blow accepted by the visible auto-accept countdown)."""
+        if not self.reviews_hits:
+            return None
+        request = PromptRequest(review.message(), REVIEW_CHOICES, "review_impact", review=review)
+        answer = self._ask(request)
+        if request.automatic:
+            return None
+        return answer, request.reason or default_reason(review, answer)
+
+    def _ask(self, request: PromptRequest) -> str:
         with self._lock:
             if self._stopped:
                 raise StopRequested(self._stopped)
@@ -94,3 +114,12 @@ class TuiOperator:
             pending = self._pending
         if pending is not None:
             pending.withdraw(self._stopped)
+
+
+def default_reason(review: ImpactReview, answer: str) -> str:
+    """The stored reason of a verdict that agrees with the checks (an override always carries the technician's)."""
+    if answer == "accept":
+        return "confirmed by the operator: passed the checks" if review.checks_accepted else "accepted by the operator"
+    flagged = ", ".join(review.reasons)
+    return f"confirmed by the operator: {flagged}" if not review.checks_accepted and flagged else \
+        "rejected by the operator"

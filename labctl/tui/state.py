@@ -44,6 +44,11 @@ def row_cells(row: StepRow) -> tuple[str, ...]:
             f"{row.stiffness_n_per_m * 1e-6:.2f}", f"{row.coherence:.3f}")
 
 
+def sigma_text(std_n_per_m: float) -> str:
+    """`` ± 0.12`` (N/µm, 1-σ) when the uncertainty is known, else nothing."""
+    return f" ± {std_n_per_m * 1e-6:.2f}" if math.isfinite(std_n_per_m) else ""
+
+
 def clock(seconds: float | None) -> str:
     """``mm:ss`` (``h:mm:ss`` past an hour); ``--:--`` when unknown."""
     if seconds is None or not math.isfinite(seconds):
@@ -94,6 +99,10 @@ class CampaignState:
     last_impact: ev.ImpactAcquired | None = None
     last_step: ev.StepProcessed | None = None
     paused_at: float | None = None  # local time the engine paused: the ETA stands still until it resumes
+    trigger: str = ""  # "armed" (waiting for the blow) | "triggered" (a blow taken, waiting for its verdict) | ""
+    rejected: dict[str, int] = field(default_factory=dict)  # why blows were not used, over the campaign → count
+    steps_failed: int = 0
+    against_models: list[tuple[tuple[float, ...], dict[str, tuple[float, ...]]]] = field(default_factory=list)
 
     def plan(self, series_total: int, runs_total: int, impacts_per_step: int,
              steps_estimate: tuple[int, ...] = ()) -> None:
@@ -113,11 +122,18 @@ class CampaignState:
             self.position = event.position
         elif isinstance(event, ev.StepStarted):
             self.position, self.steps_total = event.position, event.steps_total
+            self.trigger = "armed"
         elif isinstance(event, ev.LoadMeasured):
             self.load_n = event.load_n
         elif isinstance(event, ev.ImpactAcquired):  # ImpactRejected too
-            self.position, self.last_impact = event.position, event
+            self.position, self.last_impact, self.trigger = event.position, event, "triggered"
+        elif isinstance(event, ev.OperatorPrompted) and event.action == "review_impact":
+            self.trigger = "armed"
+        elif isinstance(event, ev.StepFailed):
+            self.steps_failed += 1
+            self.trigger = ""
         elif isinstance(event, ev.Progress):
+            self.trigger = "armed" if self.trigger else ""
             self.position, self.impacts_done = event.position, event.impacts_done
             self.impacts_total = event.impacts_total
             self.eta_s, self.eta_at = event.eta_s, now
@@ -127,6 +143,7 @@ class CampaignState:
             key = (event.position.series, event.position.run)
             self.curves[key] = (tuple(event.load_n), tuple(event.stiffness_n_per_m))
             self.references = dict(event.reference_n_per_m)
+            self.against_models.append((tuple(event.stiffness_n_per_m), dict(event.reference_n_per_m)))
         elif isinstance(event, ev.Paused):
             self.status, self.position = "paused", event.position
             self.paused_at = now if self.paused_at is None else self.paused_at
@@ -137,10 +154,15 @@ class CampaignState:
             self.paused_at = None
         elif isinstance(event, ev.CampaignFinished):
             self.status, self.message, self.finished_at, self.eta_s = event.status, event.message, now, 0.0
+            self.trigger = ""
 
     def _step(self, event: ev.StepProcessed) -> None:
         p = event.position
-        self.last_step = event
+        self.last_step, self.trigger = event, ""
+        for why in event.rejected.values():
+            for reason in (why.split(", ") if why else ["no reason given"]):
+                key = reason_text((reason,))
+                self.rejected[key] = self.rejected.get(key, 0) + 1
         self.add_row(StepRow(p.series, p.run, p.step, event.load_n, event.bounce_hz,
                              (float(event.tilt_hz[0]), float(event.tilt_hz[1])),
                              event.roller_stiffness_n_per_m, event.coherence_at_bounce))
@@ -195,8 +217,50 @@ class CampaignState:
 
     def header_text(self, now: float | None = None) -> str:
         load = "--" if math.isnan(self.load_n) else f"{self.load_n:.1f}"
+        trigger = {"armed": " · ARMED: waiting for the blow", "triggered": " · TRIGGERED: judge the hit"}.get(
+            self.trigger if self.status == "running" else "", "")
         return (f"{self.progress_text()} · load {load} N · elapsed {clock(self.elapsed_s(now))} · "
-                f"ETA {clock(self.eta_now_s(now))}")
+                f"ETA {clock(self.eta_now_s(now))}{trigger}")
+
+    def step_summary(self, event: ev.StepProcessed) -> str:
+        """One step in a line: used and rejected blows (why), bounce, k ± 1-σ and the per-roller warning."""
+        k, sigma = event.roller_stiffness_n_per_m * 1e-6, sigma_text(event.roller_stiffness_std_n_per_m)
+        used = len(event.used_attempts)
+        rejected = "; ".join(f"#{a} {reason_text(tuple(w.split(', ')) if w else ())}"
+                             for a, w in sorted(event.rejected.items()))
+        text = (f"step {event.position.step}: {used} hits used" + (f", rejected {rejected}" if rejected else "")
+                + f" · bounce {event.bounce_hz:.2f} Hz · k {k:.2f}{sigma} N/µm")
+        rollers = [w for w in event.warnings if "roller" in w.lower()]
+        return text + (f" · WARNING {rollers[0]}" if rollers else "")
+
+    def end_summary(self, labels: dict[str, str] | None = None) -> list[str]:
+        """The end of the run: steps done, rejected blows and why, measured stiffness against the models
+        (``labels`` names the models as the plots do)."""
+        lines = [f"{len(self.steps)} steps identified" + (f", {self.steps_failed} failed" if self.steps_failed else "")]
+        if self.rejected:
+            lines.append("hits not used: " + ", ".join(f"{n}× {why}" for why, n in
+                                                      sorted(self.rejected.items(), key=lambda kv: -kv[1])))
+        else:
+            lines.append("hits not used: none")
+        ratios_by_model: dict[str, list[float]] = {}
+        for measured, models in self.against_models:
+            for model, values in models.items():
+                ratios_by_model.setdefault(model, []).extend(
+                    k / v for k, v in zip(measured, values, strict=False) if v and math.isfinite(k * v))
+        for model, ratios in ratios_by_model.items():
+            if ratios:
+                mean = sum(ratios) / len(ratios)
+                name = (labels or {}).get(model, model)
+                lines.append(f"measured/{name}: {mean:.2f} on average ({min(ratios):.2f}–{max(ratios):.2f})")
+        return lines
+
+    def range_text(self, limit: int = 6) -> str:
+        """The last blow's range use per channel (peak / range, %), the fullest first; ! at 90 % or more."""
+        e = self.last_impact
+        if e is None or not e.range_use:
+            return ""
+        items = sorted(e.range_use.items(), key=lambda kv: -kv[1])[:limit]
+        return "range use " + " ".join(f"{name} {u * 100:.0f}%{'!' if u >= 0.9 else ''}" for name, u in items)
 
     def modes_text(self) -> str:
         """The latest step's bounce and tilt frequencies, stiffness and coherence."""
@@ -204,5 +268,7 @@ class CampaignState:
         if s is None:
             return "bounce -- Hz · tilt -- Hz · k -- N/µm"
         return (f"bounce {s.bounce_hz:.2f} Hz · tilt {tilt_text(s.tilt_hz)} Hz\n"
-                f"k {s.roller_stiffness_n_per_m * 1e-6:.2f} N/µm · coherence {s.coherence_at_bounce:.3f} "
+                f"k {s.roller_stiffness_n_per_m * 1e-6:.2f}{sigma_text(s.roller_stiffness_std_n_per_m)} N/µm"
+                f"{' (1σ)' if math.isfinite(s.roller_stiffness_std_n_per_m) else ''} · "
+                f"coherence {s.coherence_at_bounce:.3f} "
                 f"(step {s.position.step})")

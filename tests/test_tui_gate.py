@@ -1,0 +1,162 @@
+"""The per-hit gate in the TUI, driven with Pilot on the simulated rig: after each stored blow the engine waits
+for the technician's verdict; an accepted flagged blow is used, a rejected clean blow is not, and the file
+says so (verdict source "operator", the step's used attempts).
+
+The twin does not double-hit by itself; the campaign's first blow is made a double hit through the twin's
+test hook (``RigTwin.next_blow_double``) from a wrapper around ``RigTwin.strike``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from drivers.sim.twin import RigTwin
+from labctl import events as ev
+from labctl.protocol import load_protocol
+from labctl.storage import CampaignReader
+from labctl.tui import LabApp, TuiSettings
+from labctl.tui.dialogs import PromptDialog, ReviewDialog
+from tests.engine_util import Recorder
+from tests.test_tui import SIZE, wait_for
+
+PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
+
+
+@pytest.fixture
+def first_blow_double(monkeypatch):
+    """The campaign's first blow is a double hit (a second pulse 100 ms later, 10 % as strong)."""
+    original, blows = RigTwin.strike, []
+
+    def strike(self: RigTwin):  # noqa: ANN202
+        blows.append(1)
+        if len(blows) == 1:
+            self.next_blow_double(delay_s=0.1, ratio=0.1)
+        return original(self)
+
+    monkeypatch.setattr(RigTwin, "strike", strike)
+    return blows
+
+
+def gate_settings(tmp_path: Path, **kw) -> TuiSettings:
+    return TuiSettings(protocol=load_protocol(PROTOCOL), out=tmp_path / "gate.h5", seed=2, autostart=True, **kw)
+
+
+async def next_dialog(pilot, app):
+    return await wait_for(pilot, lambda: app.outcome is not None or (
+        isinstance(app.screen, PromptDialog | ReviewDialog) and not app.screen.closed and app.screen), what="a dialog")
+
+
+async def type_text(pilot, text: str) -> None:
+    await pilot.press(*["space" if c == " " else c for c in text])
+
+
+async def test_no_auto_confirm_flagged_hit_waits_accepted_flagged_used_rejected_clean_not(tmp_path,
+                                                                                         first_blow_double):
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        mount = await next_dialog(pilot, app)
+        assert isinstance(mount, PromptDialog) and mount.request.action == "mount_specimen"
+        await pilot.press("enter")
+        gate = await next_dialog(pilot, app)
+        assert isinstance(gate, ReviewDialog)
+        review = gate.request.review
+        assert (review.step, review.attempt) == (1, 1) and "double_hit" in review.reasons
+        assert "FLAGGED (double hit)" in str(gate.query_one(".title").render())
+        await pilot.pause(1.0)  # nobody answers: the engine must not arm the next blow
+        assert len(events.of(ev.ImpactAcquired)) == 1 and app.screen is gate and not gate.request.done.is_set()
+        await pilot.press("y")  # accept the flagged blow: an override needs a reason
+        await pilot.press("enter")
+        assert not gate.request.done.is_set() and "needs a reason" in str(gate.query_one("#countdown").render())
+        await type_text(pilot, "second pulse harmless")
+        await pilot.press("enter")
+        answered = {(1, 1): "accept"}
+        while True:
+            dialog = await next_dialog(pilot, app)
+            if app.outcome is not None:
+                break
+            if isinstance(dialog, PromptDialog):
+                await pilot.press("enter")
+                await wait_for(pilot, lambda d=dialog: d.closed, what="the prompt to close")
+                continue
+            r = dialog.request.review
+            if not r.checks_accepted:  # the twin may clip a channel now and then: agree with the checks
+                await pilot.press("r")
+            elif (r.step, r.attempt) == (2, 1):  # reject a clean blow, with the reason
+                await pilot.press("r")
+                await type_text(pilot, "slipped")
+                await pilot.press("enter")
+            else:
+                await pilot.press("y")
+            await wait_for(pilot, lambda d=dialog: d.closed, what="the verdict to be taken")
+            answered[(r.step, r.attempt)] = dialog.request.answer
+        assert app.outcome.status == "complete"
+    with CampaignReader(tmp_path / "gate.h5") as reader:
+        steps = reader.runs(1)[0].steps
+        flagged, clean = steps[0].impacts[0], steps[1].impacts[0]
+        used = {s.step: s.result.used_attempts for s in steps}
+        verdicts = {(s.step, i.attempt): i.verdict for s in steps for i in s.impacts}
+    assert "double_hit" in flagged.checks.reasons and not flagged.checks.accepted
+    assert flagged.verdict.accepted and flagged.verdict.source == "operator"
+    assert flagged.verdict.reason == "second pulse harmless"
+    assert clean.checks.accepted and not clean.verdict.accepted and clean.verdict.source == "operator"
+    assert clean.verdict.reason == "slipped"
+    assert 1 in used[1] and 1 not in used[2] and len(used[2]) == 2
+    assert all(v.source == "operator" for v in verdicts.values())  # every blow went through the gate
+    assert {k: ("accept" if v.accepted else "reject") for k, v in verdicts.items()} == answered
+
+
+async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hit_waits(tmp_path, first_blow_double):
+    app = LabApp(gate_settings(tmp_path, auto_confirm_s=0.3))
+    async with app.run_test(size=SIZE) as pilot:
+        gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and app.screen, what="the gate")
+        assert not gate.request.review.checks_accepted
+        await pilot.pause(1.0)  # three countdowns long: a flagged blow never accepts itself
+        assert app.screen is gate and not gate.request.done.is_set()
+        assert "never accepts itself" in str(gate.query_one("#countdown").render())
+        await pilot.press("r")  # agrees with the checks: no reason asked
+        while app.outcome is None:  # clean blows accept themselves; any other flagged one waits for "r"
+            await pilot.pause(0.05)
+            if isinstance(app.screen, ReviewDialog) and not app.screen.closed:
+                if app.screen.request.review.checks_accepted:
+                    assert app.screen.request.review.attempt > 0
+                    continue
+                await pilot.pause(0.5)
+                assert not app.screen.request.done.is_set()
+                await pilot.press("r")
+    assert app.outcome.status == "complete"
+    with CampaignReader(tmp_path / "gate.h5") as reader:
+        steps = reader.runs(1)[0].steps
+        first = steps[0].impacts[0]
+        rest = [i for s in steps for i in s.impacts][1:]
+    assert not first.verdict.accepted and first.verdict.source == "operator"
+    assert first.verdict.reason == "confirmed by the operator: double_hit"
+    clean = [i for i in rest if i.checks.accepted]
+    flagged = [i for i in rest if not i.checks.accepted]
+    assert clean and all(i.verdict.accepted and i.verdict.source == "checks" for i in clean)
+    assert all(not i.verdict.accepted and i.verdict.source == "operator" for i in flagged)
+
+
+async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_path):
+    from labctl.tui.dialogs import ConfirmDialog
+
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        await next_dialog(pilot, app)
+        await pilot.press("enter")  # mount
+        gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and app.screen, what="the gate")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("n")  # not aborted: the gate is still waiting, nothing was armed meanwhile
+        await pilot.pause(0.5)
+        assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("y")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert app.outcome.status == "aborted" and len(events.of(ev.ImpactAcquired)) == 1
+    with CampaignReader(tmp_path / "gate.h5") as reader:
+        assert reader.attrs["status"] == "aborted"
