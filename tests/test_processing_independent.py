@@ -149,16 +149,16 @@ def test_tilt_pair_resolved_only_when_the_data_resolve_it():
         assert np.all(np.abs(k - k_true) <= 3 * np.array(r.roller_stiffnesses_fit_std_n_per_m))
 
 
-def test_bounce_is_reported_at_its_small_blow_limit():
+def test_a_blow_dependent_bounce_carries_the_shift_in_its_uncertainty():
     """A contact that softens with the square of the blow (the backbone curve of any smooth nonlinearity):
-    blows of 150/250/350 N move the bounce by up to ~1 Hz; the reported bounce is the small-blow limit, within
-    its stated 2σ, where the plain H1 average sits outside it, four times as far off."""
+    blows of 150/250/350 N move the bounce by up to ~1 Hz. The shift is estimated over the impacts and carried
+    in the stated uncertainty, so the small-blow truth lies within 2σ, with a warning to hit softer."""
     peaks = [150.0, 250.0, 350.0]
     k_each = [[K * (1 - 0.0004 * (p / 100.0) ** 2)] * 3 for p in peaks]
     g = generate(RIG, K, n_samples=N, seed=31, peak_n=peaks, k_per_impact=k_each, force_snr_db=50.0)
     r = run(g)
     truth = contact_truth(RIG, [K] * 3)["bounce_hz"]
-    assert r.small_blow is not None and r.small_blow["shift_hz"] < -0.2
-    assert abs(r.bounce_hz - truth) < 2 * r.bounce_hz_std
-    uncorrected = abs(r.bounce_hz + r.small_blow["shift_hz"] - truth)
-    assert uncorrected > 2 * r.bounce_hz_std and abs(r.bounce_hz - truth) < 0.25 * uncorrected
+    assert r.small_blow is not None and r.small_blow["significant"] and r.small_blow["shift_hz"] < -0.2
+    assert truth - r.bounce_hz > 0.2  # the blows pull the bounce down ...
+    assert abs(r.bounce_hz - truth) < 2 * r.bounce_hz_std  # ... and the stated uncertainty says by how much
+    assert any("hit softer" in w for w in r.warnings)

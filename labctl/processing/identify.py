@@ -421,15 +421,11 @@ def identify(
     if lin is not None and lin.warning():
         warnings.append(lin.warning())
     small_blow = _small_blow_limit(modes, spectra, used, lin, fs_hz)
-    if small_blow is not None and small_blow.applied:
-        modes = _shifted(modes, small_blow)
-        warnings.append(f"the blows' size moved the contact modes by {small_blow.shift_hz:+.3f} Hz at the bounce "
-                        f"(z {small_blow.z:+.1f}): reported at their small-blow limit")
-    elif small_blow is not None and small_blow.significant:
-        modes = _shifted(modes, small_blow, remove=False)
-        warnings.append(f"the blows' size moves the contact modes (z {small_blow.z:+.1f}) but they span too narrow "
-                        f"a range to extrapolate to a small blow: the {small_blow.shift_hz:+.3f} Hz they imply is "
-                        "carried as uncertainty; vary the hammer level, or hit softer")
+    if small_blow is not None and small_blow.significant:
+        modes = _widened(modes, small_blow)
+        warnings.append(f"the blows' size moves the contact modes by about {small_blow.shift_hz:+.3f} Hz at the "
+                        f"bounce (z {small_blow.z:+.1f}): the frequencies are those at these blows, their "
+                        "uncertainty covers the small-blow limit; hit softer or vary the hammer level")
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
                      dropped)
     result.linearity = lin.to_dict() if lin is not None else None
@@ -449,17 +445,14 @@ def _small_blow_limit(modes: ContactModes, spectra: Spectra, used: list[int], li
     return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b)
 
 
-def _shifted(modes: ContactModes, small: ZeroAmplitude, remove: bool = True) -> ContactModes:
-    """The contact modes moved to the small-blow limit: every mode by the bounce's relative shift (the blow
-    changes all roller stiffnesses alike), the shift's uncertainty added to each frequency's. Without
-    ``remove`` the modes stay where the blows put them and the whole shift is added to their uncertainty."""
+def _widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
+    """The contact modes with the blows' shift (relative to the bounce, as the blow changes every roller's
+    stiffness) and its uncertainty added to each frequency's 1-σ; the frequencies themselves are left as fitted."""
     fit = modes.fit
     f_b = float(fit.frequencies_hz[modes.classes.bounce])
-    rel = small.shift_hz / f_b if remove else 0.0
-    rel_std = (small.shift_std_hz if remove else math.hypot(small.shift_hz, small.shift_std_hz)) / f_b
-    freqs = fit.frequencies_hz * (1.0 - rel)
-    stds = np.hypot(fit.frequency_std_hz, freqs * rel_std)
-    return replace(modes, fit=replace(fit, frequencies_hz=freqs, frequency_std_hz=stds))
+    rel_std = math.hypot(small.shift_hz, small.shift_std_hz) / f_b
+    stds = np.hypot(fit.frequency_std_hz, fit.frequencies_hz * rel_std)
+    return replace(modes, fit=replace(fit, frequency_std_hz=stds))
 
 
 def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,

@@ -21,10 +21,6 @@ LINEARITY_LEVEL = 0.001  # two-sided level of the "frequency depends on the peak
 # The a² backbone is the first-order term, and a blow's modal amplitude also depends on where the hammer lands:
 # this share of the removed shift is kept as its uncertainty.
 MODEL_SHARE = 0.25
-# The shift is removed only when the blows span a² well enough that the extrapolation to zero is at most this
-# many times the span, and when it is small enough for the first-order backbone (a share of the frequency).
-MAX_EXTRAPOLATION = 2.0
-MAX_SHIFT_SHARE = 0.005
 
 
 @dataclass(frozen=True)
@@ -88,33 +84,25 @@ class ZeroAmplitude:
     z: float  # c over its 1-σ
     level: float
     significant: bool  # the blows' size moves the modes at the stated level
-    extrapolation: float  # a2_eff over the blows' span of a²: how far the fit reaches beyond the data
-    applied: bool  # significant, within MAX_EXTRAPOLATION and small against the frequency: removed
-
-    @property
-    def applied_shift_hz(self) -> float:
-        """The shift taken out of the step's frequencies (none unless the curvature is significant)."""
-        return self.shift_hz if self.applied else 0.0
 
     def to_dict(self) -> dict:
         return {"c_hz_per_n2_s2": self.c_hz_per_n2_s2, "c_std_hz_per_n2_s2": self.c_std_hz_per_n2_s2,
                 "a2_eff_n2_s2": self.a2_eff_n2_s2, "shift_hz": self.shift_hz, "shift_std_hz": self.shift_std_hz,
-                "z": self.z, "level": self.level, "significant": self.significant,
-                "extrapolation": self.extrapolation, "applied": self.applied}
+                "z": self.z, "level": self.level, "significant": self.significant}
 
 
 def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], bounce_hz_std: Sequence[float],
                    half_bandwidth_hz: float = math.inf, level: float = LINEARITY_LEVEL) -> ZeroAmplitude | None:
-    """The small-blow limit of the bounce over a step's impacts (None: fewer than two impacts or blows of one size).
+    """How far the blows' size moved a step's bounce above its small-blow limit (None: fewer than two impacts
+    or blows of one size).
 
     A smooth contact nonlinearity moves a mode's frequency with the square of its amplitude (the backbone
-    curve ω(A) = ω0 + κA² + O(A⁴)), and a blow's modal amplitude is proportional to its force spectrum at the
-    mode. The H1 average weights impact i by a_i², so the step's frequency is f0 + c·Σa⁴/Σa²; the shift is
-    that term. It is removed (with the uncertainty of c, and the bound (f_i - f̄)²/Γ of the impacts' first-order
-    frequencies for a mode of half-power half-bandwidth Γ) only when c differs from zero at ``level``: blows of
-    nearly one size cannot pin c, and extrapolating with it would add noise where there is no evidence of a shift;
-    nor when the blows span a² too narrowly for the extrapolation (``MAX_EXTRAPOLATION``) or the shift is too
-    large for the first-order backbone (``MAX_SHIFT_SHARE``): the linearity warning then stands alone.
+    curve ω(A) = ω0 + κA² + O(A⁴)), and a blow's modal amplitude is proportional to its force spectrum a_i at the
+    mode. The H1 average weights impact i by a_i², so the step's frequency is f0 + c·Σa⁴/Σa²: that term is the
+    shift, with the uncertainty of c, the bound (f_i - f̄)²/Γ of the impacts' first-order frequencies (Γ the half-
+    power half-bandwidth) and a share of the shift for higher-order terms and where each blow landed. The
+    shift is an estimate to carry, not to remove: an extrapolation over blows of similar size multiplies their
+    scatter, and the blow moves the tilt modes by other amounts than the bounce.
     """
     a, f, s = (np.asarray(v, float) for v in (amplitude_n_s, bounce_hz, bounce_hz_std))
     if len(a) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(a))):
@@ -135,8 +123,5 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     z = c / c_std
     shift = c * a2_eff
     model = MODEL_SHARE * abs(shift)
-    significant = bool(abs(z) > norm.isf(level / 2))
-    extrapolation = a2_eff / float(np.ptp(x))
-    applied = significant and extrapolation <= MAX_EXTRAPOLATION and abs(shift) <= MAX_SHIFT_SHARE * fm
     return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
-                         level, significant, extrapolation, applied)
+                         level, bool(abs(z) > norm.isf(level / 2)))
