@@ -140,8 +140,9 @@ class Search:
         return fit_model(self.data, spec, warm=warm, sigma=self.sigma, guess=guess,
                          seating_sigma=self.noise.seating_sigma)
 
-    def candidates(self, current: Fit, physical_only: bool = False) -> list[Candidate]:
-        """Every missing term alone, fitted to all points; best BIC first."""
+    def candidates(self, current: Fit, physical_only: bool = False, shapes: bool = True) -> list[Candidate]:
+        """Every missing term alone, fitted to all points; best BIC first. ``shapes``: a first term's shape
+        parameters may be freed (``shaped``)."""
         names = [n for n in EFFECTS if n not in current.spec.effects]
         if not physical_only:
             chain = SEARCHED_MEASUREMENT + DEPTH_ABSORBED
@@ -149,7 +150,7 @@ class Search:
         out = []
         for n in names:
             fit = self.fit(current.spec.with_effects(n), warm=current)
-            if not current.spec.terms:
+            if shapes and not current.spec.terms:
                 fit = self.shaped(fit, n)
             out.append(Candidate(n, fit, current.bic - fit.bic, share(current, fit), beyond(current, fit)))
         return sorted(out, key=lambda c: -c.delta_bic)
@@ -219,6 +220,12 @@ class Search:
             if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
                                                   or check.score_with > PARTIAL_HELD_OUT * check.score_without):
                 continue
+            if cand.name in cand.fit.spec.free_shape:
+                # A reshaped term has as many parameters as two library terms: when two library terms complete the
+                # explanation at least as well, the library's own forms are the simpler reading.
+                pair = self._pair(current, baseline, self.candidates(current, shapes=False))
+                if pair and pair[-1].fit.bic <= cand.fit.bic:
+                    return pair, ranked
             return [self._step(current, baseline, cand, check, ranked)], ranked
         return self._pair(current, baseline, ranked), ranked
 
