@@ -422,3 +422,12 @@ def test_the_twins_misalignment_keeps_its_kink_by_default():
     assert np.allclose(kinked, _tripp(case, load) * np.minimum(1.0, x), rtol=1e-12)
     rounded = Misalignment(5e-4, transition=0.5).apply(case, load, _tripp(case, load))
     assert np.allclose(rounded, _tripp(case, load) * x / np.sqrt(1 + x**2), rtol=1e-9)
+
+
+def test_a_library_term_that_completes_the_explanation_beats_a_reshaped_one():
+    # One short roller with roughness and small end effects: a rounded tilt law fits as well as the asperity
+    # term, but the library's own form already makes the residuals consistent, so it is the one named.
+    truth = world(SurfaceRoughness(1.5), EndEffects(0.1e-3), depth_m=1.5e-3)
+    result = run_discrepancy(synthesize(truth, types=[1], noise=NOISE, seed=1))
+    assert names(result) == ["surface_roughness"] and result.consistent
+    assert result.final.spec.free_shape == ()

@@ -213,6 +213,14 @@ class Search:
         ranked = self.candidates(current)
         eligible = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE
                     and (current is baseline or self.consistent(c.fit))]
+        if any(c.name in c.fit.spec.free_shape for c in eligible):
+            # The library's own forms first: a reshaped term only where no library term completes the explanation.
+            library = self.candidates(current, shapes=False)
+            for cand in [c for c in library if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE
+                         and self.consistent(c.fit)][:MAX_CHECKED]:
+                check = self.held_out(current.spec, cand.fit.spec)
+                if check is None or check.passed:
+                    return [self._step(current, baseline, cand, check, library)], library
         for cand in eligible[:MAX_CHECKED]:
             check = self.held_out(current.spec, cand.fit.spec)
             if check is not None and not check.passed:
