@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -31,13 +31,19 @@ STARTS: dict[str, tuple[dict[str, float], ...]] = {
     "surface_roughness": ({"asperity_scale": 1.0},),
     "end_effects": ({"edge_length_m": 0.1e-3},),
     "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5}),
-    "misalignment": ({"tilt_rad": 2e-4}, {"tilt_rad": 1e-3}),
+    "misalignment": ({"tilt_rad": 2e-4, "transition": 0.0}, {"tilt_rad": 1e-3, "transition": 0.3}),
     "setup_compliance": ({"stiffness_factor": 0.8}, {"stiffness_factor": 1.3}),
     "load_gain": ({"gain": 1.0},),
     "load_offset": ({"offset_n": 0.0},),
     "modulus_scale": ({"scale": 1.0},),
 }
 """Physically plausible starting points per effect; several where the term has a kink to cross."""
+
+
+FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {"misalignment": {"transition": (0.0, 0.6)}}
+"""Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
+rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
+spread over about a decade of load). The search frees one only when the data prefer it decisively (nested BIC)."""
 
 
 def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
@@ -63,6 +69,8 @@ class ModelSpec:
     """Measurement-side terms (``labctl.discrepancy.measurement``): applied to the model's inputs."""
     depth_bounds_m: tuple[float, float] = TRIPP_DEPTH_RANGE_M
     """Tripp's evaluation depth is fitted within its physical range (a depth outside it is no contact physics)."""
+    free_shape: tuple[str, ...] = ()
+    """Terms whose shape parameters (``FIT_ONLY_BOUNDS``) are fitted; the others keep the effect's default form."""
 
     def depth_at_bound(self, depth_m: float | None) -> bool:
         """A fitted depth pinned at an end of its range: the baseline cannot absorb what the data show."""
@@ -80,11 +88,19 @@ class ModelSpec:
         physical = [n for n in names if n not in MEASUREMENT]
         chain = [*self.measurement, *(n for n in names if n in MEASUREMENT)]
         return ModelSpec(self.baseline, canonical([*self.effects, *physical]), self.fixed,
-                         tuple(n for n in MEASUREMENT if n in chain), self.depth_bounds_m)
+                         tuple(n for n in MEASUREMENT if n in chain), self.depth_bounds_m, self.free_shape)
+
+    def with_free_shape(self, name: str) -> ModelSpec:
+        """The same model with ``name``'s shape parameters fitted too."""
+        return replace(self, free_shape=(*self.free_shape, name))
 
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
-        return [(n, k, lo, hi) for n in self.terms for k, (lo, hi) in _terms(n).BOUNDS.items()]
+        return [(n, k, lo, hi) for n in self.terms
+                for k, (lo, hi) in {**_terms(n).BOUNDS, **self._shape(n)}.items()]
+
+    def _shape(self, name: str) -> dict[str, tuple[float, float]]:
+        return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}
 
     def n_params(self) -> int:
         return int(self.fits_depth) + len(self.slots())
@@ -110,7 +126,7 @@ class ModelSpec:
 
     def encode(self, depth_m: float, values: dict[str, dict[str, float]]) -> np.ndarray:
         head = [math.log10(depth_m)] if self.fits_depth else []
-        tail = [(values[n][k] - lo) / (hi - lo) for n, k, lo, hi in self.slots()]
+        tail = [(values[n].get(k, getattr(_terms(n), k)) - lo) / (hi - lo) for n, k, lo, hi in self.slots()]
         return np.array(head + tail, dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

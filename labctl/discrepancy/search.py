@@ -29,7 +29,7 @@ import numpy as np
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
-from labctl.discrepancy.model import Fit, ModelSpec, fit_model
+from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor
 from labctl.physics.effects import EFFECTS
 
@@ -43,6 +43,8 @@ PARTIAL_SHARE = 0.85
 share of the discrepancy ..."""
 PARTIAL_HELD_OUT = 0.5
 """... and at most this fraction of the held-out misfit (rms, whitened) is left with it."""
+SHAPE_STARTS: dict[str, tuple[dict[str, float], ...]] = {"misalignment": ({"transition": 0.15}, {"transition": 0.4})}
+"""Starting values of the shape parameters when they are freed (from the default form's fitted parameters)."""
 MIN_GEOMETRIES = 3
 """Roller geometries needed to leave one out at a time (else repetitions are left out: a weak check)."""
 MAX_CHECKED = 3
@@ -134,11 +136,13 @@ class Search:
         self.folds = _folds(data)
         self._fold_cache: dict[tuple[str, ...], list[tuple[Fit, np.ndarray]]] = {}
 
-    def fit(self, spec: ModelSpec, warm: Fit | None = None) -> Fit:
-        return fit_model(self.data, spec, warm=warm, sigma=self.sigma, seating_sigma=self.noise.seating_sigma)
+    def fit(self, spec: ModelSpec, warm: Fit | None = None, guess: dict[str, dict[str, float]] | None = None) -> Fit:
+        return fit_model(self.data, spec, warm=warm, sigma=self.sigma, guess=guess,
+                         seating_sigma=self.noise.seating_sigma)
 
-    def candidates(self, current: Fit, physical_only: bool = False) -> list[Candidate]:
-        """Every missing term alone, fitted to all points; best BIC first."""
+    def candidates(self, current: Fit, physical_only: bool = False, shapes: bool = True) -> list[Candidate]:
+        """Every missing term alone, fitted to all points; best BIC first. ``shapes``: a first term's shape
+        parameters may be freed (``shaped``)."""
         names = [n for n in EFFECTS if n not in current.spec.effects]
         if not physical_only:
             chain = SEARCHED_MEASUREMENT + DEPTH_ABSORBED
@@ -146,8 +150,24 @@ class Search:
         out = []
         for n in names:
             fit = self.fit(current.spec.with_effects(n), warm=current)
+            if shapes and not current.spec.terms:
+                fit = self.shaped(fit, n)
             out.append(Candidate(n, fit, current.bic - fit.bic, share(current, fit), beyond(current, fit)))
         return sorted(out, key=lambda c: -c.delta_bic)
+
+    def shaped(self, fit: Fit, name: str) -> Fit:
+        """The term in its default form, or with its shape parameters (``FIT_ONLY_BOUNDS``) freed when that is a
+        decisive improvement (nested models: BIC by ``DECISIVE_BIC``). A rounded tilt law is then not read as
+        another effect; a small effect stays in its one-parameter form. Only a first term's shape is freed: a
+        further term is tested in its library form, which cannot bend to absorb the leftover structure of an
+        imperfect first term."""
+        if name not in FIT_ONLY_BOUNDS:
+            return fit
+        spec = fit.spec.with_free_shape(name)
+        values = fit.spec.decode(fit.x)[name]
+        free = min((self.fit(spec, warm=fit, guess={name: {**values, **shape}}) for shape in SHAPE_STARTS[name]),
+                   key=lambda f: f.bic)
+        return free if fit.bic - free.bic >= DECISIVE_BIC else fit
 
     def fold_fits(self, spec: ModelSpec) -> list[tuple[Fit, np.ndarray]]:
         """Per fold: the model fitted from scratch to the training part, and its residuals on the left-out part."""
@@ -193,6 +213,14 @@ class Search:
         ranked = self.candidates(current)
         eligible = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE
                     and (current is baseline or self.consistent(c.fit))]
+        if any(c.name in c.fit.spec.free_shape for c in eligible):
+            # The library's own forms first: a reshaped term only where no library term completes the explanation.
+            library = self.candidates(current, shapes=False)
+            for cand in [c for c in library if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE
+                         and self.consistent(c.fit)][:MAX_CHECKED]:
+                check = self.held_out(current.spec, cand.fit.spec)
+                if check is None or check.passed:
+                    return [self._step(current, baseline, cand, check, library)], library
         for cand in eligible[:MAX_CHECKED]:
             check = self.held_out(current.spec, cand.fit.spec)
             if check is not None and not check.passed:
@@ -200,6 +228,12 @@ class Search:
             if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
                                                   or check.score_with > PARTIAL_HELD_OUT * check.score_without):
                 continue
+            if cand.name in cand.fit.spec.free_shape:
+                # A reshaped term has as many parameters as two library terms: when two library terms complete the
+                # explanation at least as well, the library's own forms are the simpler reading.
+                pair = self._pair(current, baseline, self.candidates(current, shapes=False))
+                if pair and pair[-1].fit.bic <= cand.fit.bic:
+                    return pair, ranked
             return [self._step(current, baseline, cand, check, ranked)], ranked
         return self._pair(current, baseline, ranked), ranked
 

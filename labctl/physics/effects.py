@@ -119,9 +119,16 @@ class Misalignment(_Params):
 
     With a linear gap γ·x and stiffness per length k' = k/L_we, the contact length grows as
     L_c = sqrt(2F/(k'γ)) until it reaches L_we: k = k_full·min(1, L_c/L_we). Strongly length dependent.
+
+    That kink is the independent-spring (Winkler) picture. On an elastic body the load spreads beyond the
+    touching part and the last part of the length closes gradually, so the transition is rounded: ``transition``
+    w > 0 replaces min(1, x) by the generalised-mean soft minimum (1 + x^(−1/w))^(−w) (w → 0: the kink). It is not
+    a world parameter (not in ``BOUNDS``); the discrepancy fit frees it so a real tilt law's rounding is not
+    mistaken for another effect.
     """
 
     tilt_rad: float = 2e-4
+    transition: float = 0.0
     name: ClassVar[str] = "misalignment"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"tilt_rad": (0.0, 5e-3)}
 
@@ -131,7 +138,11 @@ class Misalignment(_Params):
         length = case.roller.contact_length_m
         per_length = stiffness_n_per_m / length
         contact_length = np.sqrt(2.0 * load_n / (per_length * self.tilt_rad))
-        return stiffness_n_per_m * np.minimum(1.0, contact_length / length)
+        if self.transition <= 0:
+            return stiffness_n_per_m * np.minimum(1.0, contact_length / length)
+        w = self.transition
+        ln_x = np.log(contact_length / length)
+        return stiffness_n_per_m * np.exp(-w * np.logaddexp(0.0, -ln_x / w))
 
 
 @dataclass(frozen=True)
