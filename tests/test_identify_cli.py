@@ -83,7 +83,7 @@ def test_identify_recovers_the_simulated_rigs_truth(tmp_path, roller_type, load_
     out = labctl_json("identify", str(path))
     # the twin's blows shift its nonlinear contact: the small-blow limit is good to its stated uncertainty
     assert abs(out["bounce_hz"] - truth["bounce_hz"]) <= max(0.05, 2 * out["bounce_hz_std"])
-    assert out["bounce_hz_std"] < 1e-3 * out["bounce_hz"]
+    assert out["bounce_hz_std"] < 5e-3 * out["bounce_hz"]
     k_true = float(np.mean(truth["roller_stiffness_n_per_m"]))
     assert out["roller_stiffness_n_per_m"] == pytest.approx(k_true, rel=0.005)
     assert all(i["accepted"] for i in out["impacts"]), json.dumps(out["impacts"])

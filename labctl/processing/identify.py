@@ -442,7 +442,8 @@ def _small_blow_limit(modes: ContactModes, spectra: Spectra, used: list[int], li
     f_b = float(modes.fit.frequencies_hz[b])
     k = int(np.argmin(np.abs(spectra.frequencies_hz - f_b)))
     amplitude = np.abs(spectra.force[used, k]) / fs_hz  # the blow's spectral density at the bounce, N·s
-    return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b)
+    return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b,
+                          level=SMALL_BLOW_LEVEL)
 
 
 def _widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
@@ -453,6 +454,14 @@ def _widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
     rel_std = math.hypot(small.shift_hz, small.shift_std_hz) / f_b
     stds = np.hypot(fit.frequency_std_hz, fit.frequencies_hz * rel_std)
     return replace(modes, fit=replace(fit, frequency_std_hz=stds))
+
+
+# The impacts' first-order frequencies carry approximate stds: the blows' shift is carried only on strong evidence.
+SMALL_BLOW_LEVEL = 1e-6
+# A per-roller solution is taken only when it is physically credible: rollers of one type differ by less than
+# this ratio, and their mean stays this close to the bounce's equal-roller value (rollers at ±15 % move it ~2 %).
+MAX_ROLLER_RATIO = 2.0
+MAX_MEAN_SHIFT = 0.08
 
 
 def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,
@@ -479,6 +488,13 @@ def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: Co
                             k_eq.value_n_per_m, split_std)
     except (ModelDomainError, np.linalg.LinAlgError, ValueError) as exc:
         warnings.append(f"per-roller stiffness not solved ({exc}): equal rollers assumed")
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
+    values = np.asarray(out.values_n_per_m, float)
+    off = out.mean_n_per_m / k_eq.value_n_per_m - 1.0
+    if not (np.all(values > 0) and values.max() <= MAX_ROLLER_RATIO * values.min() and abs(off) <= MAX_MEAN_SHIFT):
+        warnings.append(f"per-roller solution not credible (mean {100 * off:+.1f} % from the bounce's equal-roller "
+                        f"value, rollers {', '.join(f'{v:.3g}' for v in values)} N/m): equal rollers assumed — "
+                        "the tilt pair may be moved by the blows or misassigned")
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
     if out.differing:
         mean = out.mean_n_per_m
