@@ -427,7 +427,7 @@ def identify(
                         f"bounce (z {small_blow.z:+.1f}): the frequencies are those at these blows, their "
                         "uncertainty covers the small-blow limit; hit softer or vary the hammer level")
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
-                     dropped)
+                     dropped, blow_dependent=small_blow is not None and small_blow.significant)
     result.linearity = lin.to_dict() if lin is not None else None
     result.small_blow = small_blow.to_dict() if small_blow is not None else None
     return result
@@ -465,13 +465,18 @@ MAX_MEAN_SHIFT = 0.08
 
 
 def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,
-             warnings: list[str]) -> RollerStiffnesses:
-    """Per-roller stiffnesses from the three contact modes (equal-roller values when the pair is unresolved),
-    with a warning naming the rollers that differ beyond their uncertainty."""
+             warnings: list[str], blow_dependent: bool = False) -> RollerStiffnesses:
+    """Per-roller stiffnesses from the three contact modes (equal-roller values when the pair is unresolved, or
+    when the blows move the modes: they move the tilt pair by other amounts than the bounce), with a warning
+    naming the rollers that differ beyond their uncertainty."""
     fit, cls = modes.fit, modes.classes
     t_std = float(np.mean(fit.frequency_std_hz[list(cls.tilt)]))
     hidden = modes.split_std_hz if modes.split_std_hz is not None else math.sqrt(2.0) * t_std
     if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
+    if blow_dependent:
+        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes, the tilt pair by "
+                        "other amounts than the bounce; equal rollers assumed")
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     b, (t1, t2) = cls.bounce, cls.tilt
     idx = [b, t1, t2]
@@ -522,7 +527,7 @@ OPERATOR_REJECTED = "operator_rejected"
 def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, spectra: Spectra, used: list[int],
             names: tuple[str, ...], live: np.ndarray, rig: RigConfig, fs_hz: float, cfg: IdentifyConfig,
             contact: TrippContact | None, load_n: float | None, warnings: list[str],
-            dropped: tuple[str, ...] = ()) -> Identification:
+            dropped: tuple[str, ...] = (), blow_dependent: bool = False) -> Identification:
     fit, cls = modes.fit, modes.classes
     coh = mode_coherence(frf, modes)
     order = [cls.bounce, *cls.tilt]
@@ -536,7 +541,7 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
     b = cls.bounce
     tilt = list(cls.tilt) * (2 if len(cls.tilt) == 1 else 1)
     k_eq = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
-    rollers = _rollers(rig, names, live, modes, k_eq, warnings)
+    rollers = _rollers(rig, names, live, modes, k_eq, warnings, blow_dependent)
     budget = stiffness_budget(rig, rollers.mean_n_per_m,
                               rollers.mean_std_n_per_m if rollers.resolved else k_eq.std_n_per_m)
     k = Stiffness(rollers.mean_n_per_m, budget.total_std_n_per_m)
