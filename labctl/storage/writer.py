@@ -60,6 +60,7 @@ def _attr_value(value: Any) -> Any:
 
 ADC_BITS = (24, 16, 18, 20, 22, 12, 14)  # common converter resolutions, most likely first
 COMPRESS = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+COHERENCE_DECIMALS = 4  # the stored coherence (derived, recomputable from the raw impacts) is kept to 1e-4
 
 
 def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, float] | None:
@@ -284,10 +285,14 @@ class CampaignWriter:
         g = stg.create_group(s.RESULT)
         frf = result.frf
         if frf is not None:
-            keep = frf.frequencies_hz <= s.FRF_MAX_HZ
+            f_hz = np.asarray(frf.frequencies_hz)
+            stride = max(1, round(s.FRF_SPACING_HZ / (f_hz[1] - f_hz[0]))) if f_hz.size > 1 else 1
+            keep = np.flatnonzero(f_hz <= s.FRF_MAX_HZ)[::stride]
             g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep], **COMPRESS)
             g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
-            g.create_dataset("coherence", data=np.asarray(frf.coherence)[..., keep].astype(np.float32), **COMPRESS)
+            coh = np.asarray(frf.coherence)[..., keep].astype(np.float32)  # 0..1: four decimals are all it carries
+            g.create_dataset("coherence", data=coh, scaleoffset=COHERENCE_DECIMALS,
+                             chunks=coh.shape if coh.ndim == 1 else (1, coh.shape[-1]))
         _attrs(g, {f.name: getattr(result, f.name) for f in fields(result) if f.name != "frf"})
         if result.error:
             stg.attrs["failed"] = result.error
