@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.sim.twin import RigTwin
 from labctl.campaign import load_operator_script
 from labctl.errors import InputError
 from labctl.storage import CampaignReader
@@ -29,21 +28,6 @@ attempt = 1
 verdict = "reject"
 reason = "hammer slipped on the disc edge"
 """
-
-
-@pytest.fixture
-def first_blow_double(monkeypatch):
-    """The campaign's first blow is a double hit (a second pulse 100 ms later, 10 % as strong)."""
-    original, blows = RigTwin.strike, []
-
-    def strike(self: RigTwin):  # noqa: ANN202
-        blows.append(1)
-        if len(blows) == 1:
-            self.next_blow_double(delay_s=0.1, ratio=0.1)
-        return original(self)
-
-    monkeypatch.setattr(RigTwin, "strike", strike)
-    return blows
 
 
 def test_scripted_verdicts_are_honoured_live_stored_and_reprocessed(tmp_path, capsys, first_blow_double):

@@ -10,9 +10,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-
-from drivers.sim.twin import RigTwin
 from labctl import events as ev
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
@@ -22,21 +19,6 @@ from tests.engine_util import Recorder
 from tests.test_tui import SIZE, wait_for
 
 PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
-
-
-@pytest.fixture
-def first_blow_double(monkeypatch):
-    """The campaign's first blow is a double hit (a second pulse 100 ms later, 10 % as strong)."""
-    original, blows = RigTwin.strike, []
-
-    def strike(self: RigTwin):  # noqa: ANN202
-        blows.append(1)
-        if len(blows) == 1:
-            self.next_blow_double(delay_s=0.1, ratio=0.1)
-        return original(self)
-
-    monkeypatch.setattr(RigTwin, "strike", strike)
-    return blows
 
 
 def gate_settings(tmp_path: Path, **kw) -> TuiSettings:
