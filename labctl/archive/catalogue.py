@@ -18,6 +18,7 @@ from typing import Any
 
 from labctl.archive.source import CampaignRecord, read_campaign, root_sha256
 from labctl.errors import InputError
+from labctl.storage.records import result_from_mapping
 from labctl.storage.results import read_results, results_path
 from labctl.storage.writer import utc_now
 
@@ -248,15 +249,15 @@ def _specimen_row(series: int, sp: dict[str, Any]) -> dict[str, Any]:
 
 
 def _result_columns(result: dict[str, Any] | None) -> dict[str, Any]:
-    r = result or {}
-    tilt = r.get("tilt_hz") if isinstance(r.get("tilt_hz"), list) else []
-    k = edge(r.get("roller_stiffness_n_per_m"))
-    return {"identified": int(k is not None and k > 0), "bounce_hz": edge(r.get("bounce_hz")),
-            "bounce_hz_std": edge(r.get("bounce_hz_std")), "bounce_damping_ratio": edge(r.get("bounce_damping_ratio")),
+    r = result_from_mapping({k: v for k, v in (result or {}).items() if v is not None})  # a sidecar's JSON, typed
+    tilt = r.tilt_hz
+    k = edge(r.roller_stiffness_n_per_m)
+    return {"identified": int(k is not None and k > 0), "bounce_hz": edge(r.bounce_hz),
+            "bounce_hz_std": edge(r.bounce_hz_std), "bounce_damping_ratio": edge(r.bounce_damping_ratio),
             "tilt_a_hz": edge(tilt[0]) if len(tilt) > 0 else None,
             "tilt_b_hz": edge(tilt[1]) if len(tilt) > 1 else None,
-            "stiffness_n_per_m": k, "stiffness_std_n_per_m": edge(r.get("roller_stiffness_std_n_per_m")),
-            "coherence_at_bounce": edge(r.get("coherence_at_bounce"))}
+            "stiffness_n_per_m": k, "stiffness_std_n_per_m": edge(r.roller_stiffness_std_n_per_m),
+            "coherence_at_bounce": edge(r.coherence_at_bounce)}
 
 
 def _reprocessed_steps(record: CampaignRecord, st: _Stat) -> tuple[dict[str, Any] | None, bool]:

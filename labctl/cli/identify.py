@@ -89,18 +89,18 @@ def _text(r: dict[str, Any]) -> str:
         + ("" if r["tilt_pair_resolved"] else "   (pair not resolved)"),
         f"roller stiffness {r['roller_stiffness_n_per_m']:.5e} ± {r['roller_stiffness_std_n_per_m']:.2e} N/m",
     ]
-    budget = r.get("roller_stiffness_budget_n_per_m") or {}
+    budget = r["roller_stiffness_budget_n_per_m"] or {}
     if budget:
         names = {"modal_fit": "modal fit", "disc_mass": "disc mass", "setup_stiffness": "K_setup",
                  "rig_model": "rig model"}
         lines.append("  1-σ budget: " + ", ".join(f"{names.get(k, k)} {v:.2e}" for k, v in budget.items()) + " N/m")
-    ks, kstd = r.get("roller_stiffnesses_n_per_m") or [], r.get("roller_stiffnesses_fit_std_n_per_m") or []
+    ks, kstd = r["roller_stiffnesses_n_per_m"] or [], r["roller_stiffnesses_fit_std_n_per_m"] or []
     if ks:
-        how = ("from the bounce, the tilt split and the tilt shapes" if r.get("roller_stiffnesses_resolved")
+        how = ("from the bounce, the tilt split and the tilt shapes" if r["roller_stiffnesses_resolved"]
                else "tilt pair unresolved: the rollers cannot be told apart")
         lines.append("  per roller: " + ", ".join(f"{i + 1}: {k:.4e} ± {s:.1e}" for i, (k, s)
                                                  in enumerate(zip(ks, kstd, strict=True))) + f" N/m ({how})")
-    lin = r.get("linearity")
+    lin = r["linearity"]
     if lin:
         lines.append(f"linearity  bounce {100 * lin['slope_hz_per_n']:+.4f} ± {100 * lin['slope_std_hz_per_n']:.4f} Hz "
                      f"per 100 N of blow over {min(lin['peak_force_n']):.0f}-{max(lin['peak_force_n']):.0f} N"
