@@ -86,7 +86,7 @@ def raw_curve(type_id: int, rail_ra_m: float, world: str, seed: int, tmp: Path) 
     path.unlink()  # a campaign of type 4 holds several GB of raw impacts
     runs = sorted({r.run for r in rows})
     steps = min(sum(r.run == run for r in rows) for run in runs)
-    k = np.array([[r.result["roller_stiffness_n_per_m"] for r in rows if r.run == run][:steps] for run in runs])
+    k = np.array([[r.result.roller_stiffness_n_per_m for r in rows if r.run == run][:steps] for run in runs])
     loads = np.array([[r.load_n for r in rows if r.run == run][:steps] for run in runs]).mean(axis=0)
     return Curve(loads, k), rows
 
