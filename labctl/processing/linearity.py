@@ -56,19 +56,29 @@ def linearity_check(peak_force_n: Sequence[float], bounce_hz: Sequence[float], b
     """Weighted straight line of the impacts' bounce frequencies against their peak forces (None: fewer than
     two impacts or all blows of one size)."""
     p, f, s = (np.asarray(v, float) for v in (peak_force_n, bounce_hz, bounce_hz_std))
-    if len(p) < 2 or not np.all(np.isfinite(s)) or np.any(s <= 0):
+    line = _weighted_line(p, f, s)
+    if line is None:
         return None
-    w = 1.0 / s**2
-    pm = float(np.sum(w * p) / np.sum(w))
-    sxx = float(np.sum(w * (p - pm) ** 2))
-    if not sxx > 0 or float(np.ptp(p)) < 1e-3 * float(np.max(np.abs(p))):
-        return None
-    fm = float(np.sum(w * f) / np.sum(w))
-    slope = float(np.sum(w * (p - pm) * (f - fm)) / sxx)
-    slope_std = 1.0 / math.sqrt(sxx)
+    slope, slope_std, _ = line
     z = slope / slope_std
     return Linearity(tuple(map(float, p)), tuple(map(float, f)), tuple(map(float, s)), slope, slope_std, z, level,
                      bool(abs(z) > norm.isf(level / 2)))
+
+
+def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> tuple[float, float, float] | None:
+    """Slope of f against x weighted by 1/s², its 1-σ and the weighted mean of f (None: fewer than two points,
+    a non-finite or non-positive σ, or x of one value)."""
+    if len(x) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(x))):
+        return None
+    if float(np.ptp(x)) < 1e-3 * float(np.max(np.abs(x))):
+        return None
+    w = 1.0 / s**2
+    xm = float(np.sum(w * x) / np.sum(w))
+    sxx = float(np.sum(w * (x - xm) ** 2))
+    if not sxx > 0:
+        return None
+    fm = float(np.sum(w * f) / np.sum(w))
+    return float(np.sum(w * (x - xm) * (f - fm)) / sxx), 1.0 / math.sqrt(sxx), fm
 
 
 @dataclass(frozen=True)
@@ -105,19 +115,11 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     scatter, and the blow moves the tilt modes by other amounts than the bounce.
     """
     a, f, s = (np.asarray(v, float) for v in (amplitude_n_s, bounce_hz, bounce_hz_std))
-    if len(a) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(a))):
-        return None
     x = a**2
-    if float(np.ptp(x)) < 1e-3 * float(np.max(x)):
+    line = _weighted_line(x, f, s)
+    if line is None:
         return None
-    w = 1.0 / s**2
-    xm = float(np.sum(w * x) / np.sum(w))
-    sxx = float(np.sum(w * (x - xm) ** 2))
-    if not sxx > 0:
-        return None
-    fm = float(np.sum(w * f) / np.sum(w))
-    c = float(np.sum(w * (x - xm) * (f - fm)) / sxx)
-    c_std = 1.0 / math.sqrt(sxx)
+    c, c_std, fm = line
     a2_eff = float(np.sum(x**2) / np.sum(x))
     linearisation = float(np.max((f - fm) ** 2)) / half_bandwidth_hz
     z = c / c_std
