@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from labctl.errors import InputError, ModelDomainError
+from labctl.errors import InputError
 from labctl.physics import RigConfig, TrippContact
 from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
 from labctl.processing.errors import ProcessingError
@@ -27,9 +27,9 @@ from labctl.processing.frf import (
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.linearity import Linearity, ZeroAmplitude, linearity_check, zero_amplitude
+from labctl.processing.linearity import Linearity, linearity_check, small_blow_limit, widened
 from labctl.processing.modes import ForceNoise, Linearised, ModalFit, impact_shifts
-from labctl.processing.rollers import DIFFER_LEVEL, RollerStiffnesses, equal_rollers, solve_rollers
+from labctl.processing.rollers import per_roller
 from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
 from labctl.processing.stiffness import Stiffness, roller_only, stiffness_budget, stiffness_from_bounce
@@ -420,9 +420,9 @@ def identify(
                      widen)
     if lin is not None and lin.warning():
         warnings.append(lin.warning())
-    small_blow = _small_blow_limit(modes, spectra, used, lin, fs_hz)
+    small_blow = small_blow_limit(modes, spectra, used, lin, fs_hz)
     if small_blow is not None and small_blow.significant:
-        modes = _widened(modes, small_blow)
+        modes = widened(modes, small_blow)
         warnings.append(f"the blows' size moves the contact modes by about {small_blow.shift_hz:+.3f} Hz at the "
                         f"bounce (z {small_blow.z:+.1f}): the frequencies are those at these blows, their "
                         "uncertainty covers the small-blow limit; hit softer or vary the hammer level")
@@ -431,85 +431,6 @@ def identify(
     result.linearity = lin.to_dict() if lin is not None else None
     result.small_blow = small_blow.to_dict() if small_blow is not None else None
     return result
-
-
-def _small_blow_limit(modes: ContactModes, spectra: Spectra, used: list[int], lin: Linearity | None,
-                      fs_hz: float) -> ZeroAmplitude | None:
-    """How far the blows' size moved the step's bounce above its small-blow limit (None: not estimable)."""
-    if lin is None:
-        return None
-    b = modes.classes.bounce
-    f_b = float(modes.fit.frequencies_hz[b])
-    k = int(np.argmin(np.abs(spectra.frequencies_hz - f_b)))
-    amplitude = np.abs(spectra.force[used, k]) / fs_hz  # the blow's spectral density at the bounce, N·s
-    return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b,
-                          level=SMALL_BLOW_LEVEL)
-
-
-def _widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
-    """The contact modes with the blows' shift (relative to the bounce, as the blow changes every roller's
-    stiffness) and its uncertainty added to each frequency's 1-σ; the frequencies themselves are left as fitted."""
-    fit = modes.fit
-    f_b = float(fit.frequencies_hz[modes.classes.bounce])
-    rel_std = math.hypot(small.shift_hz, small.shift_std_hz) / f_b
-    stds = np.hypot(fit.frequency_std_hz, fit.frequencies_hz * rel_std)
-    return replace(modes, fit=replace(fit, frequency_std_hz=stds))
-
-
-# The impacts' first-order frequencies carry approximate stds: the blows' shift is carried only on strong evidence.
-SMALL_BLOW_LEVEL = 1e-6
-# A per-roller solution is taken only when it is physically credible: rollers of one type differ by less than
-# this ratio, and their mean stays this close to the bounce's equal-roller value (rollers at ±15 % move it ~2 %).
-MAX_ROLLER_RATIO = 2.0
-MAX_MEAN_SHIFT = 0.08
-
-
-def _rollers(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,
-             warnings: list[str], blow_dependent: bool = False) -> RollerStiffnesses:
-    """Per-roller stiffnesses from the three contact modes (equal-roller values when the pair is unresolved, or
-    when the blows move the modes: they move the tilt pair by other amounts than the bounce), with a warning
-    naming the rollers that differ beyond their uncertainty."""
-    fit, cls = modes.fit, modes.classes
-    t_std = float(np.mean(fit.frequency_std_hz[list(cls.tilt)]))
-    hidden = modes.split_std_hz if modes.split_std_hz is not None else math.sqrt(2.0) * t_std
-    if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
-    if blow_dependent:
-        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes, the tilt pair by "
-                        "other amounts than the bounce; equal rollers assumed")
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
-    b, (t1, t2) = cls.bounce, cls.tilt
-    idx = [b, t1, t2]
-    split_std = None
-    fc = fit.force_covariance
-    if fc is not None and np.all(np.isfinite(fc)):  # the force noise moves both tilt poles alike
-        force_var = np.diag(fc)[0::2]
-        response_var = np.clip(fit.frequency_std_hz**2 - force_var, 0.0, None)
-        split_std = math.sqrt(max(response_var[t1] + response_var[t2] + fc[2 * t1, 2 * t1] + fc[2 * t2, 2 * t2]
-                                  - 2.0 * fc[2 * t1, 2 * t2], 0.0))
-    try:
-        out = solve_rollers(rig, names, live, fit.frequencies_hz[idx], fit.frequency_std_hz[idx],
-                            fit.constants[[t1, t2]], None if fit.constants_std is None else fit.constants_std[[t1, t2]],
-                            k_eq.value_n_per_m, split_std)
-    except (ModelDomainError, np.linalg.LinAlgError, ValueError) as exc:
-        warnings.append(f"per-roller stiffness not solved ({exc}): equal rollers assumed")
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
-    values = np.asarray(out.values_n_per_m, float)
-    off = out.mean_n_per_m / k_eq.value_n_per_m - 1.0
-    if not (np.all(values > 0) and values.max() <= MAX_ROLLER_RATIO * values.min() and abs(off) <= MAX_MEAN_SHIFT):
-        warnings.append(f"per-roller solution not credible (mean {100 * off:+.1f} % from the bounce's equal-roller "
-                        f"value, rollers {', '.join(f'{v:.3g}' for v in values)} N/m): equal rollers assumed — "
-                        "the tilt pair may be moved by the blows or misassigned")
-        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
-    if out.differing:
-        mean = out.mean_n_per_m
-        worst = max(out.differing, key=lambda i: abs(out.z[i]))
-        parts = ", ".join(f"roller {i + 1} at {math.degrees(rig.contact_angles_rad[i]):.0f}° "
-                          f"{100 * (out.values_n_per_m[i] / mean - 1):+.1f} % (z {out.z[i]:+.1f})"
-                          for i in sorted(out.differing, key=lambda i: -abs(out.z[i])))
-        warnings.append(f"roller stiffnesses differ beyond their uncertainty (test at level {DIFFER_LEVEL:g}): "
-                        f"{parts} from their mean; check how roller {worst + 1} is seated")
-    return out
 
 
 def _operator_verdict(check: ImpactCheck, accept: bool | None) -> ImpactCheck:
@@ -541,7 +462,7 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
     b = cls.bounce
     tilt = list(cls.tilt) * (2 if len(cls.tilt) == 1 else 1)
     k_eq = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
-    rollers = _rollers(rig, names, live, modes, k_eq, warnings, blow_dependent)
+    rollers = per_roller(rig, names, live, modes, k_eq, warnings, blow_dependent)
     budget = stiffness_budget(rig, rollers.mean_n_per_m,
                               rollers.mean_std_n_per_m if rollers.resolved else k_eq.std_n_per_m)
     k = Stiffness(rollers.mean_n_per_m, budget.total_std_n_per_m)

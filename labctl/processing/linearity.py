@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import norm
+
+from labctl.processing.frf import Spectra
+from labctl.processing.search import ContactModes
 
 LINEARITY_LEVEL = 0.001  # two-sided level of the "frequency depends on the peak force" test
 # The a² backbone is the first-order term, and a blow's modal amplitude also depends on where the hammer lands:
@@ -127,3 +130,30 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     model = MODEL_SHARE * abs(shift)
     return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
                          level, bool(abs(z) > norm.isf(level / 2)))
+
+
+# The impacts' first-order frequencies carry approximate stds: the blows' shift is carried only on strong evidence.
+SMALL_BLOW_LEVEL = 1e-6
+
+
+def small_blow_limit(modes: ContactModes, spectra: Spectra, used: list[int], lin: Linearity | None,
+                      fs_hz: float) -> ZeroAmplitude | None:
+    """How far the blows' size moved the step's bounce above its small-blow limit (None: not estimable)."""
+    if lin is None:
+        return None
+    b = modes.classes.bounce
+    f_b = float(modes.fit.frequencies_hz[b])
+    k = int(np.argmin(np.abs(spectra.frequencies_hz - f_b)))
+    amplitude = np.abs(spectra.force[used, k]) / fs_hz  # the blow's spectral density at the bounce, N·s
+    return zero_amplitude(amplitude, lin.bounce_hz, lin.bounce_hz_std, float(modes.fit.damping_ratios[b]) * f_b,
+                          level=SMALL_BLOW_LEVEL)
+
+
+def widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
+    """The contact modes with the blows' shift (relative to the bounce, as the blow changes every roller's
+    stiffness) and its uncertainty added to each frequency's 1-σ; the frequencies themselves are left as fitted."""
+    fit = modes.fit
+    f_b = float(fit.frequencies_hz[modes.classes.bounce])
+    rel_std = math.hypot(small.shift_hz, small.shift_std_hz) / f_b
+    stds = np.hypot(fit.frequency_std_hz, fit.frequencies_hz * rel_std)
+    return replace(modes, fit=replace(fit, frequency_std_hz=stds))

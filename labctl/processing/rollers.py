@@ -21,8 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
+from labctl.errors import ModelDomainError
 from labctl.physics import RigConfig, rig_modes
 from labctl.physics.rig import ContactModeModel, contact_modes_hz, point_displacement
+from labctl.processing.search import ContactModes
+from labctl.processing.stiffness import Stiffness
 
 DIFFER_LEVEL = 0.001  # two-sided level of the "this roller differs from the others" test
 ANGLE_FALLBACK_RAD = 0.05
@@ -198,3 +201,57 @@ def solve_rollers(
     cov = cov_u * np.outer(k, k)
     z, differing = _differing(k, cov, rig.uncertainty.model_rel)
     return RollerStiffnesses((float(k[0]), float(k[1]), float(k[2])), cov, True, condition, z, differing)
+
+
+# A per-roller solution is taken only when it is physically credible: rollers of one type differ by less than
+# this ratio, and their mean stays this close to the bounce's equal-roller value (rollers at ±15 % move it ~2 %).
+MAX_ROLLER_RATIO = 2.0
+MAX_MEAN_SHIFT = 0.08
+
+
+def per_roller(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: ContactModes, k_eq: Stiffness,
+             warnings: list[str], blow_dependent: bool = False) -> RollerStiffnesses:
+    """Per-roller stiffnesses from the three contact modes (equal-roller values when the pair is unresolved, or
+    when the blows move the modes: they move the tilt pair by other amounts than the bounce), with a warning
+    naming the rollers that differ beyond their uncertainty."""
+    fit, cls = modes.fit, modes.classes
+    t_std = float(np.mean(fit.frequency_std_hz[list(cls.tilt)]))
+    hidden = modes.split_std_hz if modes.split_std_hz is not None else math.sqrt(2.0) * t_std
+    if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
+    if blow_dependent:
+        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes, the tilt pair by "
+                        "other amounts than the bounce; equal rollers assumed")
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
+    b, (t1, t2) = cls.bounce, cls.tilt
+    idx = [b, t1, t2]
+    split_std = None
+    fc = fit.force_covariance
+    if fc is not None and np.all(np.isfinite(fc)):  # the force noise moves both tilt poles alike
+        force_var = np.diag(fc)[0::2]
+        response_var = np.clip(fit.frequency_std_hz**2 - force_var, 0.0, None)
+        split_std = math.sqrt(max(response_var[t1] + response_var[t2] + fc[2 * t1, 2 * t1] + fc[2 * t2, 2 * t2]
+                                  - 2.0 * fc[2 * t1, 2 * t2], 0.0))
+    try:
+        out = solve_rollers(rig, names, live, fit.frequencies_hz[idx], fit.frequency_std_hz[idx],
+                            fit.constants[[t1, t2]], None if fit.constants_std is None else fit.constants_std[[t1, t2]],
+                            k_eq.value_n_per_m, split_std)
+    except (ModelDomainError, np.linalg.LinAlgError, ValueError) as exc:
+        warnings.append(f"per-roller stiffness not solved ({exc}): equal rollers assumed")
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
+    values = np.asarray(out.values_n_per_m, float)
+    off = out.mean_n_per_m / k_eq.value_n_per_m - 1.0
+    if not (np.all(values > 0) and values.max() <= MAX_ROLLER_RATIO * values.min() and abs(off) <= MAX_MEAN_SHIFT):
+        warnings.append(f"per-roller solution not credible (mean {100 * off:+.1f} % from the bounce's equal-roller "
+                        f"value, rollers {', '.join(f'{v:.3g}' for v in values)} N/m): equal rollers assumed — "
+                        "the tilt pair may be moved by the blows or misassigned")
+        return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
+    if out.differing:
+        mean = out.mean_n_per_m
+        worst = max(out.differing, key=lambda i: abs(out.z[i]))
+        parts = ", ".join(f"roller {i + 1} at {math.degrees(rig.contact_angles_rad[i]):.0f}° "
+                          f"{100 * (out.values_n_per_m[i] / mean - 1):+.1f} % (z {out.z[i]:+.1f})"
+                          for i in sorted(out.differing, key=lambda i: -abs(out.z[i])))
+        warnings.append(f"roller stiffnesses differ beyond their uncertainty (test at level {DIFFER_LEVEL:g}): "
+                        f"{parts} from their mean; check how roller {worst + 1} is seated")
+    return out
