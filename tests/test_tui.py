@@ -168,7 +168,8 @@ async def test_quit_with_a_prompt_open_stops_cleanly_and_the_file_resumes(tmp_pa
     assert again.status == "complete" and len(again.curves[0]["load_n"]) == 3
 
 
-async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_path):
+def _hold_after_step_1() -> tuple[threading.Event, threading.Event, Callable[[ev.Event], None]]:
+    """A subscriber that holds the engine after step 1 (``hold`` set) until ``release`` is set."""
     hold, release = threading.Event(), threading.Event()
 
     def hold_after_step_1(event: ev.Event) -> None:
@@ -176,6 +177,11 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
             hold.set()
             release.wait(30)
 
+    return hold, release, hold_after_step_1
+
+
+async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_path):
+    hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, hold.is_set)
@@ -236,13 +242,7 @@ def app_event(event: ev.Event):
 async def test_abort_dialog_pauses_acquisition_until_answered(tmp_path, answer):
     from labctl.tui.dialogs import ConfirmDialog
 
-    hold, release = threading.Event(), threading.Event()
-
-    def hold_after_step_1(event: ev.Event) -> None:
-        if isinstance(event, ev.StepProcessed) and event.position.step == 1:
-            hold.set()
-            release.wait(30)
-
+    hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: hold.is_set() and not isinstance(app.screen, PromptDialog), what="step 1")
