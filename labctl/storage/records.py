@@ -328,15 +328,23 @@ def curve_from_steps(series: int, run: int, specimen: str, steps: Sequence[tuple
     return RepetitionCurve(series, run, specimen, *cols)
 
 
-def result_summary(result: StepResult) -> dict[str, Any]:
-    """A StepResult as plain JSON values (no spectra): for catalogues, sidecars and ``--json`` output."""
-    def plain(value: Any) -> Any:
-        if is_dataclass(value):
-            return {k: plain(v) for k, v in asdict(value).items()}
-        if isinstance(value, dict):
-            return {str(k): plain(v) for k, v in value.items()}
-        if isinstance(value, list | tuple):
-            return [plain(v) for v in value]
-        return value.item() if isinstance(value, np.generic) else value
+def jsonable(value: Any) -> Any:
+    """Plain JSON values: dataclasses as objects, numpy scalars and arrays as Python ones, non-finite floats as null."""
+    if is_dataclass(value) and not isinstance(value, type):
+        return jsonable(asdict(value))
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return jsonable(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
-    return {f.name: plain(getattr(result, f.name)) for f in fields(StepResult) if f.name != "frf"}
+
+def result_summary(result: StepResult) -> dict[str, Any]:
+    """A StepResult as plain JSON values (no spectra; NaN as null): for catalogues, sidecars and ``--json``."""
+    return {f.name: jsonable(getattr(result, f.name)) for f in fields(StepResult) if f.name != "frf"}

@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from labctl.errors import InputError
+from labctl.storage.records import jsonable
 from labctl.storage.writer import utc_now
 
 RESULTS_FORMAT = "labctl-results"
@@ -38,21 +36,6 @@ def attrs_sha256(attrs: Mapping[str, Any]) -> str:
     """A content hash of a campaign's root attributes (identifies a campaign whatever its path or mtime)."""
     text = json.dumps(jsonable(dict(attrs)), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
-
-
-def jsonable(value: Any) -> Any:
-    """Plain JSON values: numpy scalars and arrays as Python ones, non-finite floats as null."""
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return jsonable(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def read_results(campaign: str | Path) -> dict[str, Any] | None:
