@@ -84,3 +84,17 @@ def test_classification_falls_back_to_frequency_order_when_shapes_cannot_tell():
     assert separation(pred, live) < 0.2
     cls = classify(np.array([[0.01], [0.02], [0.04]]), np.array([580.0, 582.0, 745.0]), pred, live)
     assert not cls.by_shape and cls.bounce == 2
+
+
+def test_the_noise_scaled_stopping_rule_lands_within_a_small_share_of_sigma_of_the_minimum(monkeypatch):
+    """Stopping once the Gauss–Newton step promises < GN_TOLERANCE noise variances costs no accuracy."""
+    import labctl.processing.modes as modes_mod
+
+    f, h = band_frf(paper_case_modes(), noise=2e-3, seed=4)
+    start = [(579.0, 0.02), (583.5, 0.016), (748.0, 0.02)]
+    quick = fit_modes(f, h, start)
+    monkeypatch.setattr(modes_mod, "GN_TOLERANCE", 1e-12)
+    tight = fit_modes(f, h, start, max_iter=200)
+    assert quick.converged and tight.converged
+    assert np.all(np.abs(quick.frequencies_hz - tight.frequencies_hz) < 0.05 * tight.frequency_std_hz)
+    assert quick.cost - tight.cost < 0.01 * tight.sigma2
