@@ -10,152 +10,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from labctl.errors import InputError
 from labctl.physics import RigConfig, TrippContact
+from labctl.processing.channels import channel_noise, live_channels, saturated_channels, without_overload_of
 from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
 from labctl.processing.errors import ProcessingError
+from labctl.processing.force_noise import ForceNoiseWidener
 from labctl.processing.frf import (
     FrfEstimate,
     Spectra,
-    WindowConfig,
     coherence_at,
     estimate_frf,
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.linearity import Linearity, linearity_check, small_blow_limit, widened
-from labctl.processing.modes import ForceNoise, Linearised, ModalFit, impact_shifts
+from labctl.processing.identification import Identification, IdentifyConfig, Mode
+from labctl.processing.linearity import small_blow_limit, step_linearity, widened
 from labctl.processing.rollers import per_roller
-from labctl.processing.search import ContactModes, channel_weights, fit_contact_modes, search_range_hz
+from labctl.processing.search import ContactModes, fit_contact_modes, search_range_hz
 from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
 from labctl.processing.stiffness import Stiffness, roller_only, stiffness_budget, stiffness_from_bounce
-
-
-@dataclass(frozen=True)
-class IdentifyConfig:
-    """Everything the pipeline lets a user tune; defaults suit the paper's rig and hammer."""
-
-    checks: CheckConfig = CheckConfig()
-    window: WindowConfig = WindowConfig()
-    band_widths: float = 4.0  # the fit band reaches this many half-power bandwidths past the outer modes
-    search_hz: tuple[float, float] | None = None  # where contact modes are sought (default: from the rig)
-
-
-@dataclass(frozen=True)
-class Mode:
-    """One identified contact mode: natural frequency and damping (window removed) with 1-σ, and its shape."""
-
-    kind: str  # "bounce" or "tilt"
-    frequency_hz: float
-    frequency_std_hz: float
-    damping_ratio: float
-    damping_ratio_std: float
-    shape: dict[str, float]  # real modal constant per channel, largest component +1
-    bounce_mac: float  # MAC with the rig model's bounce shape over the live channels
-    tilt_fraction: float  # share of the shape inside the model's tilt subspace
-    coherence: float  # at this mode, over the used impacts
-
-
-@dataclass
-class Identification:
-    """Result for one load step: modes, stiffness, the FRF they came from, and every impact's verdict."""
-
-    bounce_hz: float
-    bounce_hz_std: float
-    bounce_damping_ratio: float
-    bounce_damping_ratio_std: float
-    tilt_hz: tuple[float, float]
-    tilt_hz_std: tuple[float, float]
-    tilt_pair_resolved: bool
-    roller_stiffness_n_per_m: float
-    roller_stiffness_std_n_per_m: float
-    coherence_at_bounce: float
-    impacts: list[ImpactCheck]
-    frequencies_hz: np.ndarray
-    h1: np.ndarray
-    h2: np.ndarray
-    coherence: np.ndarray
-    channels: tuple[str, ...]
-    modes: list[Mode]
-    fs_hz: float
-    window_decay_rate_per_s: float  # the exponential window's rate; its damping is removed from the modes
-    fit_band_hz: tuple[float, float]
-    dead_channels: tuple[str, ...] = ()
-    dropped_channels: tuple[str, ...] = ()  # saturated in every impact: left out, the step goes on without them
-    classified_by_shape: bool = True
-    roller_only_stiffness_n_per_m: float | None = None
-    roller_only_stiffness_std_n_per_m: float | None = None
-    warnings: list[str] = field(default_factory=list)
-    # per roller, in the rig file's roller order; the mean is roller_stiffness_n_per_m
-    roller_stiffnesses_n_per_m: tuple[float, ...] = ()
-    roller_stiffnesses_std_n_per_m: tuple[float, ...] = ()  # total (modal fit and rig parameters)
-    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()  # the modal fit's share (what tells rollers apart)
-    roller_stiffnesses_resolved: bool = False  # False: the tilt pair could not tell the rollers apart
-    roller_stiffness_condition: float | None = None  # condition number of the per-roller inverse
-    rollers_differing: tuple[int, ...] = ()  # 1-based rollers whose stiffness differs beyond its uncertainty
-    roller_stiffness_budget_n_per_m: dict[str, float] = field(default_factory=dict)
-    linearity: dict | None = None  # bounce frequency against peak force over the step's impacts
-    small_blow: dict | None = None  # the modes' shift above their small-blow limit, removed from the result
-
-    @property
-    def accepted(self) -> list[int]:
-        return [c.index for c in self.impacts if c.accepted]
-
-    def to_dict(self) -> dict:
-        """The ``labctl identify --json`` object (no spectra)."""
-        out = {
-            "bounce_hz": self.bounce_hz,
-            "bounce_hz_std": self.bounce_hz_std,
-            "bounce_damping_ratio": self.bounce_damping_ratio,
-            "bounce_damping_ratio_std": self.bounce_damping_ratio_std,
-            "tilt_hz": list(self.tilt_hz),
-            "tilt_hz_std": list(self.tilt_hz_std),
-            "tilt_pair_resolved": self.tilt_pair_resolved,
-            "roller_stiffness_n_per_m": self.roller_stiffness_n_per_m,
-            "roller_stiffness_std_n_per_m": self.roller_stiffness_std_n_per_m,
-            "coherence_at_bounce": self.coherence_at_bounce,
-            "impacts": [
-                {"index": c.index, "accepted": c.accepted, "reasons": list(c.reasons),
-                 "peak_force_n": c.peak_force_n, "pulse_width_s": c.pulse_width_s,
-                 "second_hit_ratio": c.second_hit_ratio, "notes": list(c.notes)}
-                for c in self.impacts
-            ],
-            "modes": [
-                {"kind": m.kind, "frequency_hz": m.frequency_hz, "frequency_std_hz": m.frequency_std_hz,
-                 "damping_ratio": m.damping_ratio, "damping_ratio_std": m.damping_ratio_std,
-                 "bounce_mac": m.bounce_mac, "tilt_fraction": m.tilt_fraction, "coherence": m.coherence,
-                 "shape": m.shape}
-                for m in self.modes
-            ],
-            "channels": list(self.channels),
-            "dead_channels": list(self.dead_channels),
-            "dropped_channels": list(self.dropped_channels),
-            "classified_by_shape": self.classified_by_shape,
-            "fs_hz": self.fs_hz,
-            "window_decay_rate_per_s": self.window_decay_rate_per_s,
-            "fit_band_hz": list(self.fit_band_hz),
-            "warnings": list(self.warnings),
-        }
-        out.update({
-            "roller_stiffnesses_n_per_m": list(self.roller_stiffnesses_n_per_m),
-            "roller_stiffnesses_std_n_per_m": list(self.roller_stiffnesses_std_n_per_m),
-            "roller_stiffnesses_fit_std_n_per_m": list(self.roller_stiffnesses_fit_std_n_per_m),
-            "roller_stiffnesses_mean_n_per_m": self.roller_stiffness_n_per_m,
-            "roller_stiffnesses_resolved": self.roller_stiffnesses_resolved,
-            "roller_stiffness_condition": self.roller_stiffness_condition,
-            "rollers_differing": list(self.rollers_differing),
-            "roller_stiffness_budget_n_per_m": dict(self.roller_stiffness_budget_n_per_m),
-            "linearity": self.linearity,
-            "small_blow": self.small_blow,
-        })
-        if self.roller_only_stiffness_n_per_m is not None:
-            out["roller_only_stiffness_n_per_m"] = self.roller_only_stiffness_n_per_m
-            out["roller_only_stiffness_std_n_per_m"] = self.roller_only_stiffness_std_n_per_m
-        return out
 
 
 def _inputs(force_n: np.ndarray, accel: np.ndarray, fs_hz: float, channels: Sequence[str],
@@ -219,122 +97,6 @@ def _coherence_check(spectra: Spectra, frf: FrfEstimate, used: list[int], modes:
     return candidates[best] if without[best] >= min_coherence else None
 
 
-def _channel_noise(accel: np.ndarray, used: list[int]) -> np.ndarray:
-    """Each channel's noise floor: its spread over the record's last part, where the response has died out."""
-    tail = accel[used, :, -min(accel.shape[-1] // 4, 2048):]
-    return np.sqrt(np.mean(np.var(tail, axis=-1), axis=0))
-
-
-def _live_channels(frf: FrfEstimate) -> np.ndarray:
-    """Channels with signal: a flat (dead) sensor leaves a response spectrum of round-off only."""
-    power = frf.response_power
-    live = power > 1e-12 * float(power.max(initial=0.0))
-    if not live.any():
-        raise ProcessingError("every response channel is flat: no sensor signal")
-    return live
-
-
-class ForceNoiseWidener:
-    """Adds the force channel's noise to a fit's uncertainties (errors in both channels): used by the tilt
-    pair's resolution test and on the final fit. One per FRF (impacts used, live channels)."""
-
-    def __init__(self, frf: FrfEstimate, spectra: Spectra, used: list[int], sigma_f: np.ndarray, live: np.ndarray,
-                 noise: np.ndarray) -> None:
-        self.frf, self.spectra, self.used, self.sigma_f, self.live = frf, spectra, used, sigma_f, live
-        self.weights = channel_weights(noise[live])
-        self.active = bool(spectra.force_windows) and bool(np.any(sigma_f[used] > 0))
-        self._noise: dict[tuple[int, int], ForceNoise] = {}
-        self._done: dict[tuple[int, int, int], tuple[ModalFit, ModalFit, Linearised]] = {}
-
-    def force_noise(self, band: slice) -> ForceNoise:
-        key = (band.start, band.stop)
-        fn = self._noise.get(key)
-        if fn is None:
-            fn = self._noise[key] = _force_noise(self.spectra, self.used, self.sigma_f, band)
-        return fn
-
-    def linearised(self, fit: ModalFit, band: slice) -> Linearised | None:
-        """The linearised fit made when ``fit`` was widened (None if it was not)."""
-        hit = self._done.get((id(fit), band.start, band.stop))
-        return hit[2] if hit is not None and hit[0] is fit else None
-
-    def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
-        if not self.active:
-            return fit
-        key = (id(fit), band.start, band.stop)
-        hit = self._done.get(key)
-        if hit is not None and hit[0] is fit:
-            return hit[1]
-        try:
-            lin = Linearised(fit, self.frf.frequencies_hz[band], self.frf.h1[self.live][:, band].astype(complex),
-                             self.spectra.decay_rate_per_s, self.weights)
-        except np.linalg.LinAlgError:
-            return replace(fit, frequency_std_hz=np.full_like(fit.frequency_std_hz, np.inf))
-        fn = self.force_noise(band)
-        cov = lin.inv @ lin.force_outer(fn, range(len(fn.windows)), per_impact=False) @ lin.inv
-        var = np.clip(np.diag(cov), 0.0, None)
-        f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
-        z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
-        out = replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
-        self._done[key] = (fit, out, lin)
-        self._done[(id(out), band.start, band.stop)] = (out, out, lin)
-        return out
-
-
-def _force_noise(spectra: Spectra, used: list[int], sigma_f: np.ndarray, band: slice) -> ForceNoise:
-    lines = np.arange(spectra.frequencies_hz.shape[0])[band]
-    return ForceNoise(spectra=spectra.force[:, band][used].astype(complex), line_index=lines,
-                      n_fft=spectra.n_samples, windows=tuple(spectra.force_windows[i] for i in used),
-                      sigma_n=sigma_f[used])
-
-
-def _linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks: list[float], sigma_f: np.ndarray,
-               live: np.ndarray, noise: np.ndarray, widen: ForceNoiseWidener | None = None) -> Linearity | None:
-    """Each used impact's bounce frequency (first order from the step's fit) against its peak force."""
-    if len(used) < 2 or not spectra.force_windows:
-        return None
-    fit, band, b = modes.fit, modes.band, modes.classes.bounce
-    f_band = spectra.force[:, band][used].astype(complex)
-    x_band = spectra.response[:, :, band][used][:, live]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        h_each = x_band / f_band[:, None, :]
-    if not np.all(np.isfinite(h_each)):
-        return None
-    h_step = np.sum(x_band * f_band.conj()[:, None, :], axis=0) / np.sum(np.abs(f_band) ** 2, axis=0)
-    lin = widen.linearised(fit, band) if widen is not None else None
-    fn = widen.force_noise(band) if widen is not None else _force_noise(spectra, used, sigma_f, band)
-    try:
-        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each, fn,
-                                     decay_rate_per_s=spectra.decay_rate_per_s,
-                                     channel_weights=channel_weights(noise[live]),
-                                     noise_inflation=spectra.noise_inflation, linearised=lin)
-    except np.linalg.LinAlgError:
-        return None
-    f_b = float(fit.frequencies_hz[b])
-    return linearity_check(peaks, f_b + shifts[:, 2 * b], stds[:, 2 * b])
-
-
-def saturated_channels(checks: Sequence[ImpactCheck], names: Sequence[str]) -> tuple[str, ...]:
-    """Response channels overloaded in every impact: they carry no usable impact, the others still do."""
-    if not checks:
-        return ()
-    every = set(names)
-    for c in checks:
-        every &= set(c.overloaded)
-    return tuple(n for n in names if n in every)
-
-
-def _without_overload_of(check: ImpactCheck, dropped: tuple[str, ...]) -> ImpactCheck:
-    """The check with the dropped channels' overload forgiven (the impact may still fail for other reasons)."""
-    rest = tuple(n for n in check.overloaded if n not in dropped)
-    if rest or LOW_COHERENCE in check.reasons or "overload" not in check.reasons:
-        return check
-    reasons = tuple(r for r in check.reasons if r != "overload")
-    notes = tuple(n for n in check.notes if not n.startswith("near full scale"))
-    notes = (*notes, f"saturated channel(s) {', '.join(dropped)} dropped from the step")
-    return replace(check, accepted=not reasons, reasons=reasons, notes=notes)
-
-
 def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.ndarray, search: tuple[float, float],
          zeta: float, cfg: IdentifyConfig, noise: np.ndarray, widen: ForceNoiseWidener) -> ContactModes:
     """The contact modes, their uncertainties including the force noise."""
@@ -374,7 +136,7 @@ def identify(
               for i in range(force.shape[0])]
     dropped = saturated_channels(checks, names)
     if dropped:
-        checks = [_without_overload_of(c, dropped) for c in checks]
+        checks = [without_overload_of(c, dropped) for c in checks]
     if forced is not None:
         if len(forced) != len(checks):
             raise InputError(f"{len(forced)} operator verdicts for {len(checks)} impacts")
@@ -392,11 +154,11 @@ def identify(
     spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted, buffer=buf, segments=segments)
     used = list(range(len(accepted)))
     frf = estimate_frf(spectra, used)
-    live = _live_channels(frf) & np.array([n not in dropped for n in names])
+    live = live_channels(frf) & np.array([n not in dropped for n in names])
     if not live.any():
         raise ProcessingError(f"no response channel left: {', '.join(dropped)} saturated in every impact, "
                               "the others flat")
-    noise = _channel_noise(accel, accepted)
+    noise = channel_noise(accel, accepted)
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
     sigma_f = np.array([checks[i].force_noise_n for i in accepted])
@@ -416,7 +178,7 @@ def identify(
     if dropped:
         warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
-    lin = _linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise,
+    lin = step_linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise,
                      widen)
     if lin is not None and lin.warning():
         warnings.append(lin.warning())

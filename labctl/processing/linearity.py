@@ -17,8 +17,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import norm
 
+from labctl.processing.force_noise import ForceNoiseWidener, force_noise_on
 from labctl.processing.frf import Spectra
-from labctl.processing.search import ContactModes
+from labctl.processing.modes import impact_shifts
+from labctl.processing.search import ContactModes, channel_weights
 
 LINEARITY_LEVEL = 0.001  # two-sided level of the "frequency depends on the peak force" test
 # The a² backbone is the first-order term, and a blow's modal amplitude also depends on where the hammer lands:
@@ -157,3 +159,29 @@ def widened(modes: ContactModes, small: ZeroAmplitude) -> ContactModes:
     rel_std = math.hypot(small.shift_hz, small.shift_std_hz) / f_b
     stds = np.hypot(fit.frequency_std_hz, fit.frequencies_hz * rel_std)
     return replace(modes, fit=replace(fit, frequency_std_hz=stds))
+
+
+def step_linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks: list[float], sigma_f: np.ndarray,
+                   live: np.ndarray, noise: np.ndarray, widen: ForceNoiseWidener | None = None) -> Linearity | None:
+    """Each used impact's bounce frequency (first order from the step's fit) against its peak force."""
+    if len(used) < 2 or not spectra.force_windows:
+        return None
+    fit, band, b = modes.fit, modes.band, modes.classes.bounce
+    f_band = spectra.force[:, band][used].astype(complex)
+    x_band = spectra.response[:, :, band][used][:, live]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_each = x_band / f_band[:, None, :]
+    if not np.all(np.isfinite(h_each)):
+        return None
+    h_step = np.sum(x_band * f_band.conj()[:, None, :], axis=0) / np.sum(np.abs(f_band) ** 2, axis=0)
+    lin = widen.linearised(fit, band) if widen is not None else None
+    fn = widen.force_noise(band) if widen is not None else force_noise_on(spectra, used, sigma_f, band)
+    try:
+        shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each, fn,
+                                     decay_rate_per_s=spectra.decay_rate_per_s,
+                                     channel_weights=channel_weights(noise[live]),
+                                     noise_inflation=spectra.noise_inflation, linearised=lin)
+    except np.linalg.LinAlgError:
+        return None
+    f_b = float(fit.frequencies_hz[b])
+    return linearity_check(peaks, f_b + shifts[:, 2 * b], stds[:, 2 * b])

@@ -1,0 +1,48 @@
+"""Which response channels a step can use: live ones, their noise floors, and those saturated in every impact."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from labctl.processing.checks import LOW_COHERENCE, ImpactCheck
+from labctl.processing.errors import ProcessingError
+from labctl.processing.frf import FrfEstimate
+
+
+def channel_noise(accel: np.ndarray, used: list[int]) -> np.ndarray:
+    """Each channel's noise floor: its spread over the record's last part, where the response has died out."""
+    tail = accel[used, :, -min(accel.shape[-1] // 4, 2048):]
+    return np.sqrt(np.mean(np.var(tail, axis=-1), axis=0))
+
+
+def live_channels(frf: FrfEstimate) -> np.ndarray:
+    """Channels with signal: a flat (dead) sensor leaves a response spectrum of round-off only."""
+    power = frf.response_power
+    live = power > 1e-12 * float(power.max(initial=0.0))
+    if not live.any():
+        raise ProcessingError("every response channel is flat: no sensor signal")
+    return live
+
+
+def saturated_channels(checks: Sequence[ImpactCheck], names: Sequence[str]) -> tuple[str, ...]:
+    """Response channels overloaded in every impact: they carry no usable impact, the others still do."""
+    if not checks:
+        return ()
+    every = set(names)
+    for c in checks:
+        every &= set(c.overloaded)
+    return tuple(n for n in names if n in every)
+
+
+def without_overload_of(check: ImpactCheck, dropped: tuple[str, ...]) -> ImpactCheck:
+    """The check with the dropped channels' overload forgiven (the impact may still fail for other reasons)."""
+    rest = tuple(n for n in check.overloaded if n not in dropped)
+    if rest or LOW_COHERENCE in check.reasons or "overload" not in check.reasons:
+        return check
+    reasons = tuple(r for r in check.reasons if r != "overload")
+    notes = tuple(n for n in check.notes if not n.startswith("near full scale"))
+    notes = (*notes, f"saturated channel(s) {', '.join(dropped)} dropped from the step")
+    return replace(check, accepted=not reasons, reasons=reasons, notes=notes)
