@@ -38,6 +38,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from intervals import boot, ci, fmt, rms, share, wilson  # noqa: E402  (bench/ is the script's folder)
+
 from labctl.physics import RigConfig, load_rig  # noqa: E402
 from labctl.physics.rig_config import Sensor  # noqa: E402
 from labctl.processing import ProcessingError, check_impact, identify  # noqa: E402
@@ -162,34 +164,7 @@ def pair_ok(tilt: tuple[float, float]) -> bool:
     return abs(a - TILT_HZ[0]) < 0.3 and abs(b - TILT_HZ[1]) < 0.3
 
 
-RNG = np.random.default_rng(12345)
 DECAY_S = math.log(100.0) / (ZETA * 2 * math.pi * min(TILT_HZ))  # the slowest contact mode down to 1 %
-
-
-def boot(stat, *arrays, n: int = 1000) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of ``stat`` over seeds (arrays resampled together)."""
-    arrays = [np.asarray(a, float) for a in arrays]
-    m = len(arrays[0])
-    vals = []
-    for _ in range(n):
-        idx = RNG.integers(0, m, m)
-        vals.append(stat(*(a[idx] for a in arrays)))
-    lo, hi = np.nanpercentile(vals, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
-def wilson(k: int, n: int) -> tuple[float, float, float]:
-    """Share k/n with its 95 % Wilson interval."""
-    z = 1.96
-    p = k / n
-    c = (p + z * z / (2 * n)) / (1 + z * z / n)
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return p, c - h, c + h
-
-
-def rms(v) -> float:
-    v = np.asarray(v, float)
-    return float(np.sqrt(np.nanmean(v**2))) if np.any(np.isfinite(v)) else math.nan
 
 
 def seeds_for(case: int, seeds: int) -> range:
@@ -346,18 +321,6 @@ def double_hit_table(seeds: int, peers: bool) -> list[dict]:
         out.append({"scenario": label, "ours": float(np.mean(ours_flags)),
                     "peer": float(np.mean(peer_flags)) if peers else math.nan})
     return out
-
-
-def fmt(v: float, spec: str) -> str:
-    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
-
-
-def ci(pair: tuple[float, float], spec: str) -> str:
-    return f"[{format(pair[0], spec)}, {format(pair[1], spec)}]"
-
-
-def share(w: tuple[float, float, float] | None) -> str:
-    return "—" if w is None else f"{100 * w[0]:.0f} % [{100 * w[1]:.0f}, {100 * w[2]:.0f}]"
 
 
 def main(argv: list[str] | None = None) -> int:
