@@ -57,19 +57,27 @@ def prompt_title(action: str, hint: str = "") -> str:
     return ACTION_TITLES.get(action, "Please confirm")
 
 
+def affirmative(choices: tuple[str, ...]) -> str | None:
+    """The choice a "yes" stands for: the first one that is not a refusal (None if every choice refuses)."""
+    return next((c for c in choices if c.lower() not in REFUSALS), None)
+
+
 class PromptDialog(ModalScreen[str]):
-    """One engine prompt: a button per choice (Enter takes the first, digits pick by number).
+    """One engine prompt: a button per choice (Enter takes the first, digits pick by number, ``y`` the first
+    that is not a refusal, e.g. ``continue`` on a load-drift prompt).
 
     ``auto_delay_s`` is asked every tick: a number means the first choice is taken by itself that many
     seconds after the dialog appeared (shown as a countdown); None means wait for the technician.
+    A verdict on an impact (the monitor's ``r``/``y``) is not taken here: the engine would apply it only after
+    the prompt, to whatever impact is the latest by then.
     """
 
     DEFAULT_CSS = DIALOG_CSS
     BINDINGS = [Binding(str(n), f"choose({n})", show=False) for n in range(1, 10)] + [
+        Binding("y", "yes", "yes", show=False)] + [
         # the run stays under control while the engine waits for an answer (a modal screen hides app keys)
         Binding(key, f"app.{action}", show=False) for key, action in (
-            ("p", "pause"), ("a", "abort"), ("r", "verdict(False)"), ("y", "verdict(True)"), ("t", "auto_confirm"),
-            ("q", "quit"))]
+            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
 
     def __init__(self, request: PromptRequest, hint: str = "",
                  auto_delay_s: Callable[[], float | None] = lambda: None) -> None:
@@ -131,6 +139,12 @@ class PromptDialog(ModalScreen[str]):
     def action_choose(self, number: int) -> None:
         if 1 <= number <= len(self.request.choices):
             self.answer(self.request.choices[number - 1])
+
+    def action_yes(self) -> None:
+        """``y``: answer this prompt with its affirmative choice (a prompt of refusals only ignores it)."""
+        choice = affirmative(self.request.choices)
+        if choice is not None:
+            self.answer(choice)
 
 
 class ConfirmDialog(ModalScreen[bool]):
