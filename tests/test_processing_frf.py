@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from labctl.errors import InputError
 from labctl.processing.checks import locate_pulse
-from labctl.processing.frf import WindowConfig, estimate_frf, force_window, impact_spectra
+from labctl.processing.frf import WindowConfig, blow_spectra, estimate_frf, force_window, impact_spectra
 from labctl.processing.modes import fit_modes
 from tests.synth_impacts import SynthMode, accelerance, synth_impacts
 
@@ -101,3 +102,19 @@ def test_spectra_stop_at_the_configured_frequency(clean):
     sp = spectra_of(clean, WindowConfig(max_frequency_hz=2000.0))
     assert sp.frequencies_hz[-1] <= 2000.0 < sp.frequencies_hz[-1] + clean.fs_hz / 32768 * 1.01
     assert sp.response.shape == (3, 2, len(sp.frequencies_hz))
+
+
+def test_blow_spectra_of_raw_blows_give_the_analytic_frf_and_the_same_estimate_as_located_pulses(clean):
+    """The per-hit gate's FRF of blows not yet identified: pulses found by the checks, one blow or several."""
+    plain = WindowConfig(exponential_end=None)
+    sp = blow_spectra(clean.force_n, clean.accel_m_per_s2, clean.fs_hz, cfg=plain)
+    frf = estimate_frf(sp, [0, 1, 2])
+    band = (frf.frequencies_hz > 100) & (frf.frequencies_hz < 3000)
+    exact = accelerance(SINGLE, frf.frequencies_hz[band])
+    assert np.abs(frf.h1[:, band] - exact).max() / np.abs(exact).max() < 2e-4
+    windowed = estimate_frf(blow_spectra(clean.force_n, clean.accel_m_per_s2, clean.fs_hz), [0, 1, 2])
+    assert np.allclose(windowed.h1, estimate_frf(spectra_of(clean, WindowConfig()), [0, 1, 2]).h1)
+    one = estimate_frf(blow_spectra(clean.force_n[1], clean.accel_m_per_s2[1], clean.fs_hz), [0])
+    assert one.h1.shape == windowed.h1.shape and one.used == (0,)
+    with pytest.raises(InputError, match="expected"):
+        blow_spectra(clean.force_n, clean.accel_m_per_s2[:2], clean.fs_hz)

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from labctl import events as ev
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
-from labctl.tui.dialogs import PromptDialog, ReviewDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
 from tests.engine_util import Recorder
 from tests.test_tui import SIZE, wait_for
 
@@ -122,8 +124,6 @@ async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hi
 
 
 async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_path):
-    from labctl.tui.dialogs import ConfirmDialog
-
     events = Recorder()
     app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
     async with app.run_test(size=SIZE) as pilot:
@@ -142,3 +142,42 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
     assert app.outcome.status == "aborted" and len(events.of(ev.ImpactAcquired)) == 1
     with CampaignReader(tmp_path / "gate.h5") as reader:
         assert reader.attrs["status"] == "aborted"
+
+
+async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_under_review(tmp_path):
+    """Each gate draws |H1| and coherence of the step so far: the first blow alone, then both blows (the
+    curve changes); with both accepted it is the FRF the step is then identified with."""
+    from labctl.tui.plots import TracePlot
+
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        await next_dialog(pilot, app)
+        await pilot.press("enter")  # mount
+        shown = []
+        for attempt in (1, 2):
+            gate = await wait_for(pilot, lambda a=attempt: isinstance(app.screen, ReviewDialog) and not
+                                  app.screen.closed and app.screen.request.review.attempt == a and app.screen,
+                                  what=f"the gate of blow {attempt}")
+            assert gate.request.review.checks_accepted, "seed 2's first blows are clean"
+            frf = gate.frf
+            assert frf is not None and frf.attempts == tuple(range(1, attempt + 1))
+            magnitude = gate.query_one("#gate-frf-plot", TracePlot)
+            coherence = gate.query_one("#gate-coh-plot", TracePlot)
+            assert magnitude.point_count() > 100 and coherence.point_count() > 100
+            assert max(x for xs, _ in magnitude.lines.values() for x in xs) <= 2000.0
+            assert f"{attempt} blow" in str(gate.query_one("#gate-frf").border_title)
+            shown.append({k: list(v[1]) for k, v in magnitude.lines.items()})
+            await pilot.press("y")
+            await wait_for(pilot, lambda g=gate: g.closed, what="the verdict")
+        assert shown[0].keys() == shown[1].keys() and shown[0] != shown[1]
+        step = await wait_for(pilot, lambda: events.of(ev.StepProcessed), what="step 1 identified")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("y")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert step[0].used_attempts == (1, 2)
+    n = frf.frequencies_hz.size
+    assert np.allclose(frf.frequencies_hz, step[0].frequencies_hz[:n])
+    assert np.allclose(frf.h1_magnitude, step[0].h1_magnitude[:, :n], rtol=1e-5, atol=0)
+    assert np.allclose(frf.coherence, step[0].coherence[:, :n], atol=1e-6)

@@ -185,3 +185,33 @@ def test_repetitions_differ_in_marker_and_colour():
     from labctl.tui.plots import RUN_COLORS, RUN_MARKERS
 
     assert len(set(RUN_MARKERS)) == len(RUN_MARKERS) and len(set(RUN_COLORS[:3])) == 3
+
+
+def test_step_blows_average_the_accepted_blows_and_the_one_under_review():
+    """The gate's FRF: the operator's verdicts count over the checks', a new step starts afresh."""
+    from drivers.interfaces import ImpactReview
+    from labctl.processing.frf import blow_spectra, estimate_frf
+    from labctl.tui.stepfrf import StepBlows
+    from tests.synth_impacts import SynthMode, synth_impacts
+
+    s = synth_impacts([SynthMode("bounce", 745.0, 0.02, np.array([0.04, -0.01]))], ("A1Z", "A4Z"), n_impacts=4,
+                      n_samples=8192, snr_db=30.0, seed=3)
+    blows = StepBlows()
+    blows(ev.StepStarted(0.0, ev.Position(1, 1, 2), 3, 360.0, 40.0))
+    for i, accepted in enumerate((True, False, True, True)):  # the checks flag blow 2
+        cls = ev.ImpactAcquired if accepted else ev.ImpactRejected
+        blows(cls(1.0, ev.Position(1, 1, 2, 1), i + 1, accepted, (), 200.0, 3e-4, s.fs_hz, s.force_n[i],
+                  s.accel_m_per_s2[i], ("A1Z", "A4Z")))
+
+    def review(attempt: int, step: int = 2) -> ImpactReview:
+        return ImpactReview(1, 1, step, attempt, True, (), 200.0, 3e-4)
+
+    frf = blows.frf_so_far(review(4), {3: False})  # the technician rejected blow 3: blows 1 and 4 remain
+    assert frf is not None and frf.attempts == (1, 4) and frf.band_coherence_before is None
+    expected = estimate_frf(blow_spectra(s.force_n[[0, 3]], s.accel_m_per_s2[[0, 3]], s.fs_hz), [0, 1])
+    assert np.allclose(frf.h1_magnitude, np.abs(expected.h1)) and "2 blows averaged" in frf.title()
+    both = blows.frf_so_far(review(4), {2: True})  # the flagged blow accepted by the technician
+    assert both.attempts == (1, 2, 3, 4) and 0 < both.band_coherence_before <= 1 and "→" in both.title()
+    assert blows.frf_so_far(review(5), {}) is None and blows.frf_so_far(review(1, step=3), {}) is None
+    blows(ev.StepStarted(2.0, ev.Position(1, 1, 3), 3, 720.0, 80.0))
+    assert blows.frf_so_far(review(4), {}) is None

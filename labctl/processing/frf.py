@@ -19,6 +19,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from labctl.errors import InputError
+from labctl.processing.checks import CheckConfig, check_impact
 
 WORKERS = 2
 _WORK = threading.local()
@@ -215,3 +216,21 @@ def coherence_at(spectra: Spectra, used: list[int] | tuple[int, ...], bins: np.n
         coh = np.where(sxx > 0, np.abs(sxf) ** 2 / (sff * sxx), 0.0)
     total = float(np.sum(weights))
     return float(np.sum(coh * weights) / total) if total > 0 else 0.0
+
+
+def blow_spectra(force_n: np.ndarray, accel_m_per_s2: np.ndarray, fs_hz: float,
+                 checks: CheckConfig | None = None, cfg: WindowConfig = WindowConfig()) -> Spectra:  # noqa: B008
+    """Spectra of raw blows (n_impacts, n) / (n_impacts, n_ch, n), each windowed as ``identify`` windows it:
+    its pulse and smaller further pulses located by the impact checks. For an FRF of blows before their step
+    is identified (the per-hit gate); ``estimate_frf`` averages them."""
+    force = np.atleast_2d(np.asarray(force_n, dtype=float))
+    accel = np.asarray(accel_m_per_s2, dtype=float)
+    if accel.ndim == 2:
+        accel = accel[None]
+    if accel.ndim != 3 or accel.shape[0] != force.shape[0] or accel.shape[2] != force.shape[1]:
+        raise InputError(f"force has shape {force.shape} and accel {accel.shape}; expected (n_impacts, n_samples) "
+                         "and (n_impacts, n_channels, n_samples)")
+    found = [check_impact(force[i], accel[i], fs_hz, index=i, config=checks or CheckConfig())
+             for i in range(force.shape[0])]
+    pulses = [(c.pulse_start, c.pulse_end, c.force_noise_n) for c in found]
+    return impact_spectra(force, accel, fs_hz, pulses, cfg, segments=[c.further_pulses for c in found])

@@ -23,6 +23,7 @@ from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
 from labctl.tui.monitor import MonitorScreen
 from labctl.tui.operator import PromptRequest, TuiOperator
 from labctl.tui.state import reason_text
+from labctl.tui.stepfrf import StepBlows
 
 DEFAULT_AUTO_CONFIRM_S = 3.0
 
@@ -96,6 +97,7 @@ class LabApp(App[Outcome | None]):
         self.quit_when_done = False
         self.rejection = ""  # why the step's latest impact was rejected (titles the next strike prompt)
         self.monitor = MonitorScreen(settings.protocol)
+        self.blows = StepBlows()  # the step's blows so far, for the gate's FRF (filled in the engine thread)
         self._plan_counters()
 
     # --- screens --------------------------------------------------------------------------------------------
@@ -163,7 +165,7 @@ class LabApp(App[Outcome | None]):
         assert s.protocol is not None
         return run_campaign(s.protocol, out=s.out_path(), backend=s.backend, resume=s.resume, world=s.world,
                             seed=s.seed, rig=s.rig, devices=s.devices, operator=self.operator,
-                            subscribers=(self._forward, *self.extra_subscribers), control=self.control)
+                            subscribers=(self.blows, self._forward, *self.extra_subscribers), control=self.control)
 
     def _forward(self, event: ev.Event) -> None:
         self.post_message(EngineEvent(event))
@@ -203,7 +205,8 @@ class LabApp(App[Outcome | None]):
     def show_prompt(self, request: PromptRequest) -> None:
         """Open the dialog for an engine prompt (UI thread); a blow to judge opens the per-hit gate."""
         if request.review is not None:
-            self.push_screen(ReviewDialog(request, self.auto_confirm_after_s))
+            frf = self.blows.frf_so_far(request.review, self.operator.verdicts(request.review))
+            self.push_screen(ReviewDialog(request, self.auto_confirm_after_s, frf))
             if not request.review.checks_accepted:
                 self.bell()
             return

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -12,7 +13,9 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, Static
 
 from labctl.tui.operator import PromptRequest
+from labctl.tui.plots import FrfPlots, TracePlot
 from labctl.tui.state import reason_text
+from labctl.tui.stepfrf import StepFrf
 
 ACTION_TITLES = {
     "mount_specimen": "Mount the specimen",
@@ -47,6 +50,9 @@ ReviewDialog Button { margin-right: 2; }
 ReviewDialog Input { display: none; }
 ReviewDialog.-reason Input { display: block; }
 ReviewDialog .countdown { color: $text-muted; width: 100%; }
+ReviewDialog #gate-frf { height: 12; width: 100%; border: round $primary; }
+ReviewDialog.-narrow #gate-coh-plot { display: none; }
+ReviewDialog.-short #gate-frf { display: none; }
 """
 
 
@@ -57,19 +63,27 @@ def prompt_title(action: str, hint: str = "") -> str:
     return ACTION_TITLES.get(action, "Please confirm")
 
 
+def affirmative(choices: tuple[str, ...]) -> str | None:
+    """The choice a "yes" stands for: the first one that is not a refusal (None if every choice refuses)."""
+    return next((c for c in choices if c.lower() not in REFUSALS), None)
+
+
 class PromptDialog(ModalScreen[str]):
-    """One engine prompt: a button per choice (Enter takes the first, digits pick by number).
+    """One engine prompt: a button per choice (Enter takes the first, digits pick by number, ``y`` the first
+    that is not a refusal, e.g. ``continue`` on a load-drift prompt).
 
     ``auto_delay_s`` is asked every tick: a number means the first choice is taken by itself that many
     seconds after the dialog appeared (shown as a countdown); None means wait for the technician.
+    A verdict on an impact (the monitor's ``r``/``y``) is not taken here: the engine would apply it only after
+    the prompt, to whatever impact is the latest by then.
     """
 
     DEFAULT_CSS = DIALOG_CSS
     BINDINGS = [Binding(str(n), f"choose({n})", show=False) for n in range(1, 10)] + [
+        Binding("y", "yes", "yes", show=False)] + [
         # the run stays under control while the engine waits for an answer (a modal screen hides app keys)
         Binding(key, f"app.{action}", show=False) for key, action in (
-            ("p", "pause"), ("a", "abort"), ("r", "verdict(False)"), ("y", "verdict(True)"), ("t", "auto_confirm"),
-            ("q", "quit"))]
+            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
 
     def __init__(self, request: PromptRequest, hint: str = "",
                  auto_delay_s: Callable[[], float | None] = lambda: None) -> None:
@@ -132,6 +146,12 @@ class PromptDialog(ModalScreen[str]):
         if 1 <= number <= len(self.request.choices):
             self.answer(self.request.choices[number - 1])
 
+    def action_yes(self) -> None:
+        """``y``: answer this prompt with its affirmative choice (a prompt of refusals only ignores it)."""
+        choice = affirmative(self.request.choices)
+        if choice is not None:
+            self.answer(choice)
+
 
 class ConfirmDialog(ModalScreen[bool]):
     """A yes/no question before something that cannot be undone (abort, quit mid-run)."""
@@ -185,7 +205,8 @@ def review_body(request: PromptRequest) -> str:
 class ReviewDialog(ModalScreen[str]):
     """The per-hit gate: accept or reject the blow just stored; overriding the checks asks for a reason.
 
-    Sits at the bottom of the screen so the impact and FRF plots stay visible. ``auto_delay_s`` as for
+    Sits at the bottom of the screen so the impact plots stay visible, and draws the step's FRF so far
+    (``frf``: the accepted blows and this one; not on short terminals). ``auto_delay_s`` as for
     ``PromptDialog``, but only a clean blow is ever accepted by itself; a flagged one waits for a person.
     """
 
@@ -194,11 +215,14 @@ class ReviewDialog(ModalScreen[str]):
                 Binding("escape", "back", "back", show=False)] + [
         Binding(key, f"app.{action}", show=False) for key, action in (
             ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
-    def __init__(self, request: PromptRequest, auto_delay_s: Callable[[], float | None] = lambda: None) -> None:
+    def __init__(self, request: PromptRequest, auto_delay_s: Callable[[], float | None] = lambda: None,
+                 frf: StepFrf | None = None) -> None:
         super().__init__()
         assert request.review is not None
-        self.request, self.auto_delay_s = request, auto_delay_s
+        self.request, self.auto_delay_s, self.frf = request, auto_delay_s, frf
         self.shown_at = time.monotonic()
         self.closed = False
         self.touched = False  # the technician started answering: no countdown any more
@@ -213,6 +237,9 @@ class ReviewDialog(ModalScreen[str]):
         with Vertical():
             yield Label(review_title(self.request), classes="title")
             yield Static(review_body(self.request), classes="message")
+            with Horizontal(id="gate-frf"):
+                yield TracePlot("", "f [Hz]", "|H1| [(m/s²)/N]", id="gate-frf-plot")
+                yield TracePlot("", "f [Hz]", "coherence", id="gate-coh-plot")
             with Horizontal():
                 yield Button("y accept", id="accept", variant="success" if self.clean else "default")
                 yield Button("r reject", id="reject", variant="default" if self.clean else "error")
@@ -222,8 +249,20 @@ class ReviewDialog(ModalScreen[str]):
     def on_mount(self) -> None:
         self.set_class(not self.clean, "-flagged")
         self.query_one("#accept" if self.clean else "#reject", Button).focus()
+        self.show_frf()
         self.set_interval(0.1, self.tick)
         self.tick()
+
+    def show_frf(self) -> None:
+        """|H1| and coherence of the step so far over the monitor's fixed span (hidden when there is none)."""
+        panel = self.query_one("#gate-frf", Horizontal)
+        if self.frf is None:
+            panel.display = False
+            return
+        panel.border_title = self.frf.title()
+        plots = FrfPlots(self.query_one("#gate-frf-plot", TracePlot), self.query_one("#gate-coh-plot", TracePlot))
+        plots.show(self.frf.frequencies_hz, self.frf.h1_magnitude, self.frf.coherence, self.frf.channels, math.nan,
+                   (), "")
 
     def tick(self) -> None:
         if self.closed:

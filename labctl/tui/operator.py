@@ -84,6 +84,13 @@ class TuiOperator:
             return None
         return answer, request.reason or default_reason(review, answer)
 
+    def verdicts(self, review: ImpactReview) -> dict[int, bool]:
+        """The technician's answers on the blows of ``review``'s step so far: attempt → accepted."""
+        where = (review.series, review.run, review.step)
+        return {r.review.attempt: r.answer == "accept" for r in list(self.history)
+                if r.review is not None and r.answer is not None
+                and (r.review.series, r.review.run, r.review.step) == where}
+
     def _ask(self, request: PromptRequest) -> str:
         with self._lock:
             if self._stopped:

@@ -1,0 +1,69 @@
+"""The load-drift prompt in the TUI, driven with Pilot on the simulated rig: the springs creep during step 1,
+the engine asks whether to continue, and the technician's `y` answers that question (not a stale verdict
+override on the step's latest impact, which would be applied to the next step with the wrong index).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from drivers.sim import RigTwin
+from labctl import events as ev
+from labctl.storage import CampaignReader
+from labctl.tui import LabApp
+from labctl.tui.dialogs import PromptDialog, ReviewDialog
+from tests.engine_util import Recorder
+from tests.test_tui import SIZE, wait_for
+from tests.test_tui_gate import gate_settings, next_dialog
+
+
+@pytest.fixture
+def creeping_twin(monkeypatch) -> list[RigTwin]:
+    """The springs start to creep (3 N/s per roller) at the campaign's first blow; the twin is handed back."""
+    original, twins = RigTwin.strike, []
+
+    def strike(self: RigTwin):  # noqa: ANN202
+        if not twins:
+            twins.append(self)
+            self.set_creep(3.0)
+        return original(self)
+
+    monkeypatch.setattr(RigTwin, "strike", strike)
+    return twins
+
+
+def drift_prompt(dialog: object) -> bool:
+    return isinstance(dialog, PromptDialog) and "drifted" in dialog.request.message
+
+
+async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path, creeping_twin: list[RigTwin]):
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        answered_drift = None
+        while True:
+            dialog = await next_dialog(pilot, app)
+            if app.outcome is not None:
+                break
+            if drift_prompt(dialog) and answered_drift is None:
+                assert dialog.request.choices == ("continue", "abort")
+                creeping_twin[0].set_creep(0.0)  # the technician re-tightens the knobs
+                await pilot.press("y")
+                await pilot.pause(0.3)
+                assert dialog.closed and dialog.request.answer == "continue", "y did not answer the drift prompt"
+                answered_drift = dialog.request
+                continue
+            if isinstance(dialog, ReviewDialog):
+                await pilot.press("y" if dialog.request.review.checks_accepted else "r")
+            else:
+                await pilot.press("enter")
+            await wait_for(pilot, lambda d=dialog: d.closed, what="the dialog to close")
+        log = "\n".join(str(line.text) for line in app.monitor.query_one("#log").lines)
+    assert answered_drift is not None, "the creep did not trip the load-drift check"
+    assert app.outcome.status == "complete"
+    assert "verdict on impact" not in log and "requested for the step's latest impact" not in log
+    assert not [e for e in events.of(ev.Notice) if "verdict on impact" in e.message]
+    with CampaignReader(tmp_path / "gate.h5") as reader:
+        assert any(s.load_drift for s in reader.runs(1)[0].steps)
