@@ -171,3 +171,18 @@ def test_no_exponential_window_gives_the_same_modes(paper_case):
     assert plain.window_decay_rate_per_s == 0.0 and r.window_decay_rate_per_s > 0
     assert plain.bounce_hz == pytest.approx(r.bounce_hz, abs=3 * r.bounce_hz_std)
     assert plain.bounce_damping_ratio == pytest.approx(r.bounce_damping_ratio, rel=1e-3)
+
+
+def test_fitting_every_third_line_keeps_the_answer_and_its_sigma(monkeypatch):
+    """The window correlates neighbouring lines, so a fit on every ``fit_line_step``-th line (its noise
+    inflation divided by the step) gives the every-line answer within a fraction of σ and the same σ."""
+    from labctl.processing.frf import Spectra
+
+    sets = [synth_impacts(paper_case_modes(), RIG.channels, n_samples=N, snr_db=40.0, seed=300 + i,
+                          force_peak_snr_db=50.0) for i in range(4)]
+    thinned = [run(s) for s in sets]
+    monkeypatch.setattr(Spectra, "fit_line_step", property(lambda self: 1))
+    every = [run(s) for s in sets]
+    for a, b in zip(thinned, every, strict=True):
+        assert abs(a.bounce_hz - b.bounce_hz) < 0.2 * b.bounce_hz_std
+        assert a.bounce_hz_std == pytest.approx(b.bounce_hz_std, rel=0.05)

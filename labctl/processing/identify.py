@@ -102,7 +102,8 @@ def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.nda
     """The contact modes, their uncertainties including the force noise."""
     modes = fit_contact_modes(frf.frequencies_hz, frf.h1, pred, live, search_hz=search,
                               decay_rate_per_s=spectra.decay_rate_per_s, noise_inflation=spectra.noise_inflation,
-                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise, widen=widen)
+                              zeta=zeta, band_widths=cfg.band_widths, channel_noise=noise, widen=widen,
+                              line_step=spectra.fit_line_step)
     return replace(modes, fit=widen(modes.fit, modes.band))
 
 

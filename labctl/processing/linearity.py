@@ -180,7 +180,7 @@ def step_linearity(modes: ContactModes, spectra: Spectra, used: list[int], peaks
         shifts, stds = impact_shifts(fit, spectra.frequencies_hz[band], h_step, h_each, fn,
                                      decay_rate_per_s=spectra.decay_rate_per_s,
                                      channel_weights=channel_weights(noise[live]),
-                                     noise_inflation=spectra.noise_inflation, linearised=lin)
+                                     noise_inflation=spectra.noise_inflation / (band.step or 1), linearised=lin)
     except np.linalg.LinAlgError:
         return None
     f_b = float(fit.frequencies_hz[b])

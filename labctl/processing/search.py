@@ -164,12 +164,16 @@ def fit_contact_modes(
     band_widths: float = 4.0,
     channel_noise: np.ndarray | None = None,
     widen: Callable[[ModalFit, slice], ModalFit] | None = None,
+    line_step: int = 1,
 ) -> ContactModes:
     """Band, start poles, 3-mode fit; if the tilt pair is not clearly resolved, a 2-mode fit and split
     starts around its tilt, the best 3-mode fit kept only when the likelihood-ratio test prefers it.
-    ``widen`` adds the force noise to a candidate's uncertainties before the tilt poles are compared."""
+    ``widen`` adds the force noise to a candidate's uncertainties before the tilt poles are compared;
+    ``line_step`` keeps every so-many lines of the band (see ``Spectra.fit_line_step``)."""
     hl = h[live]
     band = fit_band(freqs_hz, hl, search_hz[0], search_hz[1], zeta, band_widths)
+    band = slice(band.start, band.stop, line_step)
+    noise_inflation = noise_inflation / line_step  # each kept line stands for line_step correlated ones
     f, hb = freqs_hz[band], hl[:, band]
     if len(f) < 4 * (N_CONTACT_MODES + 2):
         raise ProcessingError(f"the fit band {f[0]:.0f}-{f[-1]:.0f} Hz holds too few frequency lines")
