@@ -64,7 +64,7 @@ class Spectra:
         """Every how many lines a fit needs: the exponential window correlates the noise of neighbouring lines
         over about ``noise_inflation`` of them, so a third of that keeps the information of every line (the
         bounce's error grows by ≤ 3 % on the bench) at a third of the work."""
-        return max(1, int(self.noise_inflation // 3))
+        return max(1, round(self.noise_inflation / 3))
 
 
 @dataclass(frozen=True)

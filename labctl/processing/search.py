@@ -31,7 +31,7 @@ MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is 
 PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond the rig's ratio is residue
 SHARPNESS = 0.1  # a real mode's frequency is known to better than this share of its half-power width
 SPLITS = (0.05, 0.15, 0.4)  # tilt-pair start separations, in half-power widths of the single tilt
-FIRST_FIT_ITER = 12  # a three-mode fit from the LSCF poles still moving after this many steps sits in a
+FIRST_FIT_ITER = 8  # a three-mode fit from the LSCF poles still moving after this many steps sits in a
 # degenerate valley (a pole turning into residue): the two-mode fit and the split starts take over
 RESOLUTION_LEVEL = 0.001  # level of the one-pole-or-two test on the tilt pair (and of each mode's presence)
 Widen = Callable[[ModalFit], ModalFit]  # adds what the residuals cannot show (the force noise) to a fit's stds
