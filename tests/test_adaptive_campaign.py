@@ -109,7 +109,7 @@ def test_advisor_candidates_are_the_mounted_specimens_knob_grid_below_its_cap(tm
 
 def test_advisor_repeats_the_most_informative_load(tmp_path):
     """Three points of a rough type-1 curve (preload to the top): the roughness parameter is pinned down at the
-    preload, where the asperity layer dominates, so the planner adds the preload step again, not other loads."""
+    preload, where the asperity layer dominates, so the planner repeats the preload step."""
     rig = load_rig()
     spec = load_protocol(_protocol(tmp_path)).specimens[0]
 
