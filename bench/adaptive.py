@@ -12,18 +12,30 @@ run end to end through ``run_campaign`` (simulated records, the one step pipelin
 Both spend the same number of steps and so of impacts (counted from the files and printed). Each campaign's
 stiffness points are fitted with the discrepancy workflow's model fit using the true model's terms (Tripp + the
 hidden effect, noise model re-estimated from the data); the table gives, per seed, the standard error of the
-hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound span) and the ratio.
+hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound span) and the ratio, once with
+each campaign's own noise model and once with one noise model estimated from both campaigns' points.
 
-    python bench/adaptive.py [--seeds 4] [--base 3] [--budget 3] [--reps 2]
+``--rig-noise N`` adds a third SE per campaign and ratio, with the rig's noise measured apart from both designs:
+one campaign (seed 0, independent of the compared seeds) at every knob step with N repetitions, whose noise
+model has load bands (the point noise of this rig is largest at the preload).
+
+``--bound`` adds, per seed, the best ratio any choice of loads could reach in this design space, from the same
+Laplace covariance (the Fisher information of the shared noise model at the fixed campaign's fit): the base
+loads plus the best ``budget`` loads of the knob grid (the same in every repetition), distinct or with repeats,
+and every load free (``base + budget`` per repetition, with repeats, on every other knob step plus the top).
+
+    python bench/adaptive.py [--seeds 4] [--first-seed 1] [--base 3] [--budget 3] [--reps 2] [--rig-noise 6] [--bound]
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import tempfile
 import time
-from dataclasses import replace
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import h5py
@@ -33,8 +45,11 @@ from labctl.campaign import run_campaign
 from labctl.discrepancy.data import build_dataset
 from labctl.discrepancy.model import ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor, estimate_noise
+from labctl.physics.rig_config import load_rig
 from labctl.physics.world import load_world
-from labctl.planning.rivals import from_fit
+from labctl.planning.adaptive import knob_loads
+from labctl.planning.rivals import Rival, from_fit
+from labctl.protocol import load_protocol
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.table import campaign_stiffness_points
 
@@ -59,23 +74,73 @@ count = {reps}
 """
 
 
-def effect_se(points: list[StiffnessPoint], effect: str, baseline: str, noise: NoiseFloor | None = None
-              ) -> tuple[float, float, int]:
-    """The hidden effect's fitted parameter, its standard error and the number of points of a campaign (the
-    noise model estimated from its own points, or the one given)."""
+@dataclass(frozen=True)
+class EffectFit:
+    """The true model fitted to a campaign: the hidden effect's parameter, its SE and what they came from."""
+
+    value: float
+    se: float
+    rival: Rival
+    noise: NoiseFloor
+    row: int
+    """Index of the effect's parameter in the fitted vector."""
+    span: float
+    """Bounded range of the parameter (the fitted coordinate is scaled by it)."""
+
+
+def fit_effect(points: list[StiffnessPoint], effect: str, baseline: str, noise: NoiseFloor | None = None
+               ) -> EffectFit:
+    """The hidden effect's fitted parameter and its standard error (the noise model estimated from the
+    campaign's own points, or the one given)."""
     data = build_dataset(points)
     noise = noise or estimate_noise(data)
     sigma = noise.sigma_at(data)
     spec = ModelSpec(baseline, (effect,), {"setup_compliance": {"nominal_setup_n_per_m": 1.45e9}})
     fit = fit_model(data, spec, sigma=sigma, seating_sigma=noise.seating_sigma)
-    rival = from_fit(fit).with_covariance(data, lambda a: noise.whiten(data, a, sigma))
     slots = spec.slots()
     i = [n for n, *_ in slots].index(effect)
-    k = int(spec.fits_depth) + i
     lo, hi = slots[i][2:]
-    assert rival.covariance is not None
     value = next(iter(fit.effect_parameters()[effect].values()))
-    return value, float(np.sqrt(rival.covariance[k, k])) * (hi - lo), len(points)
+    out = EffectFit(float(value), 0.0, from_fit(fit), noise, int(spec.fits_depth) + i, hi - lo)
+    return replace(out, se=design_se(out, points))
+
+
+def design_se(fit: EffectFit, points: Sequence[StiffnessPoint]) -> float:
+    """SE of the effect's parameter (Laplace, the fit's noise model) for points at these loads and seatings."""
+    data = build_dataset(list(points))
+    sigma = fit.noise.sigma_at(data)
+    rival = fit.rival.with_covariance(data, lambda a: fit.noise.whiten(data, a, sigma))
+    assert rival.covariance is not None
+    return float(np.sqrt(rival.covariance[fit.row, fit.row])) * fit.span
+
+
+def design_points(template: StiffnessPoint, loads_per_rep: Sequence[Sequence[float]]) -> list[StiffnessPoint]:
+    return [replace(template, load_n=float(f), repetition=r) for r, loads in enumerate(loads_per_rep, 1)
+            for f in loads]
+
+
+Design = tuple[float, tuple[int, ...]]
+"""A design's SE ratio to the fixed campaign's and its loads per repetition (N, rounded)."""
+
+
+def best_ratios(fit: EffectFit, points: list[StiffnessPoint], base: list[list[float]], grid: np.ndarray,
+                budget: int) -> tuple[Design, Design, Design]:
+    """Best SE ratio to the fixed campaign's over designs, and the loads that reach it: base + ``budget``
+    distinct grid loads, base + any ``budget`` grid loads (repeats allowed), all loads free (repeats allowed,
+    coarse grid); the same added loads in every repetition."""
+    fixed = design_se(fit, points)
+
+    def best(choices: itertools.combinations | itertools.combinations_with_replacement,  # type: ignore[type-arg]
+             with_base: bool) -> Design:
+        se, loads = min((design_se(fit, design_points(points[0], [(b if with_base else []) + list(c)
+                                                                  for b in base])), c) for c in choices)
+        return se / fixed, tuple(round(float(f)) for f in loads)
+
+    coarse = np.unique(np.append(grid[::2], grid[-1]))
+    free_n = len(base[0]) + budget
+    return (best(itertools.combinations(grid, budget), True),
+            best(itertools.combinations_with_replacement(grid, budget), True),
+            best(itertools.combinations_with_replacement(coarse, free_n), False))
 
 
 def accepted_impacts(path: Path) -> int:
@@ -97,9 +162,26 @@ def added_loads(path: Path) -> list[list[float]]:
                 for r in sorted(sg) if r.startswith("run_")]
 
 
+def rig_noise(d: Path, args: argparse.Namespace) -> NoiseFloor:
+    """The rig's noise model from a campaign of its own (seed 0) at every knob step, ``--rig-noise`` repetitions."""
+    proto = d / "noise.toml"
+    proto.write_text(PROTOCOL.format(name="noise", type_id=args.type, cap=args.cap, steps=1, reps=1))
+    steps = knob_loads(load_protocol(proto).specimens[0], load_rig()).size
+    proto.write_text(PROTOCOL.format(name="noise", type_id=args.type, cap=args.cap, steps=steps,
+                                     reps=args.rig_noise))
+    o = run_campaign(proto, out=d / "noise.h5", seed=0, world=args.world)
+    assert o.status == "complete", o.message
+    noise = estimate_noise(build_dataset(campaign_stiffness_points(d / "noise.h5")))
+    bands = ", ".join(f"{b['sigma']:.4f} at {b['load_per_length_n_per_mm']:.0f} N/mm" for b in noise.bands())
+    print(f"rig noise ({steps} steps × {args.rig_noise} repetitions, seed 0): point σ {bands}; "
+          f"seating σ {noise.seating_sigma:.4f}")
+    return noise
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--base", type=int, default=3)
     ap.add_argument("--budget", type=int, default=3)
     ap.add_argument("--reps", type=int, default=2)
@@ -107,6 +189,8 @@ def main() -> None:
     ap.add_argument("--cap", type=float, default=400.0)
     ap.add_argument("--world", default="surface_roughness")
     ap.add_argument("--verbose", action="store_true", help="print the loads the planner added")
+    ap.add_argument("--bound", action="store_true", help="print the best ratio any loads could reach (see above)")
+    ap.add_argument("--rig-noise", type=int, default=0, help="repetitions of a rig-noise campaign (see above)")
     args = ap.parse_args()
     world = load_world(args.world)
     effects = list(world.law.effects)
@@ -114,15 +198,19 @@ def main() -> None:
     baseline = world.law.baseline
     print(f"world {args.world}: hidden effect {effect}; type {args.type}, cap {args.cap:g} N, {args.reps} reps, "
           f"fixed {args.base + args.budget} steps vs adaptive {args.base} + {args.budget} planned")
-    print(f"{'seed':>4} {'impacts F/A':>12} {'value F':>10} {'SE fixed':>10} {'value A':>10} {'SE adapt':>10} "
-          f"{'ratio':>6} {'SE F pool':>10} {'SE A pool':>10} {'ratio':>6} {'time s':>7}")
     ratios: list[float] = []
     shared: list[float] = []
+    rig: list[float] = []
+    bounds: list[tuple[float, ...]] = []
+    rig_bounds: list[tuple[float, ...]] = []
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
-        for seed in range(1, args.seeds + 1):
+        measured = rig_noise(d, args) if args.rig_noise else None
+        print(f"{'seed':>4} {'impacts F/A':>12} {'value F':>10} {'SE fixed':>10} {'value A':>10} {'SE adapt':>10} "
+              f"{'ratio':>6} {'SE F pool':>10} {'SE A pool':>10} {'ratio':>6} {'time s':>7}")
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             t0 = time.perf_counter()
-            res: dict[str, tuple[float, float, int, int]] = {}
+            res: dict[str, tuple[EffectFit, int]] = {}
             points: dict[str, list[StiffnessPoint]] = {}
             for mode, steps in (("fixed", args.base + args.budget), ("adaptive", args.base)):
                 proto = d / f"{mode}.toml"
@@ -133,23 +221,49 @@ def main() -> None:
                                  budget_steps=args.budget)
                 assert o.status == "complete", o.message
                 points[mode] = campaign_stiffness_points(out)
-                res[mode] = (*effect_se(points[mode], effect, baseline), accepted_impacts(out))
+                res[mode] = (fit_effect(points[mode], effect, baseline), accepted_impacts(out))
                 if mode == "adaptive" and args.verbose:
                     print(f"     added loads per repetition (N): {added_loads(out)}")
-            (vf, sf, _, nf), (va, sa, _, na) = res["fixed"], res["adaptive"]
+            (ff, nf), (fa, na) = res["fixed"], res["adaptive"]
             # the same rig's noise for both: one noise model from both campaigns' points (seatings kept apart)
             pooled = points["fixed"] + [replace(p, repetition=p.repetition + args.reps) for p in points["adaptive"]]
             noise = estimate_noise(build_dataset(pooled))
-            sf2 = effect_se(points["fixed"], effect, baseline, noise)[1]
-            sa2 = effect_se(points["adaptive"], effect, baseline, noise)[1]
-            ratios.append(sa / sf)
+            shared_fixed = fit_effect(points["fixed"], effect, baseline, noise)
+            sf2, sa2 = shared_fixed.se, fit_effect(points["adaptive"], effect, baseline, noise).se
+            ratios.append(fa.se / ff.se)
             shared.append(sa2 / sf2)
-            print(f"{seed:>4} {nf:>5}/{na:<6} {vf:>10.4g} {sf:>10.3g} {va:>10.4g} {sa:>10.3g} {sa / sf:>6.2f} "
-                  f"{sf2:>10.3g} {sa2:>10.3g} {sa2 / sf2:>6.2f} {time.perf_counter() - t0:>7.1f}")
-    for label, values in (("own noise model", ratios), ("shared noise model", shared)):
+            print(f"{seed:>4} {nf:>5}/{na:<6} {ff.value:>10.4g} {ff.se:>10.3g} {fa.value:>10.4g} {fa.se:>10.3g} "
+                  f"{fa.se / ff.se:>6.2f} {sf2:>10.3g} {sa2:>10.3g} {sa2 / sf2:>6.2f} {time.perf_counter() - t0:>7.1f}")
+            if measured is not None:
+                sf3, sa3 = (fit_effect(points[m], effect, baseline, measured).se for m in ("fixed", "adaptive"))
+                rig.append(sa3 / sf3)
+                print(f"     rig noise: SE fixed {sf3:.3g}, SE adaptive {sa3:.3g}, ratio {sa3 / sf3:.2f}")
+            if args.bound:
+                reps = sorted({p.repetition for p in points["adaptive"]})
+                base = [[p.load_n for p in points["adaptive"] if p.repetition == r][: args.base] for r in reps]
+                spec = load_protocol(d / "adaptive.toml").specimens[0]
+                grid = knob_loads(spec, load_rig())
+                fits = [("shared noise model", shared_fixed, bounds)]
+                if measured is not None:
+                    fits.append(("rig noise", fit_effect(points["fixed"], effect, baseline, measured), rig_bounds))
+                for label, fit, found in fits:
+                    designs = best_ratios(fit, points["fixed"], base, grid, args.budget)
+                    found.append(tuple(r for r, _ in designs))
+                    words = ", ".join(f"{name} {r:.2f}" + (f" {list(loads)}" if args.verbose else "")
+                                      for name, (r, loads) in zip(("base + distinct", "base + repeats",
+                                                                   "all loads free"), designs, strict=True))
+                    print(f"     best ratio possible ({label}): {words}")
+    for label, values in (("own noise model", ratios), ("shared noise model", shared), ("rig noise", rig)):
+        if not values:
+            continue
         r = np.array(values)
         print(f"SE ratio adaptive/fixed ({label}): median {np.median(r):.2f}, max {r.max():.2f}, "
               f"{int(np.sum(r <= 0.7))}/{r.size} seeds ≤ 0.7")
+    for label, found in (("shared noise model", bounds), ("rig noise", rig_bounds)):
+        if found:
+            b = np.median(np.array(found), axis=0)
+            print(f"best ratio possible ({label}), median: base + distinct {b[0]:.2f}, base + repeats {b[1]:.2f}, "
+                  f"all loads free {b[2]:.2f}")
 
 
 if __name__ == "__main__":

@@ -10,9 +10,10 @@ import pytest
 
 from labctl import events as ev
 from labctl.campaign import run_campaign
+from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.engine import RunControl
 from labctl.errors import InputError
-from labctl.physics import load_rig
+from labctl.physics import ContactLaw, SurfaceRoughness, load_rig
 from labctl.planning.adaptive import PlanAdvisor, knob_loads
 from labctl.protocol import load_protocol
 from tests.cli_util import labctl_here_json
@@ -104,6 +105,22 @@ def test_advisor_candidates_are_the_mounted_specimens_knob_grid_below_its_cap(tm
     assert loads[0] == pytest.approx(rig.preload_per_roller_n) and loads[-1] <= spec.max_load_n
     assert loads.size == int((spec.max_load_n - rig.preload_per_roller_n) / (rig.load_per_knob_degree_n * 90)) + 1
     assert PlanAdvisor(rig).extra_steps([], spec, 3) == []
+
+
+def test_advisor_repeats_the_most_informative_load(tmp_path):
+    """Three points of a rough type-1 curve (preload to the top): the roughness parameter is pinned down at the
+    preload, where the asperity layer dominates, so the planner repeats the preload step."""
+    rig = load_rig()
+    spec = load_protocol(_protocol(tmp_path)).specimens[0]
+
+    def rough(case, load_n):  # noqa: ANN001, ANN202
+        return ContactLaw("tripp", 1.5e-3, (SurfaceRoughness(3.0),)).stiffness_n_per_m(case, load_n)
+
+    points = synthesize(rough, types=[1], noise=NoiseModel(0.02, 0.007), seed=1, repetitions=1, steps=3)
+    added = PlanAdvisor(rig).extra_steps(points, spec, 3)
+    angles = [a.angle_deg for a in added]
+    assert len(angles) == 3 and len(set(angles)) < len(angles)
+    assert angles.count(0.0) >= 2 and "surface_roughness" in added[0].reason
 
 
 def test_adaptive_refuses_a_zero_budget_before_creating_a_file(tmp_path):

@@ -13,7 +13,7 @@ from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.physics import ContactLaw, EndEffects, SurfaceRoughness, load_rig, material, rollers
 from labctl.physics.rating import static_load_rating_n
 from labctl.planning import plan_measurements
-from labctl.planning.criterion import ModelAt, score_sets
+from labctl.planning.criterion import ModelAt, greedy_loads, score_sets, set_noise
 from labctl.planning.rivals import Rival
 from labctl.planning.specimens import RAIL_RA_UM, reachable_loads
 from labctl.protocol import load_protocol
@@ -124,6 +124,29 @@ def test_the_criterion_is_the_box_hill_divergence():
     assert sc.kl[(0, 1)][0] == pytest.approx(kl_ab) and sc.kl[(1, 0)][0] == pytest.approx(kl_ba)
     assert sc.discrimination[0] == pytest.approx(0.25 * (kl_ab + kl_ba))
     assert sc.discrimination[1] == pytest.approx(0.0)  # where the models agree, nothing to learn
+
+
+def test_two_points_at_one_load_share_the_seating_offset_only():
+    """Noise of a set with a repeated load: σ² + τ² on the diagonal, τ² between the two repeats."""
+    sigma2, tau2 = np.array([4e-4, 1e-4]), 9e-4
+    noise = np.diag(sigma2) + tau2
+    cov = set_noise(noise, np.array([[0, 0, 1]]), sigma2)[0]
+    assert cov == pytest.approx(np.array([[4e-4 + tau2, tau2, tau2], [tau2, 4e-4 + tau2, tau2],
+                                          [tau2, tau2, 1e-4 + tau2]]))
+
+
+def test_the_greedy_choice_repeats_the_most_informative_load_when_allowed():
+    """One parameter, sensitive at load 0 only: a second point there halves its variance, a point at load 1
+    adds almost nothing, so with repeats allowed the best two loads are load 0 twice (distinct: 0 and 1)."""
+    rival = Rival(("a",), lambda d, x: np.zeros(2), np.zeros(1), -np.ones(1), np.ones(1), np.ones(1), 0.0,
+                  np.array([[1.0]]))
+    model = ModelAt(rival, 1.0, np.zeros(2), np.array([[1.0], [0.05]]), np.arange(1))
+    noise = np.diag([0.1**2, 0.1**2])
+    repeated, score = greedy_loads([model], noise, 2, repeat=True)
+    distinct, score_distinct = greedy_loads([model], noise, 2)
+    assert list(repeated) == [0, 0] and list(distinct) == [0, 1]
+    assert score.total[0] > score_distinct.total[0]
+    assert score.total[0] == pytest.approx(0.5 * math.log(1 + 2 / 0.1**2))  # ½ ln(var before / var after)
 
 
 def test_cli_json_is_exactly_the_contract(capsys, short_roller_csv):

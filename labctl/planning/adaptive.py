@@ -3,7 +3,8 @@
 An adaptive campaign cannot change the specimen mid-campaign, so the candidates are the loads of the mounted
 roller type on its rails: every whole number of the specimen's knob steps from the preload up to its load cap
 (finer than the protocol's base steps when the protocol strides several knob steps). The discrepancy workflow
-runs on everything measured so far in the file; the criterion of ``labctl.planning.plan`` picks the loads.
+runs on everything measured so far in the file; the criterion of ``labctl.planning.plan`` picks the loads, a
+load again when repeating it teaches most (the base steps already span the load range).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ class PlanAdvisor:
         play, weights = models_in_play(result, self.candidates)
         case = spec.case()
         specimen = Specimen(case.roller, case.rail, spec.rail_ra_m, loads, spec.max_load_n)
-        scored = score_specimen(result, play, weights, specimen, budget_steps)
+        scored = score_specimen(result, play, weights, specimen, budget_steps, repeat=True)
         if scored is None:
             return []
         rec, total, _ = scored

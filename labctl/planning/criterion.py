@@ -13,7 +13,10 @@ noise model). Under model k the new points are then distributed N(μ_k, S_k), S_
   depth, a nuisance parameter, left out).
 
 The score of a set of loads is the sum of both (nats). Loads are chosen greedily, one at a time, from the
-specimen's reachable loads (each at most once) up to the step budget.
+specimen's reachable loads up to the step budget: each at most once, or, with ``repeat``, again whenever a
+repeat raises the score most. A repeated load is another step at that knob angle in the same seating: new
+blows and a new identification (independent point noise σ), the same seating offset τ, as the noise model
+has it; two points at one load are therefore correlated by τ² only, not by σ² + τ² (``set_noise``).
 """
 
 from __future__ import annotations
@@ -60,10 +63,23 @@ def _logdet(a: np.ndarray) -> np.ndarray:
     return np.where(sign > 0, val, -np.inf)
 
 
-def score_sets(models: list[ModelAt], noise: np.ndarray, sets: np.ndarray) -> Score:
-    """The criterion for each candidate set of load indices (rows of ``sets``, shape n × m)."""
+def set_noise(noise: np.ndarray, sets: np.ndarray, point_var: np.ndarray | None = None) -> np.ndarray:
+    """Noise covariance of each set of load indices (n × m × m): ``noise`` between points at distinct loads; two
+    points at the same load share it less their independent point variance ``point_var`` (default: all of the
+    diagonal, i.e. ``noise`` is diagonal)."""
     rows, cols = sets[:, :, None], sets[:, None, :]
-    s = [noise[rows, cols] + m.cov_full[rows, cols] for m in models]
+    var = np.diag(noise) if point_var is None else point_var
+    repeats = (rows == cols) & ~np.eye(sets.shape[1], dtype=bool)
+    return np.where(repeats, noise[rows, cols] - var[rows], noise[rows, cols])
+
+
+def score_sets(models: list[ModelAt], noise: np.ndarray, sets: np.ndarray, point_var: np.ndarray | None = None
+               ) -> Score:
+    """The criterion for each candidate set of load indices (rows of ``sets``, shape n × m; a load may repeat,
+    see ``set_noise``)."""
+    rows, cols = sets[:, :, None], sets[:, None, :]
+    noise_sets = set_noise(noise, sets, point_var)
+    s = [noise_sets + m.cov_full[rows, cols] for m in models]
     s_inv = [np.linalg.inv(x) for x in s]
     mus = [m.mu[sets] for m in models]
     m_dim = sets.shape[1]
@@ -102,15 +118,18 @@ def score_sets(models: list[ModelAt], noise: np.ndarray, sets: np.ndarray) -> Sc
     return Score(disc + params, disc, params, pair_terms, kl, param_terms)
 
 
-def greedy_loads(models: list[ModelAt], noise: np.ndarray, budget: int) -> tuple[np.ndarray, Score]:
-    """Indices of up to ``budget`` loads chosen one at a time for the largest score, and the final score."""
+def greedy_loads(models: list[ModelAt], noise: np.ndarray, budget: int, repeat: bool = False,
+                 point_var: np.ndarray | None = None) -> tuple[np.ndarray, Score]:
+    """Indices of up to ``budget`` loads chosen one at a time for the largest score (each load at most once,
+    or as often as it is the best next choice with ``repeat``; ``point_var`` as in ``set_noise``), and the
+    final score."""
     g = noise.shape[0]
     chosen: list[int] = []
     best: Score | None = None
-    for _ in range(min(budget, g)):
-        free = np.array([i for i in range(g) if i not in chosen])
+    for _ in range(budget if repeat else min(budget, g)):
+        free = np.array([i for i in range(g) if repeat or i not in chosen])
         sets = np.column_stack([np.tile(chosen, (free.size, 1)).astype(int), free]) if chosen else free[:, None]
-        sc = score_sets(models, noise, sets)
+        sc = score_sets(models, noise, sets, point_var)
         k = int(np.nanargmax(sc.total))
         chosen.append(int(free[k]))
         best = _pick(sc, k)

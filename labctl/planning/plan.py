@@ -191,9 +191,10 @@ def _would_change(score: Score, models: list[ModelAt]) -> bool:
 
 
 def score_specimen(result: DiscrepancyResult, play: list[Rival], weights: np.ndarray, spec: Specimen,
-                   budget_steps: int) -> tuple[Recommendation, float, bool] | None:
-    """The best ``budget_steps`` loads of one specimen for the models in play: the recommendation, its score and
-    whether it could change the verdict (None when no model in play predicts any of its loads)."""
+                   budget_steps: int, repeat: bool = False) -> tuple[Recommendation, float, bool] | None:
+    """The best ``budget_steps`` loads of one specimen for the models in play (a load repeated when that scores
+    best, with ``repeat``): the recommendation, its score and whether it could change the verdict (None when no
+    model in play predicts any of its loads)."""
     spec_ok = _predictable(spec, play)
     if spec_ok is None:
         return None
@@ -204,7 +205,7 @@ def score_specimen(result: DiscrepancyResult, play: list[Rival], weights: np.nda
     for rival, w in zip(play, weights, strict=True):
         mu, jac = rival.jacobian(design)
         models.append(ModelAt(rival, float(w), mu, jac, _term_rows(rival, result.final.spec.fits_depth)))
-    idx, score = greedy_loads(models, noise_cov, budget_steps)
+    idx, score = greedy_loads(models, noise_cov, budget_steps, repeat, sigma**2)
     loads = spec_ok.loads_n[idx]
     rec = Recommendation(spec_ok.type_id, round(spec_ok.rail_ra_m * 1e6, 6), tuple(round(float(f), 1) for f in loads),
                          _reason(spec_ok, loads, score, models, result.data), float(f"{float(score.total[0]):.4g}"))
