@@ -236,3 +236,15 @@ def test_cli_loads_follow_the_given_rig_file(capsys, short_roller_csv, tmp_path)
     for r in out["recommendations"]:
         steps = (np.array(r["loads_n"]) - rig.preload_per_roller_n) / per_step
         assert np.allclose(steps, np.round(steps), atol=0.01), (r, steps)
+
+
+def test_a_reason_gives_one_line_load_when_every_planned_load_is_the_same():
+    from labctl.planning.plan import _design_data, _load_words
+    from labctl.planning.specimens import Specimen
+
+    spec = Specimen(rollers()[1], STEEL, 0.2e-6, np.array([37.9, 159.4, 382.0]), 400.0)
+    data = _design_data(spec)
+    same = _load_words(np.array([37.9, 37.9, 37.9]), spec, data)
+    assert "(21.1 N/mm)" in same and "–" not in same, same
+    spread = _load_words(np.array([37.9, 382.0]), spec, data)
+    assert "(21.1–213 N/mm)" in spread, spread

@@ -147,7 +147,9 @@ def _load_words(loads: np.ndarray, spec: Specimen, data: Dataset) -> str:
         word = "high"
     else:
         word = "medium"
-    return f"at {word} line load ({p.min() * 1e-3:.3g}–{p.max() * 1e-3:.3g} N/mm)"
+    lo_text, hi_text = f"{p.min() * 1e-3:.3g}", f"{p.max() * 1e-3:.3g}"
+    where = lo_text if lo_text == hi_text else f"{lo_text}–{hi_text}"
+    return f"at {word} line load ({where} N/mm)"
 
 
 def _reason(spec: Specimen, loads: np.ndarray, score: Score, models: list[ModelAt], data: Dataset) -> str:
