@@ -150,6 +150,18 @@ def test_each_effect_world_hides_exactly_its_effect():
     assert load_world("setup_compliance").setup_stiffness_factor == 1.25
 
 
+def test_hardness_onset_world_yields_only_in_the_top_quarter_of_type_1s_load_range():
+    """Plastic conformity whose onset (p_max = 0.30·H) type 1 on Ra 0.2 µm rails reaches at about 310 N: plain
+    Tripp below 300 N (3/4 of a 400 N cap), a rise of a few per cent at the top."""
+    world = load_world("hardness_onset")
+    assert world.effect_names == ("material_hardness",)
+    case = ContactCase(roller(1), STEEL, 0.2e-6)
+    tripp = load_world("tripp_only").law
+    loads = np.array([38.0, 200.0, 300.0, 320.0, 382.0])
+    ratio = world.law.stiffness_n_per_m(case, loads) / tripp.stiffness_n_per_m(case, loads)
+    assert np.allclose(ratio[:3], 1.0) and 1.0 < ratio[3] < 1.01 and 1.02 < ratio[4] < 1.05, ratio
+
+
 def test_units_at_the_edge():
     assert to_si("edge_length_mm", 0.1) == ("edge_length_m", pytest.approx(1e-4))
     assert to_si("tilt_mrad", 2.0) == ("tilt_rad", pytest.approx(2e-3))
