@@ -13,7 +13,9 @@ Both spend the same number of steps and so of impacts (counted from the files an
 stiffness points are fitted with the discrepancy workflow's model fit using the true model's terms (Tripp + the
 hidden effect, noise model re-estimated from the data); the table gives, per seed, the standard error of the
 hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound span) and the ratio, once with
-each campaign's own noise model and once with one noise model estimated from both campaigns' points.
+each campaign's own noise model and once with one noise model estimated from both campaigns' points. A further
+line gives both SEs with the shared noise model linearised at the world's true parameters instead of at each fit
+(for a kinked term, such as a late hardness onset, a fit's kink can sit where the linearisation is misleading).
 
 ``--rig-noise N`` adds a third SE per campaign and ratio, with the rig's noise measured apart from both designs:
 one campaign (seed 0, independent of the compared seeds) at every knob step with N repetitions, whose noise
