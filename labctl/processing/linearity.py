@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from labctl.processing.force_noise import ForceNoiseWidener, force_noise_on
 from labctl.processing.frf import Spectra
@@ -86,6 +86,16 @@ def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> tuple[float, 
     return float(np.sum(w * (x - xm) * (f - fm)) / sxx), 1.0 / math.sqrt(sxx), fm
 
 
+def _lack_of_fit(x: np.ndarray, f: np.ndarray, s: np.ndarray, slope: float) -> float:
+    """p value of the straight line's residuals against the impacts' stds (1: no degrees of freedom left)."""
+    if len(x) < 3:
+        return 1.0
+    w = 1.0 / s**2
+    xm, fm = float(np.sum(w * x) / np.sum(w)), float(np.sum(w * f) / np.sum(w))
+    stat = float(np.sum(w * (f - fm - slope * (x - xm)) ** 2))
+    return float(chi2.sf(stat, len(x) - 2))
+
+
 @dataclass(frozen=True)
 class ZeroAmplitude:
     """The contact modes' shift from the blows' size: f_i = f0 + c·a_i² over the impacts (a_i the force
@@ -117,7 +127,10 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     shift, with the uncertainty of c, the bound (f_i - f̄)²/Γ of the impacts' first-order frequencies (Γ the half-
     power half-bandwidth) and a share of the shift for higher-order terms and where each blow landed. The
     shift is an estimate to carry, not to remove: an extrapolation over blows of similar size multiplies their
-    scatter, and the blow moves the tilt modes by other amounts than the bounce.
+    scatter, and the blow moves the tilt modes by other amounts than the bounce. When the impacts contradict the
+    a² line (lack of fit at ``LINEARITY_LEVEL``: e.g. blows that nearly open the contact saturate it), the
+    extrapolation's shape is unknown: its model share becomes the larger of the shift and the difference to a
+    backbone in a itself.
     """
     a, f, s = (np.asarray(v, float) for v in (amplitude_n_s, bounce_hz, bounce_hz_std))
     x = a**2
@@ -130,6 +143,13 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     z = c / c_std
     shift = c * a2_eff
     model = MODEL_SHARE * abs(shift)
+    if _lack_of_fit(x, f, s, c) < LINEARITY_LEVEL:
+        # the blows do not follow the a² backbone (a contact near opening saturates it): the small-blow limit's
+        # shape is unknown between that and a backbone in a itself, whose extrapolation is steeper
+        steep = _weighted_line(a, f, s)
+        if steep is not None:
+            a_eff = float(np.sum(x * a) / np.sum(x))
+            model = max(abs(shift), abs(steep[0] * a_eff - shift))
     return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
                          level, bool(abs(z) > norm.isf(level / 2)))
 
