@@ -52,8 +52,9 @@ def draw_effect(name: str, rng: np.random.Generator) -> Any:
 Stiffness = Callable[[ContactCase, np.ndarray], np.ndarray]
 
 
-def draw_independent(name: str, rng: np.random.Generator, inner: Stiffness) -> Stiffness:
-    """The same physical effect in another functional form than the library's term, applied to ``inner``."""
+def draw_independent(name: str, rng: np.random.Generator, inner: Stiffness, law: str = "") -> Stiffness:
+    """The same physical effect in another functional form than the library's term, applied to ``inner``;
+    ``law`` picks one of several forms where there are several (misalignment: ``""`` or ``"bed"``)."""
     if name == "surface_roughness":  # asperity layer with stiffness per length ∝ (F/L)^m, m < 1
         kappa, m = log_uniform(rng, 1e10, 1e11), float(rng.uniform(0.55, 0.85))
 
@@ -72,6 +73,8 @@ def draw_independent(name: str, rng: np.random.Generator, inner: Stiffness) -> S
             h = hardness_pa(min(case.roller.material.hardness_hrc, case.rail.hardness_hrc))
             return inner(case, f) * (1.0 + gain * (case.peak_pressure_pa(f) / h) ** 2)
         return hard
+    if name == "misalignment" and law == "bed":
+        return tilt_on_stiffening_bed(log_uniform(rng, 5e-5, 1.5e-3), float(rng.uniform(0.55, 0.85)), inner)
     if name == "misalignment":  # contact length grows smoothly: L_c/L = (1 + x^-n)^(-1/n)
         tilt, n = log_uniform(rng, 5e-5, 1.5e-3), float(rng.choice([2.0, 4.0]))
 
@@ -84,6 +87,33 @@ def draw_independent(name: str, rng: np.random.Generator, inner: Stiffness) -> S
         k_joint, beta = log_uniform(rng, 2e8, 2e9), float(rng.uniform(0.0, 0.2))
         return lambda case, f: 1.0 / (1.0 / inner(case, f) + 1.0 / (k_joint * (f / 100.0) ** beta))
     return inner
+
+
+def tilt_on_stiffening_bed(tilt_rad: float, a: float, inner: Stiffness) -> Stiffness:
+    """A tilted roller on a bed whose local approach grows as δ = c·q^a with the load per length q (a < 1: the
+    bed stiffens with load, as a rough or curved contact does); the measured stiffness is the tangent dF/dδ0.
+
+    With the gap θ·x and u = δ0/δ_al, s = θ·L/δ_al (δ_al the aligned approach, c matched to ``inner``'s stiffness
+    per length at each load: s = a·θ·k'·L²/F), the load balance is ∫₀¹ (u − sξ)₊^(1/a) dξ = 1 and the stiffness
+    is ``inner`` × ∫₀¹ (u − sξ)₊^(1/a − 1) dξ. At a = 1 this is the library's kinked law; for a < 1 the
+    partial-contact ratio to ``inner`` grows as (F/k')^(a/(1+a)) instead of (F/k')^½, and full contact is
+    approached slowly without a kink (the load stays unevenly spread along a bed that stiffens) — no rounding of
+    min(1, x) gives that."""
+    b = 1.0 / a
+
+    def integral(u: np.ndarray, s: np.ndarray, e: float) -> np.ndarray:  # ∫₀¹ (u − sξ)₊^e dξ
+        return (u**(e + 1) - np.maximum(u - s, 0.0) ** (e + 1)) / (s * (e + 1))
+
+    def k(case: ContactCase, f: np.ndarray) -> np.ndarray:
+        stiff, length = inner(case, f), case.roller.contact_length_m
+        s = a * tilt_rad * stiff * length / f
+        lo, hi = np.zeros_like(s), 1.0 + s
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            short = integral(mid, s, b) < 1.0
+            lo, hi = np.where(short, mid, lo), np.where(short, hi, mid)
+        return stiff * integral(0.5 * (lo + hi), s, b - 1.0)
+    return k
 
 
 CALIBRATION = {"modulus_scale": 0.9, "load_gain": 1.08, "load_offset": 15.0}
