@@ -9,8 +9,12 @@ offsets and load-dependent point noise). A candidate is named only when, on its 
   expectation, n − p);
 - when the residuals are still inconsistent with the noise after it (the effect's form may differ from the
   library's, or something else is missing), it must dominate: explain at least ``PARTIAL_SHARE`` of the
-  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit; a further term (after the first)
-  must make the residuals consistent with the noise;
+  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit;
+- a further term (after the first) must complete the explanation (make the residuals consistent with the noise)
+  and beat, by ``DECISIVE_BIC``, the model before it with its terms' load dependence bent
+  (``labctl.discrepancy.form``): an imperfect first term leaves structure that any flexible term absorbs in
+  part, and that is the first term's form, not a second effect, unless the second term explains it decisively
+  better than the bent form does;
 - it predicts held-out data better by a margin: folds refitted from scratch (no start from the all-data fit)
   leave out one roller geometry at a time when there are at least three, else one repetition at a time (then
   the check is marked weak: it tests the seating scatter, not generalisation to other rollers); the held-out
@@ -28,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.form import bent_bic
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor
@@ -102,9 +107,13 @@ class HeldOut:
     ss_with: float
 
     @property
+    def gain(self) -> float:
+        """How much the held-out whitened sum of squares falls with the term."""
+        return self.ss_without - self.ss_with
+
+    @property
     def passed(self) -> bool:
-        gain = self.ss_without - self.ss_with
-        return gain >= HELD_OUT_MARGIN * self.ss_without and gain >= DECISIVE_BIC
+        return self.gain >= HELD_OUT_MARGIN * self.ss_without and self.gain >= DECISIVE_BIC
 
     def to_dict(self) -> dict[str, Any]:
         return {"by": self.by, "folds": self.folds, "weak": self.weak, "gap_without": self.gap_without,
@@ -201,6 +210,12 @@ class Search:
     def consistent(self, fit: Fit) -> bool:
         return self.noise.consistent(self.data, fit.residuals, fit.sigma, fit.spec.n_params())
 
+    def beats_bent_form(self, current: Fit, cand: Candidate) -> bool:
+        """A term added to a model that already has one must beat, by ``DECISIVE_BIC``, that model with its terms'
+        load dependence bent (``labctl.discrepancy.form``): the leftover of a named term whose true form differs
+        from the library's is its form's, not evidence of another effect. True for a first term."""
+        return not current.spec.terms or cand.fit.bic <= bent_bic(current, self.data, self.noise) - DECISIVE_BIC
+
     def select(self, current: Fit, baseline: Fit) -> tuple[list[Step], list[Candidate]]:
         """The term(s) to add next ([] when none earns it), and every single candidate as ranked.
 
@@ -223,7 +238,7 @@ class Search:
                     return [self._step(current, baseline, cand, check, library)], library
         for cand in eligible[:MAX_CHECKED]:
             check = self.held_out(current.spec, cand.fit.spec)
-            if check is not None and not check.passed:
+            if check is not None and not check.passed or not self.beats_bent_form(current, cand):
                 continue
             if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
                                                   or check.score_with > PARTIAL_HELD_OUT * check.score_without):
@@ -260,7 +275,7 @@ class Search:
         firsts = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE][:2]
         for first in firsts:
             check1 = self.held_out(current.spec, first.fit.spec)
-            if check1 is not None and not check1.passed:
+            if check1 is not None and not check1.passed or not self.beats_bent_form(current, first):
                 continue
             seconds = sorted((c for c in self.candidates(first.fit) if c.name != first.name),
                              key=lambda c: -c.delta_bic)
@@ -268,7 +283,7 @@ class Search:
                 if second.delta_bic < DECISIVE_BIC or second.share < MIN_SHARE or not self.consistent(second.fit):
                     continue
                 check2 = self.held_out(first.fit.spec, second.fit.spec)
-                if check2 is not None and not check2.passed:
+                if check2 is not None and not check2.passed or not self.beats_bent_form(first.fit, second):
                     continue
                 one = self._step(current, baseline, first, check1, ranked)
                 one.evidence["named_with"] = second.name
