@@ -9,7 +9,8 @@ offsets and load-dependent point noise). A candidate is named only when, on its 
   expectation, n − p);
 - when the residuals are still inconsistent with the noise after it (the effect's form may differ from the
   library's, or something else is missing), it must dominate: explain at least ``PARTIAL_SHARE`` of the
-  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit;
+  discrepancy, in sample and on held-out data alike (the held-out whitened misfit above the noise's expectation:
+  a term that fits the data it was fitted to but not left-out roller types is not the effect);
 - a further term (after the first) must complete the explanation (make the residuals consistent with the noise)
   and beat, by ``DECISIVE_BIC``, the model before it with its terms' load dependence bent
   (``labctl.discrepancy.form``): an imperfect first term leaves structure that any flexible term absorbs in
@@ -45,9 +46,7 @@ HELD_OUT_MARGIN = 0.1
 """The held-out whitened misfit must fall by at least this fraction of itself."""
 PARTIAL_SHARE = 0.85
 """A term that leaves the residuals inconsistent with the noise is named only when it explains at least this
-share of the discrepancy ..."""
-PARTIAL_HELD_OUT = 0.5
-"""... and at most this fraction of the held-out misfit (rms, whitened) is left with it."""
+share of the discrepancy, in sample and on held-out data."""
 SHAPE_STARTS: dict[str, tuple[dict[str, float], ...]] = {"misalignment": ({"transition": 0.15}, {"transition": 0.4})}
 """Starting values of the shape parameters when they are freed (from the default form's fitted parameters)."""
 MIN_GEOMETRIES = 3
@@ -105,6 +104,14 @@ class HeldOut:
     score_with: float
     ss_without: float
     ss_with: float
+    n: int
+    """Held-out points (whitened: each adds about 1 to the sums of squares when the model is right)."""
+
+    @property
+    def share(self) -> float:
+        """Share of the held-out discrepancy (whitened misfit above the noise's expectation) the term explains."""
+        before = self.ss_without - self.n
+        return 0.0 if before <= 0 else max(0.0, min(1.0, 1.0 - max(0.0, self.ss_with - self.n) / before))
 
     @property
     def gain(self) -> float:
@@ -205,7 +212,7 @@ class Search:
                 n += r.size
             stats[key] = (ss, math.sqrt(sq / n), math.sqrt(ss / n))
         return HeldOut(by, len(folds), weak, stats["without"][1], stats["with"][1], stats["without"][2],
-                       stats["with"][2], stats["without"][0], stats["with"][0])
+                       stats["with"][2], stats["without"][0], stats["with"][0], n)
 
     def consistent(self, fit: Fit) -> bool:
         return self.noise.consistent(self.data, fit.residuals, fit.sigma, fit.spec.n_params())
@@ -241,7 +248,7 @@ class Search:
             if check is not None and not check.passed or not self.beats_bent_form(current, cand):
                 continue
             if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
-                                                  or check.score_with > PARTIAL_HELD_OUT * check.score_without):
+                                                  or check.share < PARTIAL_SHARE):
                 continue
             if cand.name in cand.fit.spec.free_shape:
                 # A reshaped term has as many parameters as two library terms: when two library terms complete the
