@@ -7,7 +7,8 @@ second effect" is therefore "the first term's form is not quite right": the curr
 contribution d_t (ln k with the term minus ln k without it, same parameters) bent with load,
 ln k + Σ_t d_t·(a_t + b_t·ln(p/p̄)) with p the load per length, p̄ its geometric mean, plus Tripp's depth
 re-adjusted (linearised, generalised least squares). One parameter b_t per term; the a_t and the depth re-adjust
-parameters already fitted. A further term is named only when it beats this bent model decisively.
+parameters already fitted. A further term is named only when it beats this bent model decisively; a term that
+leaves structure the bend does not explain (``own_form_share`` < ½) must predict left-out roller types too.
 """
 
 from __future__ import annotations
@@ -36,11 +37,10 @@ def contribution(fit: Fit, data: Dataset, name: str) -> np.ndarray:
     return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
 
-def bent_bic(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
-    """BIC of ``fit`` with each term's contribution bent with load (see the module doc); the fit's own BIC when
-    it has no term."""
+def bent_ss(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
+    """Whitened sum of squares of ``fit`` with each term's contribution bent with load (see the module doc)."""
     if not fit.spec.terms:
-        return fit.bic
+        return float(fit.z @ fit.z)
     ln_p = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
     ln_p = ln_p - ln_p.mean()
     cols = []
@@ -53,6 +53,21 @@ def bent_bic(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
     a = noise.whiten(data, np.column_stack(cols), fit.sigma)
     coef, *_ = np.linalg.lstsq(a, fit.z, rcond=None)
     e = fit.z - a @ coef
-    n = e.size
-    ss = max(float(e @ e), 1e-300)
-    return n * math.log(ss / n) + (fit.spec.n_params() + len(fit.spec.terms)) * math.log(n)
+    return max(float(e @ e), 1e-300)
+
+
+def bent_bic(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
+    """BIC of ``fit`` with its terms' load dependence bent (one parameter per term); its own BIC without terms."""
+    if not fit.spec.terms:
+        return fit.bic
+    n = fit.n_points
+    return n * math.log(bent_ss(fit, data, noise) / n) + (fit.spec.n_params() + len(fit.spec.terms)) * math.log(n)
+
+
+def own_form_share(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
+    """Share of the structure ``fit`` leaves (its whitened misfit above the noise's expectation) that bending its
+    terms' load dependence explains: near 1 when the leftover is the terms' own law, near 0 when it is not."""
+    left = float(fit.z @ fit.z) - (fit.n_points - fit.spec.n_params())
+    if left <= 0:
+        return 1.0
+    return max(0.0, min(1.0, (float(fit.z @ fit.z) - bent_ss(fit, data, noise)) / left))

@@ -9,8 +9,11 @@ offsets and load-dependent point noise). A candidate is named only when, on its 
   expectation, n − p);
 - when the residuals are still inconsistent with the noise after it (the effect's form may differ from the
   library's, or something else is missing), it must dominate: explain at least ``PARTIAL_SHARE`` of the
-  discrepancy, in sample and on held-out data alike (the held-out whitened misfit above the noise's expectation:
-  a term that fits the data it was fitted to but not left-out roller types is not the effect);
+  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit; and when that leftover is not its
+  own law's (bending the term's load dependence explains less than ``MIN_SHARE`` of it: something the library
+  cannot name), it must also explain ``PARTIAL_SHARE`` of the held-out discrepancy (the held-out whitened misfit
+  above the noise's expectation): a term that absorbs another effect in the rollers it was fitted to does not
+  predict left-out ones that well;
 - a further term (after the first) must complete the explanation (make the residuals consistent with the noise)
   and beat, by ``DECISIVE_BIC``, the model before it with its terms' load dependence bent
   (``labctl.discrepancy.form``): an imperfect first term leaves structure that any flexible term absorbs in
@@ -33,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
-from labctl.discrepancy.form import bent_bic
+from labctl.discrepancy.form import bent_bic, own_form_share
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor
@@ -46,7 +49,9 @@ HELD_OUT_MARGIN = 0.1
 """The held-out whitened misfit must fall by at least this fraction of itself."""
 PARTIAL_SHARE = 0.85
 """A term that leaves the residuals inconsistent with the noise is named only when it explains at least this
-share of the discrepancy, in sample and on held-out data."""
+share of the discrepancy ..."""
+PARTIAL_HELD_OUT = 0.5
+"""... and at most this fraction of the held-out misfit (rms, whitened) is left with it."""
 SHAPE_STARTS: dict[str, tuple[dict[str, float], ...]] = {"misalignment": ({"transition": 0.15}, {"transition": 0.4})}
 """Starting values of the shape parameters when they are freed (from the default form's fitted parameters)."""
 MIN_GEOMETRIES = 3
@@ -223,6 +228,13 @@ class Search:
         from the library's is its form's, not evidence of another effect. True for a first term."""
         return not current.spec.terms or cand.fit.bic <= bent_bic(current, self.data, self.noise) - DECISIVE_BIC
 
+    def dominates(self, cand: Candidate, check: HeldOut | None) -> bool:
+        """A term that leaves structure explains nearly all of the discrepancy, and on held-out roller types too
+        when the structure left is not its own law's (see the module doc)."""
+        if cand.share < PARTIAL_SHARE or check is None or check.score_with > PARTIAL_HELD_OUT * check.score_without:
+            return False
+        return own_form_share(cand.fit, self.data, self.noise) >= MIN_SHARE or check.share >= PARTIAL_SHARE
+
     def select(self, current: Fit, baseline: Fit) -> tuple[list[Step], list[Candidate]]:
         """The term(s) to add next ([] when none earns it), and every single candidate as ranked.
 
@@ -247,8 +259,7 @@ class Search:
             check = self.held_out(current.spec, cand.fit.spec)
             if check is not None and not check.passed or not self.beats_bent_form(current, cand):
                 continue
-            if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
-                                                  or check.share < PARTIAL_SHARE):
+            if not self.consistent(cand.fit) and not self.dominates(cand, check):
                 continue
             if cand.name in cand.fit.spec.free_shape:
                 # A reshaped term has as many parameters as two library terms: when two library terms complete the
