@@ -9,7 +9,8 @@ background term) is refitted, in units of the point noise.
 Suites (``--suite``, default ``acceptance`` = all but ``twin``):
 
 - ``independent``: 7 scenarios (the five effects in functional forms unlike the library's, surface roughness
-  plus a misalignment in such forms, and null data) × ``--seeds`` × noise scales ``--noise``;
+  plus a misalignment in such forms, and null data) × ``--seeds`` × noise scales ``--noise``, and a second tilt
+  law the library does not share (``misalignment/bed``: a wedge on a bed that stiffens with load), scored apart;
 - ``twin``: the library's own terms (parameter recovery);
 - ``calibration``: a 10 % Young's modulus error, a load-cell gain of 1.08, a 15 N load-cell offset, each with
   and without surface roughness — must never be named as a physical effect;
