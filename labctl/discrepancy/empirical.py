@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from labctl.discrepancy.data import CaseData, Dataset
-from labctl.discrepancy.model import Fit, predict_ln
+from labctl.discrepancy.model import Fit, depth_column
 from labctl.discrepancy.search import DECISIVE_BIC, HELD_OUT_MARGIN, Search
 from labctl.physics.materials import hardness_pa
 
@@ -78,15 +78,6 @@ def features(data: Dataset, names: list[str] | None = None) -> tuple[list[str], 
     cols = [np.concatenate([BASIS[n](c) for c in data.cases]) for n in every]
     keep = [i for i, v in enumerate(cols) if np.ptp(v) > 1e-9 * max(1.0, float(np.max(np.abs(v))))]
     return [every[i] for i in keep], np.stack([cols[i] for i in keep], axis=1)
-
-
-def depth_column(fit: Fit, data: Dataset) -> np.ndarray | None:
-    """d ln k / d ln depth at the fit's parameters (None without a fitted depth)."""
-    if fit.depth_m is None:
-        return None
-    step = 0.01
-    law = replace(fit.law, depth_m=fit.law.depth_m * math.exp(step))
-    return (predict_ln(data, law, fit.chain) - fit.predict(data)) / step
 
 
 @dataclass(frozen=True)

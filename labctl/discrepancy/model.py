@@ -216,6 +216,15 @@ class Fit:
         return {"depth_m": self.depth_m} if self.spec.fits_depth else {}
 
 
+def depth_column(fit: Fit, data: Dataset) -> np.ndarray | None:
+    """d ln k / d ln depth at the fit's parameters (None without a fitted depth)."""
+    if fit.depth_m is None:
+        return None
+    step = 0.01
+    law = replace(fit.law, depth_m=fit.law.depth_m * math.exp(step))
+    return (predict_ln(data, law, fit.chain) - fit.predict(data)) / step
+
+
 def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray) -> np.ndarray:
     with np.errstate(all="ignore"):
         r = predict_ln(data, spec.law(x), spec.chain(x)) - measured

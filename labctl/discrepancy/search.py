@@ -9,8 +9,16 @@ offsets and load-dependent point noise). A candidate is named only when, on its 
   expectation, n − p);
 - when the residuals are still inconsistent with the noise after it (the effect's form may differ from the
   library's, or something else is missing), it must dominate: explain at least ``PARTIAL_SHARE`` of the
-  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit; a further term (after the first)
-  must make the residuals consistent with the noise;
+  discrepancy and leave at most ``PARTIAL_HELD_OUT`` of the held-out misfit; and when that leftover is not its
+  own law's (bending the term's load dependence explains less than ``MIN_SHARE`` of it: something the library
+  cannot name), it must also explain ``PARTIAL_SHARE`` of the held-out discrepancy (the held-out whitened misfit
+  above the noise's expectation): a term that absorbs another effect in the rollers it was fitted to does not
+  predict left-out ones that well;
+- a further term (after the first) must complete the explanation (make the residuals consistent with the noise)
+  and beat, by ``DECISIVE_BIC``, the model before it with its terms' load dependence bent
+  (``labctl.discrepancy.form``): an imperfect first term leaves structure that any flexible term absorbs in
+  part, and that is the first term's form, not a second effect, unless the second term explains it decisively
+  better than the bent form does;
 - it predicts held-out data better by a margin: folds refitted from scratch (no start from the all-data fit)
   leave out one roller geometry at a time when there are at least three, else one repetition at a time (then
   the check is marked weak: it tests the seating scatter, not generalisation to other rollers); the held-out
@@ -28,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.form import bent_bic, own_form_share
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor
@@ -100,11 +109,23 @@ class HeldOut:
     score_with: float
     ss_without: float
     ss_with: float
+    n: int
+    """Held-out points (whitened: each adds about 1 to the sums of squares when the model is right)."""
+
+    @property
+    def share(self) -> float:
+        """Share of the held-out discrepancy (whitened misfit above the noise's expectation) the term explains."""
+        before = self.ss_without - self.n
+        return 0.0 if before <= 0 else max(0.0, min(1.0, 1.0 - max(0.0, self.ss_with - self.n) / before))
+
+    @property
+    def gain(self) -> float:
+        """How much the held-out whitened sum of squares falls with the term."""
+        return self.ss_without - self.ss_with
 
     @property
     def passed(self) -> bool:
-        gain = self.ss_without - self.ss_with
-        return gain >= HELD_OUT_MARGIN * self.ss_without and gain >= DECISIVE_BIC
+        return self.gain >= HELD_OUT_MARGIN * self.ss_without and self.gain >= DECISIVE_BIC
 
     def to_dict(self) -> dict[str, Any]:
         return {"by": self.by, "folds": self.folds, "weak": self.weak, "gap_without": self.gap_without,
@@ -196,10 +217,23 @@ class Search:
                 n += r.size
             stats[key] = (ss, math.sqrt(sq / n), math.sqrt(ss / n))
         return HeldOut(by, len(folds), weak, stats["without"][1], stats["with"][1], stats["without"][2],
-                       stats["with"][2], stats["without"][0], stats["with"][0])
+                       stats["with"][2], stats["without"][0], stats["with"][0], n)
 
     def consistent(self, fit: Fit) -> bool:
         return self.noise.consistent(self.data, fit.residuals, fit.sigma, fit.spec.n_params())
+
+    def beats_bent_form(self, current: Fit, cand: Candidate) -> bool:
+        """A term added to a model that already has one must beat, by ``DECISIVE_BIC``, that model with its terms'
+        load dependence bent (``labctl.discrepancy.form``): the leftover of a named term whose true form differs
+        from the library's is its form's, not evidence of another effect. True for a first term."""
+        return not current.spec.terms or cand.fit.bic <= bent_bic(current, self.data, self.noise) - DECISIVE_BIC
+
+    def dominates(self, cand: Candidate, check: HeldOut | None) -> bool:
+        """A term that leaves structure explains nearly all of the discrepancy, and on held-out roller types too
+        when the structure left is not its own law's (see the module doc)."""
+        if cand.share < PARTIAL_SHARE or check is None or check.score_with > PARTIAL_HELD_OUT * check.score_without:
+            return False
+        return own_form_share(cand.fit, self.data, self.noise) >= MIN_SHARE or check.share >= PARTIAL_SHARE
 
     def select(self, current: Fit, baseline: Fit) -> tuple[list[Step], list[Candidate]]:
         """The term(s) to add next ([] when none earns it), and every single candidate as ranked.
@@ -223,10 +257,9 @@ class Search:
                     return [self._step(current, baseline, cand, check, library)], library
         for cand in eligible[:MAX_CHECKED]:
             check = self.held_out(current.spec, cand.fit.spec)
-            if check is not None and not check.passed:
+            if check is not None and not check.passed or not self.beats_bent_form(current, cand):
                 continue
-            if not self.consistent(cand.fit) and (cand.share < PARTIAL_SHARE or check is None
-                                                  or check.score_with > PARTIAL_HELD_OUT * check.score_without):
+            if not self.consistent(cand.fit) and not self.dominates(cand, check):
                 continue
             if cand.name in cand.fit.spec.free_shape:
                 # A reshaped term has as many parameters as two library terms: when two library terms complete the
@@ -260,7 +293,7 @@ class Search:
         firsts = [c for c in ranked if c.delta_bic >= DECISIVE_BIC and c.share >= MIN_SHARE][:2]
         for first in firsts:
             check1 = self.held_out(current.spec, first.fit.spec)
-            if check1 is not None and not check1.passed:
+            if check1 is not None and not check1.passed or not self.beats_bent_form(current, first):
                 continue
             seconds = sorted((c for c in self.candidates(first.fit) if c.name != first.name),
                              key=lambda c: -c.delta_bic)
@@ -268,7 +301,7 @@ class Search:
                 if second.delta_bic < DECISIVE_BIC or second.share < MIN_SHARE or not self.consistent(second.fit):
                     continue
                 check2 = self.held_out(first.fit.spec, second.fit.spec)
-                if check2 is not None and not check2.passed:
+                if check2 is not None and not check2.passed or not self.beats_bent_form(first.fit, second):
                     continue
                 one = self._step(current, baseline, first, check1, ranked)
                 one.evidence["named_with"] = second.name

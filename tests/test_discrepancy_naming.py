@@ -1,0 +1,119 @@
+"""Naming rules of the discrepancy workflow on effects whose form differs from the library's: the structure an
+imperfect first term leaves is no evidence of a second effect, and bad rows do not change the verdict."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from labctl.discrepancy import run_discrepancy
+from labctl.discrepancy.synthetic import NoiseModel, synthesize
+from labctl.physics import ContactCase, ContactLaw
+
+
+def joint_spring(depth_m: float, k_joint: float, beta: float):
+    """Tripp with an extra joint spring in series that stiffens with load as F^β (not the library's
+    setup_compliance form, which is a constant K_setup error)."""
+    inner = ContactLaw("tripp", depth_m).stiffness_n_per_m
+
+    def k(case: ContactCase, f: np.ndarray) -> np.ndarray:
+        return 1.0 / (1.0 / inner(case, f) + 1.0 / (k_joint * (f / 100.0) ** beta))
+    return k
+
+
+def campaign(depth_m: float, k_joint: float, beta: float, low: float, seed: int):
+    return synthesize(joint_spring(depth_m, k_joint, beta), noise=NoiseModel(low, low / 3.0), seed=seed,
+                      seating_rel=0.1 * low)
+
+
+def test_a_setup_spring_of_another_form_gets_no_second_name_at_low_noise():
+    # At 1.6 % point noise (at the preload) the library's setup_compliance explains 93 % of the discrepancy and
+    # leaves structure (lack-of-fit p 4e-21). Surface roughness plus a load offset absorb that leftover in sample,
+    # but on left-out roller types they explain far less than the structure the first term leaves: no second name.
+    result = run_discrepancy(campaign(2.05e-3, 7.1e8, 0.10, 0.016, 415))
+    doc = result.to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["setup_compliance"]
+    assert doc["measurement_effects"] == []
+    assert doc["verdict"] == "partly_explained"
+    assert "closest library term setup_compliance explains 9" in doc["verdict_text"]
+    assert "NOT consistent" in doc["verdict_text"]
+
+
+def test_no_pair_of_further_terms_for_the_leftover_of_a_dominant_first_term():
+    # The setup spring explains 99.8 % of the discrepancy; a measurement-side modulus scale and end effects
+    # together reach the noise, but each alone leaves most of the leftover on held-out roller types.
+    doc = run_discrepancy(campaign(3.09e-3, 2.9e8, 0.021, 0.015, 413)).to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["setup_compliance"]
+    assert doc["measurement_effects"] == []
+    assert doc["verdict"] == "partly_explained"
+
+
+def test_three_percent_outliers_leave_the_verdict_unchanged():
+    # 7 of 231 points off by a factor e^±(0.2-0.5): all are set aside and reported, and setting them aside must
+    # not let two measurement-side terms absorb what the imperfect setup term leaves.
+    points = campaign(1.2e-3, 6.8e8, 0.091, 0.025, 401008)
+    clean = run_discrepancy(points).to_dict()
+    rng = np.random.default_rng(7)
+    bad = list(points)
+    for i in (129, 23, 227, 210, 92, 50, 198):
+        factor = math.exp(float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.2, 0.5)))
+        bad[i] = dataclasses.replace(bad[i], stiffness_n_per_m=bad[i].stiffness_n_per_m * factor)
+    doc = run_discrepancy(bad).to_dict()
+    assert len(doc["input_checks"]["outliers"]) == 7
+    for key in ("effects", "measurement_effects"):
+        assert [e["name"] for e in doc[key]] == [e["name"] for e in clean[key]]
+    assert [e["name"] for e in doc["effects"]] == ["setup_compliance"]
+    assert doc["verdict"] == clean["verdict"]
+
+
+def crowned(depth_m: float, relief: float, drop_m: float):
+    """A crowned roller: flat middle, parabolic end reliefs (``relief`` × L_we per end, dropping ``drop_m`` at the
+    end) on an elastic bed of Tripp's stiffness per length; the contact length grows with load."""
+    inner = ContactLaw("tripp", depth_m).stiffness_n_per_m
+
+    def k(case: ContactCase, f: np.ndarray) -> np.ndarray:
+        length = case.roller.contact_length_m
+        per_length = inner(case, f) / length
+        flat, ends = length * (1 - 2 * relief), length * relief
+
+        def area(d: np.ndarray) -> np.ndarray:  # ∫ max(0, d − gap(x)) dx
+            u = ends * np.sqrt(np.minimum(d / drop_m, 1.0))
+            return d * flat + 2.0 * (d * u - drop_m * u**3 / (3.0 * ends**2))
+        need = f / per_length
+        lo, hi = np.zeros_like(need), need / flat
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            below = area(mid) < need
+            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+        d = 0.5 * (lo + hi)
+        return per_length * (flat + 2.0 * ends * np.sqrt(np.minimum(d / drop_m, 1.0)))
+    return k
+
+
+def test_a_setup_spring_whose_leftover_is_its_own_law_is_named():
+    # A soft joint spring stiffening as F^0.17: setup_compliance explains 86 % of the discrepancy and the structure
+    # it leaves is its own law's (bending the term's load dependence explains nearly all of it): the closest term
+    # is named, and the verdict says the residual is not noise.
+    doc = run_discrepancy(campaign(3.05e-3, 2.29e8, 0.171, 0.0127, 402)).to_dict()
+    assert [e["name"] for e in doc["effects"]] == ["setup_compliance"]
+    assert doc["verdict"] == "partly_explained" and "NOT consistent" in doc["verdict_text"]
+
+
+@pytest.mark.parametrize(("depth_m", "relief", "drop_m", "low", "seed"),
+                         [(1.07e-3, 0.176, 2.29e-6, 0.0133, 300018), (1.03e-3, 0.198, 2.16e-6, 0.0389, 300020)],
+                         ids=["held-out-share", "held-out-rms"])
+def test_crowned_rollers_are_not_named_surface_roughness(depth_m, relief, drop_m, low, seed):
+    # On Ra 0.03 µm rails the asperity term explains 86-91 % of a crowned roller's discrepancy in sample, but the
+    # structure it leaves is not its own law's (the crowning's signature depends on length and diameter) and it
+    # predicts left-out roller types less well: no name, and the closest term and the structure left are stated.
+    points = synthesize(crowned(depth_m, relief, drop_m), rail_ra_m=0.03e-6, noise=NoiseModel(low, low / 3),
+                        seed=seed, seating_rel=0.1 * low)
+    doc = run_discrepancy(points).to_dict()
+    assert doc["effects"] == []
+    assert doc["verdict"] == "unexplained"
+    assert doc["closest_library_term"]["name"] == "surface_roughness"
+    assert "depends on contact length" in doc["verdict_text"]
+    assert doc["empirical_term"] is not None and doc["empirical_term"]["label"] == "unnamed"
