@@ -112,7 +112,7 @@ def summarize_robust(results: list[dict[str, Any]]) -> str:
 
 
 def misses(r: dict[str, Any]) -> list[str]:
-    """What a dataset's answer gets wrong against the acceptance of issue 15 ([] when nothing)."""
+    """What a dataset's answer gets wrong against the acceptance targets ([] when nothing)."""
     truth = _truth_set(r)
     out = []
     if r["suite"] in ("independent", "twin"):
