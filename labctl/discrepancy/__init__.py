@@ -1,5 +1,5 @@
 """Discrepancy workflow: where measured stiffness and the model disagree, which effect is missing, how much
-of the gap it closes (issue 7)."""
+of the gap it closes."""
 
 from __future__ import annotations
 
