@@ -12,7 +12,6 @@ from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.synthetic import NoiseModel, case_for, synthesize
 from labctl.physics import (
     EQ5,
-    ContactLaw,
     EmpiricalFit,
     EndEffects,
     MaterialHardness,
@@ -22,23 +21,14 @@ from labctl.physics import (
     TrippContact,
 )
 from labctl.physics.materials import hardness_pa
+from tests.discrepancy_util import DEPTH_M, GENERATOR_NOISE, names, world
 
 NOISE = NoiseModel(low=0.03, high=0.01)
 """A few % at the preload, 1 % near 30 % of C0 (the paper's spread)."""
-DEPTH_M = 2e-3
 
 
 def eq5(case, load_n):
     return EmpiricalFit(EQ5, case.roller.contact_length_m).stiffness_n_per_m(load_n)
-
-
-def world(*effects, depth_m=DEPTH_M):
-    law = ContactLaw("tripp", depth_m, tuple(effects))
-    return law.stiffness_n_per_m
-
-
-def names(result):
-    return [s.name for s in result.steps]
 
 
 def test_eq5_data_name_surface_roughness_and_close_the_gap():
@@ -204,8 +194,6 @@ def test_other_baselines_and_limits():
 
 # Honest verdicts (issue 15): each key failure mode of the earlier workflow on a few datasets.
 
-GENERATOR_NOISE = NoiseModel(low=0.02, high=0.02 / 3)
-"""The bench generator's middle noise: 2 % at the preload, a third of it at the top load."""
 
 
 def rough_exponent(exponent, scale=3e10):
@@ -341,50 +329,6 @@ def test_each_term_is_held_out_by_roller_type_with_its_own_evidence():
     # the first step's statistics are its own (against the baseline), not the pair's
     assert first["lack_of_fit_after"]["p"] < 0.01 <= second["lack_of_fit_after"]["p"]
     assert result.steps[0].fit.gap > result.steps[1].fit.gap
-
-
-@pytest.fixture(scope="module")
-def setup_campaign():
-    points = synthesize(world(SetupCompliance(stiffness_factor=0.7)), noise=GENERATOR_NOISE, seed=49)
-    return points, run_discrepancy(points)
-
-
-def test_one_duplicated_wrong_row_is_reported_and_changes_nothing(setup_campaign):
-    points, clean = setup_campaign
-    wrong = replace(points[40], stiffness_n_per_m=points[40].stiffness_n_per_m * 1.5)
-    doc = run_discrepancy([*points, wrong]).to_dict()
-    assert len(doc["input_checks"]["conflicting_rows"]) == 1
-    assert doc["input_checks"]["conflicting_rows"][0]["stiffness_n_per_m"] == wrong.stiffness_n_per_m
-    assert [e["name"] for e in doc["effects"]] == names(clean) == ["setup_compliance"]
-    assert doc["noise_floor"] == pytest.approx(clean.noise.sigma, rel=1e-9)
-
-
-def test_a_duplicated_file_is_reported_and_weighs_once(setup_campaign):
-    points, clean = setup_campaign
-    result = run_discrepancy(points + points)
-    assert len(result.screening.duplicates) == len(points)
-    assert result.steps[0].evidence["delta_bic"] == pytest.approx(clean.steps[0].evidence["delta_bic"], rel=1e-9)
-
-
-def test_three_percent_outliers_are_reported_and_the_verdict_holds(setup_campaign):
-    points, clean = setup_campaign
-    rng = np.random.default_rng(50)
-    bad = list(points)
-    picked = rng.choice(len(points), size=7, replace=False)
-    for i, sign in zip(picked, [1, -1, 1, -1, 1, -1, 1], strict=True):
-        bad[i] = replace(bad[i], stiffness_n_per_m=bad[i].stiffness_n_per_m * np.exp(sign * 0.3))
-    result = run_discrepancy(bad)
-    assert len(result.screening.outliers) == 7
-    assert names(result) == names(clean)
-    assert result.noise.sigma == pytest.approx(clean.noise.sigma, rel=0.2)
-
-
-def test_stiffness_in_n_per_mm_is_refused_with_a_hint(setup_campaign):
-    from labctl.errors import InputError
-
-    points, _ = setup_campaign
-    with pytest.raises(InputError, match="N/mm"):
-        run_discrepancy([replace(p, stiffness_n_per_m=p.stiffness_n_per_m / 1000) for p in points])
 
 
 def misalignment_tilt_spread(case, load_n):

@@ -1,0 +1,58 @@
+"""Bad rows in the discrepancy workflow's input: duplicated rows and files, outliers and stiffness in N/mm are
+reported (or refused) and never change the verdict silently."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from labctl.discrepancy import run_discrepancy
+from labctl.discrepancy.synthetic import synthesize
+from labctl.physics import SetupCompliance
+from tests.discrepancy_util import GENERATOR_NOISE, names, world
+
+
+@pytest.fixture(scope="module")
+def setup_campaign():
+    points = synthesize(world(SetupCompliance(stiffness_factor=0.7)), noise=GENERATOR_NOISE, seed=49)
+    return points, run_discrepancy(points)
+
+
+def test_one_duplicated_wrong_row_is_reported_and_changes_nothing(setup_campaign):
+    points, clean = setup_campaign
+    wrong = replace(points[40], stiffness_n_per_m=points[40].stiffness_n_per_m * 1.5)
+    doc = run_discrepancy([*points, wrong]).to_dict()
+    assert len(doc["input_checks"]["conflicting_rows"]) == 1
+    assert doc["input_checks"]["conflicting_rows"][0]["stiffness_n_per_m"] == wrong.stiffness_n_per_m
+    assert [e["name"] for e in doc["effects"]] == names(clean) == ["setup_compliance"]
+    assert doc["noise_floor"] == pytest.approx(clean.noise.sigma, rel=1e-9)
+
+
+def test_a_duplicated_file_is_reported_and_weighs_once(setup_campaign):
+    points, clean = setup_campaign
+    result = run_discrepancy(points + points)
+    assert len(result.screening.duplicates) == len(points)
+    assert result.steps[0].evidence["delta_bic"] == pytest.approx(clean.steps[0].evidence["delta_bic"], rel=1e-9)
+
+
+def test_three_percent_outliers_are_reported_and_the_verdict_holds(setup_campaign):
+    points, clean = setup_campaign
+    rng = np.random.default_rng(50)
+    bad = list(points)
+    picked = rng.choice(len(points), size=7, replace=False)
+    for i, sign in zip(picked, [1, -1, 1, -1, 1, -1, 1], strict=True):
+        bad[i] = replace(bad[i], stiffness_n_per_m=bad[i].stiffness_n_per_m * np.exp(sign * 0.3))
+    result = run_discrepancy(bad)
+    assert len(result.screening.outliers) == 7
+    assert names(result) == names(clean)
+    assert result.noise.sigma == pytest.approx(clean.noise.sigma, rel=0.2)
+
+
+def test_stiffness_in_n_per_mm_is_refused_with_a_hint(setup_campaign):
+    from labctl.errors import InputError
+
+    points, _ = setup_campaign
+    with pytest.raises(InputError, match="N/mm"):
+        run_discrepancy([replace(p, stiffness_n_per_m=p.stiffness_n_per_m / 1000) for p in points])
