@@ -192,8 +192,7 @@ def test_other_baselines_and_limits():
     assert names(capped) == ["surface_roughness"] and not capped.consistent
 
 
-# Honest verdicts (issue 15): each key failure mode of the earlier workflow on a few datasets.
-
+# Honest verdicts: each failure mode the workflow must avoid, on a few datasets.
 
 
 def rough_exponent(exponent, scale=3e10):
