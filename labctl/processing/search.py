@@ -28,7 +28,7 @@ from labctl.processing.shapes import Classification, PredictedShapes, classify
 N_CONTACT_MODES = 3
 MAX_DAMPING = 0.3
 MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is taken for model residue
-PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond the rig's ratio is residue
+PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond (or below) the rig's ratio is residue
 SHARPNESS = 0.1  # a real mode's frequency is known to better than this share of its half-power width
 SPLITS = (0.05, 0.15, 0.4)  # tilt-pair start separations, in half-power widths of the single tilt
 FIRST_FIT_ITER = 8  # a three-mode fit from the LSCF poles still moving after this many steps sits in a
@@ -131,9 +131,11 @@ def _widen(fit: ModalFit, live: np.ndarray, n_channels: int) -> ModalFit:
 
 
 def _trusted(fit: ModalFit, penalty: float, zeta: float) -> bool:
-    """Every pole inside the band, well determined, plausibly damped (a few times the rig's modal damping),
+    """Every pole inside the band, well determined, plausibly damped (within a few times the rig's modal damping),
     of visible strength and worth its constants (likelihood ratio at RESOLUTION_LEVEL)."""
-    if not _valid(fit) or np.any(fit.damping_ratios > max(0.1, PLAUSIBLE_DAMPING * zeta)):
+    damping = fit.damping_ratios
+    if not _valid(fit) or np.any(damping > max(0.1, PLAUSIBLE_DAMPING * zeta)) \
+            or np.any(damping < zeta / PLAUSIBLE_DAMPING):
         return False
     sharp = fit.frequency_std_hz < SHARPNESS * 2.0 * fit.damping_ratios * fit.frequencies_hz
     strength = np.sqrt(np.sum(fit.constants**2, axis=1)) / fit.damping_ratios  # peak response per mode
