@@ -20,11 +20,11 @@ class ForceNoiseWidener:
         self.frf, self.spectra, self.used, self.sigma_f, self.live = frf, spectra, used, sigma_f, live
         self.weights = channel_weights(noise[live])
         self.active = bool(spectra.force_windows) and bool(np.any(sigma_f[used] > 0))
-        self._noise: dict[tuple[int, int], ForceNoise] = {}
-        self._done: dict[tuple[int, int, int], tuple[ModalFit, ModalFit, Linearised]] = {}
+        self._noise: dict[tuple[int, int, int], ForceNoise] = {}
+        self._done: dict[tuple[int, ...], tuple[ModalFit, ModalFit, Linearised]] = {}
 
     def force_noise(self, band: slice) -> ForceNoise:
-        key = (band.start, band.stop)
+        key = (band.start, band.stop, band.step)
         fn = self._noise.get(key)
         if fn is None:
             fn = self._noise[key] = force_noise_on(self.spectra, self.used, self.sigma_f, band)
@@ -32,13 +32,13 @@ class ForceNoiseWidener:
 
     def linearised(self, fit: ModalFit, band: slice) -> Linearised | None:
         """The linearised fit made when ``fit`` was widened (None if it was not)."""
-        hit = self._done.get((id(fit), band.start, band.stop))
+        hit = self._done.get((id(fit), band.start, band.stop, band.step))
         return hit[2] if hit is not None and hit[0] is fit else None
 
     def __call__(self, fit: ModalFit, band: slice) -> ModalFit:
         if not self.active:
             return fit
-        key = (id(fit), band.start, band.stop)
+        key = (id(fit), band.start, band.stop, band.step)
         hit = self._done.get(key)
         if hit is not None and hit[0] is fit:
             return hit[1]
@@ -48,13 +48,13 @@ class ForceNoiseWidener:
         except np.linalg.LinAlgError:
             return replace(fit, frequency_std_hz=np.full_like(fit.frequency_std_hz, np.inf))
         fn = self.force_noise(band)
-        cov = lin.inv @ lin.force_outer(fn, range(len(fn.windows)), per_impact=False) @ lin.inv
+        cov = lin.force_covariance(fn, range(len(fn.windows)))
         var = np.clip(np.diag(cov), 0.0, None)
         f_std = np.sqrt(fit.frequency_std_hz**2 + var[0::2])
         z_std = np.sqrt(fit.damping_std**2 + (fit.damping_ratios**2) * var[1::2])
         out = replace(fit, frequency_std_hz=f_std, damping_std=z_std, force_covariance=cov)
         self._done[key] = (fit, out, lin)
-        self._done[(id(out), band.start, band.stop)] = (out, out, lin)
+        self._done[(id(out), band.start, band.stop, band.step)] = (out, out, lin)
         return out
 
 

@@ -129,12 +129,17 @@ class _Problem:
         """JᵀJ and Jᵀr at the last solved point (remembered: the fit's covariance reuses the last step's)."""
         if self._normal is not None and self.x is not None and np.array_equal(self._normal[0], self.x):
             return self._normal[1], self._normal[2]
-        pdb = self.projected_derivatives()
-        c = np.repeat(self.coef, 2, axis=0)  # mode r's constants for both its parameters
-        jtj = (pdb.T @ pdb) * (c @ c.T)
+        pdb, c, jtj = self.jacobian()
         jtr = -np.sum((pdb.T @ self.resid) * c, axis=1)
         self._normal = (self.x.copy(), jtj, jtr)
         return jtj, jtr
+
+    def jacobian(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The Kaufman Jacobian's pieces at the last solved point: projected derivatives, each parameter's mode
+        constants (mode r's for both its parameters) and JᵀJ."""
+        pdb = self.projected_derivatives()
+        c = np.repeat(self.coef, 2, axis=0)
+        return pdb, c, (pdb.T @ pdb) * (c @ c.T)
 
 
 def _gram_factor(basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,14 +295,9 @@ class Linearised:
         x = np.array([v for f, z in zip(fit.frequencies_hz, fit.damping_ratios, strict=True)
                       for v in (f, math.log(max(z, 1e-12)))])
         self.prob.solve(x)
-        pdb = self.prob.projected_derivatives()
+        self.pdb, self.c2, jtj = self.prob.jacobian()
         n = len(freqs_hz)
-        self.n = n
-        self.pdb = pdb
-        self.p_c = pdb[:n] + 1j * pdb[n:]  # (n_lines, 2M)
-        c2 = np.repeat(self.prob.coef, 2, axis=0)
-        self.c2 = c2
-        jtj = (pdb.T @ pdb) * (c2 @ c2.T)
+        self.p_c = self.pdb[:n] + 1j * self.pdb[n:]  # (n_lines, 2M)
         self.inv = np.linalg.inv(jtj)
         self.h = h
 
@@ -324,23 +324,15 @@ class Linearised:
             outer += noise.sigma_n[i] ** 2 * (g.T @ g)
         return outer
 
+    def force_covariance(self, noise: ForceNoise, impacts: Sequence[int], per_impact: bool = False) -> np.ndarray:
+        """Covariance (2M × 2M, over (f_r, ln ζ_r) pairs) of the poles caused by the force channel's noise.
 
-def force_noise_covariance(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, noise: ForceNoise, *,
-                           decay_rate_per_s: float = 0.0, channel_weights: np.ndarray | None = None) -> np.ndarray:
-    """Covariance (2M × 2M, over (f_r, ln ζ_r) pairs) of the fitted poles caused by the force channel's noise.
-
-    H1 = Σ X F*/Σ|F|² with F_i = F_i° + δF_i gives δH = -H·Σ F_i* δF_i / Σ|F_i|² (first order): the same
-    smooth relative error on every channel, correlated over many lines, which the residuals cannot reveal.
-    Each noise sample in a force window perturbs the data by a known vector; the linearised variable-
-    projection estimate maps it to the poles: cov = (JᵀJ)⁻¹ (Σ σ² g gᵀ) (JᵀJ)⁻¹ with g = Jᵀ δy.
-    """
-    m = len(fit.frequencies_hz)
-    try:
-        lin = Linearised(fit, freqs_hz, h, decay_rate_per_s, channel_weights)
-    except np.linalg.LinAlgError:
-        return np.full((2 * m, 2 * m), np.inf)
-    outer = lin.force_outer(noise, range(len(noise.windows)), per_impact=False)
-    return lin.inv @ outer @ lin.inv
+        H1 = Σ X F*/Σ|F|² with F_i = F_i° + δF_i gives δH = -H·Σ F_i* δF_i / Σ|F_i|² (first order): the same
+        smooth relative error on every channel, correlated over many lines, which the residuals cannot reveal.
+        Each noise sample in a force window perturbs the data by a known vector; the linearised estimate maps
+        it to the poles: cov = (JᵀJ)⁻¹ (Σ σ² g gᵀ) (JᵀJ)⁻¹ with g = Jᵀ δy.
+        """
+        return self.inv @ self.force_outer(noise, impacts, per_impact) @ self.inv
 
 
 def impact_shifts(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, h_each: np.ndarray, noise: ForceNoise, *,
@@ -355,7 +347,7 @@ def impact_shifts(fit: ModalFit, freqs_hz: np.ndarray, h: np.ndarray, h_each: np
     shifts, stds = [], []
     for i in range(h_each.shape[0]):
         shifts.append(lin.shift(h_each[i]))
-        force = np.diag(lin.inv @ lin.force_outer(noise, [i], per_impact=True) @ lin.inv)
+        force = np.diag(lin.force_covariance(noise, [i], per_impact=True))
         stds.append(np.sqrt(response * float(energy.sum() / max(energy[i], 1e-300)) + np.clip(force, 0.0, None)))
     return np.array(shifts), np.array(stds)
 
