@@ -64,15 +64,25 @@ def linearity_check(peak_force_n: Sequence[float], bounce_hz: Sequence[float], b
     line = _weighted_line(p, f, s)
     if line is None:
         return None
-    slope, slope_std, _ = line
-    z = slope / slope_std
-    return Linearity(tuple(map(float, p)), tuple(map(float, f)), tuple(map(float, s)), slope, slope_std, z, level,
-                     bool(abs(z) > norm.isf(level / 2)))
+    z = line.slope / line.slope_std
+    return Linearity(tuple(map(float, p)), tuple(map(float, f)), tuple(map(float, s)), line.slope, line.slope_std, z,
+                     level, bool(abs(z) > norm.isf(level / 2)))
 
 
-def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> tuple[float, float, float] | None:
-    """Slope of f against x weighted by 1/s², its 1-σ and the weighted mean of f (None: fewer than two points,
-    a non-finite or non-positive σ, or x of one value)."""
+@dataclass(frozen=True)
+class _Line:
+    """A weighted straight line: slope, its 1-σ, the weighted mean of f and the misfit's p value (1 when no
+    degree of freedom is left to judge it)."""
+
+    slope: float
+    slope_std: float
+    mean: float
+    fit_p: float
+
+
+def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> _Line | None:
+    """f against x weighted by 1/s² (None: fewer than two points, a non-finite or non-positive σ, or x of one
+    value)."""
     if len(x) < 2 or not (np.all(np.isfinite(s)) and np.all(s > 0) and np.all(np.isfinite(x))):
         return None
     if float(np.ptp(x)) < 1e-3 * float(np.max(np.abs(x))):
@@ -83,17 +93,10 @@ def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> tuple[float, 
     if not sxx > 0:
         return None
     fm = float(np.sum(w * f) / np.sum(w))
-    return float(np.sum(w * (x - xm) * (f - fm)) / sxx), 1.0 / math.sqrt(sxx), fm
-
-
-def _lack_of_fit(x: np.ndarray, f: np.ndarray, s: np.ndarray, slope: float) -> float:
-    """p value of the straight line's residuals against the impacts' stds (1: no degrees of freedom left)."""
-    if len(x) < 3:
-        return 1.0
-    w = 1.0 / s**2
-    xm, fm = float(np.sum(w * x) / np.sum(w)), float(np.sum(w * f) / np.sum(w))
-    stat = float(np.sum(w * (f - fm - slope * (x - xm)) ** 2))
-    return float(chi2.sf(stat, len(x) - 2))
+    slope = float(np.sum(w * (x - xm) * (f - fm)) / sxx)
+    misfit = float(np.sum(w * (f - fm - slope * (x - xm)) ** 2))
+    fit_p = float(chi2.sf(misfit, len(x) - 2)) if len(x) > 2 else 1.0
+    return _Line(slope, 1.0 / math.sqrt(sxx), fm, fit_p)
 
 
 @dataclass(frozen=True)
@@ -137,19 +140,19 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
     line = _weighted_line(x, f, s)
     if line is None:
         return None
-    c, c_std, fm = line
+    c, c_std, fm = line.slope, line.slope_std, line.mean
     a2_eff = float(np.sum(x**2) / np.sum(x))
     linearisation = float(np.max((f - fm) ** 2)) / half_bandwidth_hz
     z = c / c_std
     shift = c * a2_eff
     model = MODEL_SHARE * abs(shift)
-    if _lack_of_fit(x, f, s, c) < LINEARITY_LEVEL:
+    if line.fit_p < LINEARITY_LEVEL:
         # the blows do not follow the a² backbone (a contact near opening saturates it): the small-blow limit's
         # shape is unknown between that and a backbone in a itself, whose extrapolation is steeper
         steep = _weighted_line(a, f, s)
         if steep is not None:
             a_eff = float(np.sum(x * a) / np.sum(x))
-            model = max(abs(shift), abs(steep[0] * a_eff - shift))
+            model = max(abs(shift), abs(steep.slope * a_eff - shift))
     return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
                          level, bool(abs(z) > norm.isf(level / 2)))
 
