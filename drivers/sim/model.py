@@ -91,6 +91,10 @@ class Specimen(Protocol):
 
     def seat(self, rng: np.random.Generator) -> SeatedRoller: ...
 
+    def on_burr(self, seated: SeatedRoller, gap_m: float) -> SeatedRoller:
+        """``seated`` with a burr or particle of height ``gap_m`` under it (an unequal-seating fault)."""
+        ...
+
 
 @dataclass(frozen=True)
 class SimSettings:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from drivers.interfaces import Record, TriggerSpec
-from drivers.sim.faults import BurrSeated, FaultSettings, mains_hum
+from drivers.sim.faults import FaultSettings, mains_hum
 from drivers.sim.model import (
     ModesFunction,
     ModesLike,
@@ -165,7 +165,7 @@ class RigTwin:
         f = self.faults
         if f.unequal_seating_rate and self._rng_fault.random() < f.unequal_seating_rate:
             worse = int(self._rng_fault.integers(len(rollers)))
-            rollers[worse] = BurrSeated(rollers[worse], f.unequal_seating_gap_m)
+            rollers[worse] = self.specimen.on_burr(rollers[worse], f.unequal_seating_gap_m)
             self._log(f"roller {worse + 1} seated on a {f.unequal_seating_gap_m * 1e6:g} µm burr")
         self.pulled_channel = None
         if f.dead_channel_rate and self._rng_fault.random() < f.dead_channel_rate:
