@@ -37,6 +37,11 @@ class ContactCase:
     def effective_modulus_pa(self) -> float:
         return effective_modulus(self.roller.material, self.rail)
 
+    @property
+    def softer_hardness_pa(self) -> float:
+        """Indentation hardness of the softer of roller and rail (the body whose asperities yield first)."""
+        return hardness_pa(min(self.roller.material.hardness_hrc, self.rail.hardness_hrc))
+
     def peak_pressure_pa(self, load_n: FloatArray) -> FloatArray:
         """Hertz line-contact peak pressure p_max = sqrt(P·E*/(π·R))."""
         p = load_n / self.roller.contact_length_m
@@ -107,8 +112,7 @@ class MaterialHardness(_Params):
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 2.0), "threshold": (0.05, 1.0)}
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
-        softer = min(case.roller.material.hardness_hrc, case.rail.hardness_hrc)
-        yield_pa = self.threshold * hardness_pa(softer)
+        yield_pa = self.threshold * case.softer_hardness_pa
         excess = np.maximum(0.0, case.peak_pressure_pa(load_n) / yield_pa - 1.0)
         return stiffness_n_per_m * (1.0 + self.gain * case.combined_ra_m / REFERENCE_RA_M * excess)
 
