@@ -12,6 +12,7 @@ from pathlib import Path
 from drivers.interfaces import Operator, Rig
 from drivers.sim import FaultSettings, RigTwin, SimSettings, build_sim_rig
 from labctl.errors import InputError
+from labctl.physics.contact import swing_stiffness_n_per_m
 from labctl.physics.effects import ContactCase
 from labctl.physics.rig import rig_modes
 from labctl.physics.rig_config import RigConfig, load_rig
@@ -51,7 +52,8 @@ def make_rig(
 
 def make_twin(world: World, case: ContactCase, rig: RigConfig, *, seed: int | None = None) -> RigTwin:
     """The digital twin of ``rig`` (as it truly is in ``world``) with the rollers of ``case`` seated."""
-    return RigTwin(world.true_rig(rig), world.specimen(case), rig_modes, seed=seed,
+    return RigTwin(world.true_rig(rig), world.specimen(case), rig_modes, swing_stiffness=swing_stiffness_n_per_m,
+                   seed=seed,
                    settings=sim_settings(world), faults=fault_settings(world))
 
 

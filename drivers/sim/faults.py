@@ -49,18 +49,6 @@ class FaultSettings:
         )
 
 
-@dataclass(frozen=True)
-class BurrSeated:
-    """A roller seated on a burr or particle: a thin extra layer in series, stiffness F/gap (softest at low load)."""
-
-    inner: object
-    gap_m: float
-
-    def stiffness_n_per_m(self, load_n: float) -> float:
-        k = float(self.inner.stiffness_n_per_m(load_n))  # type: ignore[attr-defined]
-        return 1.0 / (1.0 / k + self.gap_m / load_n)
-
-
 def mains_hum(n_samples: int, sample_rate_hz: float, amplitude: float, mains_hz: float,
               rng: np.random.Generator, n_channels: int) -> np.ndarray:
     """(channels × samples) hum: the mains frequency plus a third harmonic at a third of the amplitude."""

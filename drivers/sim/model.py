@@ -81,10 +81,19 @@ class SeatedRoller(Protocol):
     def stiffness_n_per_m(self, load_n: float) -> float: ...
 
 
+SwingStiffnessFunction = Callable[[Callable[[float], float], float, float, float], float]
+"""(k(F), load, force swing ΔF, scale) → the contact's effective stiffness while its force swings by ±ΔF about
+the load (``labctl.physics.contact.swing_stiffness_n_per_m``)."""
+
+
 class Specimen(Protocol):
     """The rollers under test in the hidden world: each placement draws a new seating (contact spot)."""
 
     def seat(self, rng: np.random.Generator) -> SeatedRoller: ...
+
+    def on_burr(self, seated: SeatedRoller, gap_m: float) -> SeatedRoller:
+        """``seated`` with a burr or particle of height ``gap_m`` under it (an unequal-seating fault)."""
+        ...
 
 
 @dataclass(frozen=True)

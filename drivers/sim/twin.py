@@ -19,8 +19,16 @@ from typing import Any
 import numpy as np
 
 from drivers.interfaces import Record, TriggerSpec
-from drivers.sim.faults import BurrSeated, FaultSettings, mains_hum
-from drivers.sim.model import ModesFunction, ModesLike, RigLike, SeatedRoller, SimSettings, Specimen
+from drivers.sim.faults import FaultSettings, mains_hum
+from drivers.sim.model import (
+    ModesFunction,
+    ModesLike,
+    RigLike,
+    SeatedRoller,
+    SimSettings,
+    Specimen,
+    SwingStiffnessFunction,
+)
 from drivers.sim.response import Blow, digitise, modal_model, response
 
 SETTLE_OVERSHOOT = 0.03  # fraction of a load step the load cell overshoots right after a knob turn
@@ -45,6 +53,7 @@ class RigTwin:
         specimen: Specimen,
         modes: ModesFunction,
         *,
+        swing_stiffness: SwingStiffnessFunction,
         seed: int | None = None,
         settings: SimSettings | None = None,
         clock_start_s: float | None = None,
@@ -55,7 +64,7 @@ class RigTwin:
         self._rng_seat, self._rng_blow, self._rng_noise, self._rng_cell, self._rng_fault = (
             np.random.default_rng(s) for s in seq.spawn(5)
         )
-        self.rig, self.specimen, self._modes_fn = rig, specimen, modes
+        self.rig, self.specimen, self._modes_fn, self._swing_fn = rig, specimen, modes, swing_stiffness
         self.settings = settings or SimSettings()
         self.faults = faults or FaultSettings()
         self.fault_log: list[tuple[float, str]] = []  # (rig time, what happened): the faults actually generated
@@ -156,7 +165,7 @@ class RigTwin:
         f = self.faults
         if f.unequal_seating_rate and self._rng_fault.random() < f.unequal_seating_rate:
             worse = int(self._rng_fault.integers(len(rollers)))
-            rollers[worse] = BurrSeated(rollers[worse], f.unequal_seating_gap_m)
+            rollers[worse] = self.specimen.on_burr(rollers[worse], f.unequal_seating_gap_m)
             self._log(f"roller {worse + 1} seated on a {f.unequal_seating_gap_m * 1e6:g} µm burr")
         self.pulled_channel = None
         if f.dead_channel_rate and self._rng_fault.random() < f.dead_channel_rate:
@@ -240,8 +249,8 @@ class RigTwin:
 
     def blow_modes(self, blow: Blow) -> ModesLike:
         """The modes the record of this blow shows: the contact is nonlinear, so the force swing ΔF the blow puts
-        through each roller shifts its effective stiffness (first order, amplitude-averaged over the decay):
-        Δk/k = s·ΔF²·(k''/(8k) - k'²/(12k²)) with k', k'' derivatives in F and s = 1/2 (energy weighting)."""
+        through each roller (from the bounce mode's response to the blow's impulse) shifts its effective stiffness
+        (the ``swing_stiffness`` function the physics passed in)."""
         static = self.modes()
         scale = self.settings.contact_nonlinearity
         if scale == 0.0:
@@ -254,12 +263,7 @@ class RigTwin:
         swing /= self.rig.roller_count
         load = self.load_per_roller_n()
         swing = min(swing, 0.9 * load)
-        ks = []
-        for r in self.rollers:
-            h = 0.05 * load
-            k0, kp, km = (float(r.stiffness_n_per_m(x)) for x in (load, load + h, load - h))
-            k_f, k_ff = (kp - km) / (2 * h), (kp - 2 * k0 + km) / h**2
-            ks.append(k0 * (1.0 + scale * 0.5 * swing**2 * (k_ff / (8 * k0) - k_f**2 / (12 * k0**2))))
+        ks = [self._swing_fn(r.stiffness_n_per_m, load, swing, scale) for r in self.rollers]
         return self._modes_fn(self.rig, ks)
 
     def record(self, strike: Strike, sample_rate_hz: float, n_samples: int, trigger: TriggerSpec) -> Record | None:

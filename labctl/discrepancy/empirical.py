@@ -23,7 +23,6 @@ import numpy as np
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.model import Fit, depth_column
 from labctl.discrepancy.search import DECISIVE_BIC, HELD_OUT_MARGIN, Search
-from labctl.physics.materials import hardness_pa
 
 MAX_FEATURES = 3
 P_REF_N_PER_M = 1e4
@@ -45,7 +44,7 @@ def _const(value: Callable[[CaseData], float]) -> Feature:
 
 
 def _pressure_over_hardness(c: CaseData) -> np.ndarray:
-    h = hardness_pa(min(c.case.roller.material.hardness_hrc, c.case.rail.hardness_hrc))
+    h = c.case.softer_hardness_pa
     return np.asarray(c.case.peak_pressure_pa(c.load_n)) / h
 
 

@@ -13,7 +13,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from labctl.physics.contact import FloatArray
-from labctl.physics.effects import ContactCase
+from labctl.physics.effects import BoundedParams, ContactCase
 
 TRIPP_DEPTH_RANGE_M = (0.7e-3, 10e-3)
 """Where Tripp's evaluation depth is physically sensible for rails of a few mm: a fitted depth outside it means
@@ -29,13 +29,8 @@ class MeasurementTerm(Protocol):
     def parameters(self) -> dict[str, float]: ...
 
 
-class _Params:
-    def parameters(self) -> dict[str, float]:
-        return {k: float(getattr(self, k)) for k in self.BOUNDS}  # type: ignore[attr-defined]
-
-
 @dataclass(frozen=True)
-class LoadGain(_Params):
+class LoadGain(BoundedParams):
     """The load cell reads ``gain`` × the true load: the model is evaluated at F_recorded / gain."""
 
     gain: float = 1.0
@@ -47,7 +42,7 @@ class LoadGain(_Params):
 
 
 @dataclass(frozen=True)
-class LoadOffset(_Params):
+class LoadOffset(BoundedParams):
     """The load cell reads the true load plus ``offset_n`` (a zero error): true load F_recorded − offset."""
 
     offset_n: float = 0.0
@@ -60,7 +55,7 @@ class LoadOffset(_Params):
 
 
 @dataclass(frozen=True)
-class ModulusScale(_Params):
+class ModulusScale(BoundedParams):
     """Both bodies' true Young's moduli are ``scale`` × the ones the model was given (a wrong catalogue value
     or a unit slip): the model is evaluated with scaled moduli."""
 

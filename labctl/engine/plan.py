@@ -20,11 +20,18 @@ class StepPlan:
     cap_n: float
 
 
+def knob_steps_within_cap(spec: SpecimenSpec, rig: RigConfig) -> tuple[float, int]:
+    """(nominal load per roller of one knob step, the number of whole knob steps above the preload whose load stays
+    within the specimen's cap: negative when the preload alone passes it)."""
+    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
+    return per_step, int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+
+
 def plan_steps(protocol: LabProtocol, spec: SpecimenSpec, rig: RigConfig) -> StepPlan:
     """Knob angle per step (a multiple of the protocol's step, so at most ``max_steps`` steps reach the cap)."""
-    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
+    per_step, n_cap = knob_steps_within_cap(spec, rig)
     span = max(spec.max_load_n - rig.preload_per_roller_n, 0.0)
-    needed = int(math.floor(span / per_step + 1e-9)) + 1
+    needed = max(n_cap, 0) + 1
     multiple = max(1, math.ceil(needed / protocol.loading.max_steps))
     angle = spec.knob_step_deg * multiple
     return StepPlan(angle, int(math.floor(span / (per_step * multiple) + 1e-9)) + 1, spec.max_load_n)
@@ -57,8 +64,7 @@ class StepAdvisor(Protocol):
 
 def knob_angle_for(load_n: float, spec: SpecimenSpec, rig: RigConfig) -> float | None:
     """The knob angle (a whole number of knob steps) nearest ``load_n`` whose nominal load is within the cap."""
-    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
-    n_cap = int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+    per_step, n_cap = knob_steps_within_cap(spec, rig)
     if n_cap < 0:
         return None
     n = min(max(round((load_n - rig.preload_per_roller_n) / per_step), 0), n_cap)

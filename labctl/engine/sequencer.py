@@ -83,7 +83,6 @@ class Engine:
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
         steps = sum(p.steps_estimate + self.budget_steps for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
-        self._session_start = (time.monotonic(), self.impacts_done)
         self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
                                       acq.samples / acq.sample_rate_hz)
         self.bus.subscribe(self.eta)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -34,3 +35,14 @@ def as_load(load_n: ArrayLike, model: str) -> FloatArray:
     if np.any(bad):
         raise ModelDomainError(f"{model}: load must be a positive number of newtons, got {f[bad].flat[0]!r} N")
     return f
+
+
+def swing_stiffness_n_per_m(stiffness: Callable[[float], float], load_n: float, swing_n: float,
+                            scale: float = 1.0) -> float:
+    """Effective stiffness of a nonlinear contact k(F) whose force swings by ±ΔF about ``load_n`` (first order,
+    amplitude-averaged over the decay): Δk/k = s·ΔF²·(k''/(8k) - k'²/(12k²)), k' and k'' derivatives in F by
+    central differences (step 5 % of the load), s = 1/2 (energy weighting); ``scale`` multiplies the shift."""
+    h = 0.05 * load_n
+    k0, kp, km = (float(stiffness(x)) for x in (load_n, load_n + h, load_n - h))
+    k_f, k_ff = (kp - km) / (2 * h), (kp - 2 * k0 + km) / h**2
+    return k0 * (1.0 + scale * 0.5 * swing_n**2 * (k_ff / (8 * k0) - k_f**2 / (12 * k0**2)))

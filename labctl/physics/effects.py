@@ -37,6 +37,11 @@ class ContactCase:
     def effective_modulus_pa(self) -> float:
         return effective_modulus(self.roller.material, self.rail)
 
+    @property
+    def softer_hardness_pa(self) -> float:
+        """Indentation hardness of the softer of roller and rail (the body whose asperities yield first)."""
+        return hardness_pa(min(self.roller.material.hardness_hrc, self.rail.hardness_hrc))
+
     def peak_pressure_pa(self, load_n: FloatArray) -> FloatArray:
         """Hertz line-contact peak pressure p_max = sqrt(P·E*/(π·R))."""
         p = load_n / self.roller.contact_length_m
@@ -55,13 +60,15 @@ class Effect(Protocol):
     def parameters(self) -> dict[str, float]: ...
 
 
-class _Params:
+class BoundedParams:
+    """Mixin of a model term with bounded parameters: ``parameters()`` are its ``BOUNDS`` keys with their values."""
+
     def parameters(self) -> dict[str, float]:
         return {k: float(getattr(self, k)) for k in self.BOUNDS}  # type: ignore[attr-defined]
 
 
 @dataclass(frozen=True)
-class SurfaceRoughness(_Params):
+class SurfaceRoughness(BoundedParams):
     """Asperity compliance in series with each of the two contacts.
 
     An exponential asperity-height tail makes the asperity layer's stiffness proportional to load,
@@ -78,7 +85,7 @@ class SurfaceRoughness(_Params):
 
 
 @dataclass(frozen=True)
-class EndEffects(_Params):
+class EndEffects(BoundedParams):
     """The rail material beyond each roller end carries load too: an extra effective length at each end.
 
     k = k_line·(1 + 2·edge_length/L_we): stiffness per length falls with roller length.
@@ -93,7 +100,7 @@ class EndEffects(_Params):
 
 
 @dataclass(frozen=True)
-class MaterialHardness(_Params):
+class MaterialHardness(BoundedParams):
     """Plastic conformity: once p_max exceeds a fraction of the softer body's hardness, its asperities yield
     and conform to the rail's roughness, adding contact area and stiffness.
 
@@ -107,14 +114,13 @@ class MaterialHardness(_Params):
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 2.0), "threshold": (0.05, 1.0)}
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
-        softer = min(case.roller.material.hardness_hrc, case.rail.hardness_hrc)
-        yield_pa = self.threshold * hardness_pa(softer)
+        yield_pa = self.threshold * case.softer_hardness_pa
         excess = np.maximum(0.0, case.peak_pressure_pa(load_n) / yield_pa - 1.0)
         return stiffness_n_per_m * (1.0 + self.gain * case.combined_ra_m / REFERENCE_RA_M * excess)
 
 
 @dataclass(frozen=True)
-class Misalignment(_Params):
+class Misalignment(BoundedParams):
     """A roller tilted by a small angle against the rail touches along only part of its length at first.
 
     With a linear gap γ·x and stiffness per length k' = k/L_we, the contact length grows as
@@ -146,7 +152,7 @@ class Misalignment(_Params):
 
 
 @dataclass(frozen=True)
-class SetupCompliance(_Params):
+class SetupCompliance(BoundedParams):
     """The rig's true K_setup differs from the nominal value the processing assumes (e.g. stress stiffening).
 
     The reported roller stiffness is then 1/(1/k + 3/(factor·K) - 3/K) (Eq. 4): the error grows with k.

@@ -112,12 +112,10 @@ def rig_matrices(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tupl
     return stiff, mass
 
 
-def _bounce_of(config: RigConfig, shapes: np.ndarray, contact_modes: list[int]) -> int:
-    """The contact mode whose roller approaches are most alike (the bounce)."""
-    approach = _contact_rows(config) @ shapes[:, contact_modes]
+def _bounce_index(approach: np.ndarray) -> int:
+    """Column of ``approach`` (roller approaches per mode) whose approaches are most alike: the bounce."""
     rms = np.sqrt(np.mean(approach**2, axis=0))
-    bounce_score = np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)
-    return contact_modes[int(np.argmax(bounce_score))]
+    return int(np.argmax(np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)))
 
 
 def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigModes:
@@ -126,7 +124,7 @@ def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigMode
     omega2, shapes = eigh(stiff, mass)
     freqs = np.sqrt(np.clip(omega2, 0.0, None)) / (2.0 * math.pi)
     contact_modes = [3, 4, 5]
-    bounce = _bounce_of(config, shapes, contact_modes)
+    bounce = contact_modes[_bounce_index(_contact_rows(config) @ shapes[:, contact_modes])]
     tilt = tuple(m for m in contact_modes if m != bounce)
     damping = np.array([config.support_damping_ratio] * 3 + [config.modal_damping_ratio] * 3)
     return RigModes(freqs, shapes, damping, bounce, (tilt[0], tilt[1]), (0, 1, 2), config)
@@ -216,9 +214,7 @@ class ContactModeModel:
         omega2, v = np.linalg.eigh(stiff * self.outer)
         shapes = v[:, 3:] * self.scale[:, None]
         freqs = np.sqrt(np.clip(omega2[3:], 0.0, None)) / (2.0 * math.pi)
-        approach = self.rows @ shapes
-        rms = np.sqrt(np.mean(approach**2, axis=0))
-        b = int(np.argmax(np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)))
+        b = _bounce_index(self.rows @ shapes)
         t = [i for i in range(3) if i != b]
         if freqs[t[0]] > freqs[t[1]]:
             t.reverse()

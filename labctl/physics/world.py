@@ -77,6 +77,18 @@ class SeatedRoller:
 
 
 @dataclass(frozen=True)
+class BurrSeated:
+    """A roller seated on a burr or particle: a thin extra layer in series, stiffness F/gap (softest at low load)."""
+
+    inner: SeatedRoller
+    gap_m: float
+
+    def stiffness_n_per_m(self, load_n: float) -> float:
+        k = float(self.inner.stiffness_n_per_m(load_n))
+        return 1.0 / (1.0 / k + self.gap_m / load_n)
+
+
+@dataclass(frozen=True)
 class WorldSpecimen:
     """The rollers of one contact case in a world; ``seat`` draws a new contact spot."""
 
@@ -100,6 +112,10 @@ class WorldSpecimen:
         sigma = self.world.scatter.stiffness_rel
         factor = math.exp(sigma * rng.standard_normal()) if sigma > 0 else 1.0
         return SeatedRoller(replace(law, effects=tuple(effects)), self.case, factor)
+
+    def on_burr(self, seated: SeatedRoller, gap_m: float) -> BurrSeated:
+        """``seated`` with a burr or particle of height ``gap_m`` under it."""
+        return BurrSeated(seated, gap_m)
 
 
 @dataclass(frozen=True)

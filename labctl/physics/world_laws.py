@@ -23,7 +23,6 @@ from numpy.typing import ArrayLike
 
 from labctl.physics.contact import FloatArray, as_load
 from labctl.physics.effects import REFERENCE_RA_M, ContactCase, Effect
-from labctl.physics.materials import hardness_pa
 from labctl.physics.tripp import TrippContact
 
 SPOT_AREA_M2 = 0.01e-6  # reference contact patch of the seating scatter
@@ -79,14 +78,13 @@ class ConformingContact:
 
     def conformity_factor(self, case: ContactCase, load_n: FloatArray) -> FloatArray:
         """σ_eff/σ: 1 while the contact is elastic, falling as the peak pressure nears the softer body's hardness."""
-        softer = hardness_pa(min(case.roller.material.hardness_hrc, case.rail.hardness_hrc))
-        return 1.0 / (1.0 + (case.peak_pressure_pa(load_n) / (self.conformity * softer)) ** self.conformity_exponent)
+        return 1.0 / (1.0 + (case.peak_pressure_pa(load_n) / (self.conformity * case.softer_hardness_pa))
+                      ** self.conformity_exponent)
 
     def bedded_fraction(self, case: ContactCase, load_n: FloatArray) -> FloatArray:
         """Share of the roller's profiled ends (L_r - L_we) bedded in plastically: the asperity pressures, higher
         on rougher rails, reach the softer body's hardness first at the ends, so the bearing length grows."""
-        softer = hardness_pa(min(case.roller.material.hardness_hrc, case.rail.hardness_hrc))
-        x = (case.peak_pressure_pa(load_n) / (self.bedding * softer)) ** self.bedding_exponent
+        x = (case.peak_pressure_pa(load_n) / (self.bedding * case.softer_hardness_pa)) ** self.bedding_exponent
         return min(1.0, case.combined_ra_m / REFERENCE_RA_M) * x / (1.0 + x)
 
     def stiffness_n_per_m(self, case: ContactCase, load_n: ArrayLike) -> FloatArray:
@@ -212,7 +210,7 @@ class ExpressionLaw:
         r = case.roller
         env = {"F": f, "L": r.contact_length_m, "Lr": r.total_length_m, "D": r.diameter_m, "R": r.radius_m,
                "E": case.effective_modulus_pa, "Ra": case.combined_ra_m, "Ra_rail": case.rail_ra_m,
-               "H": hardness_pa(min(r.material.hardness_hrc, case.rail.hardness_hrc)), "pi": math.pi}
+               "H": case.softer_hardness_pa, "pi": math.pi}
         with np.errstate(all="ignore"):
             k = np.broadcast_to(np.asarray(_evaluate(check_expression(self.expression), env), dtype=float), f.shape)
         if not np.all(np.isfinite(k) & (k > 0)):
