@@ -72,7 +72,7 @@ class NoiseFloor:
 
     def sigma_at(self, data: Dataset) -> np.ndarray:
         """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands."""
-        x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+        x = np.log(data.load_per_length_n_per_m)
         if len(self.band_sigma) < 2:
             return np.full(x.size, self.sigma)
         return np.exp(np.interp(x, self.band_ln_p, np.log(self.band_sigma)))
@@ -259,7 +259,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         groups.extend(g + sl.start for g in cg)
     y = data.ln_stiffness
     runs = data.run_ids()
-    x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+    x = np.log(data.load_per_length_n_per_m)
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
         resid = np.full(y.size, np.nan)
