@@ -55,10 +55,16 @@ class StepAdvisor(Protocol):
                     ) -> list[AddedStep]: ...
 
 
+def knob_steps_to_cap(spec: SpecimenSpec, rig: RigConfig) -> int:
+    """Whole knob steps from the preload whose nominal load is within the cap (negative: the preload is over it)."""
+    per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
+    return int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+
+
 def knob_angle_for(load_n: float, spec: SpecimenSpec, rig: RigConfig) -> float | None:
     """The knob angle (a whole number of knob steps) nearest ``load_n`` whose nominal load is within the cap."""
     per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
-    n_cap = int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+    n_cap = knob_steps_to_cap(spec, rig)
     if n_cap < 0:
         return None
     n = min(max(round((load_n - rig.preload_per_roller_n) / per_step), 0), n_cap)

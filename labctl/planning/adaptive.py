@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from labctl.discrepancy.workflow import run_discrepancy
-from labctl.engine.plan import AddedStep, knob_angle_for
+from labctl.engine.plan import AddedStep, knob_angle_for, knob_steps_to_cap
 from labctl.errors import InputError
 from labctl.physics.rig_config import RigConfig
 from labctl.planning.plan import models_in_play, score_specimen
@@ -27,8 +27,7 @@ from labctl.stiffness_table import StiffnessPoint
 def knob_loads(spec: SpecimenSpec, rig: RigConfig) -> np.ndarray:
     """Nominal loads per roller at every whole knob step from the preload up to the specimen's cap."""
     per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
-    n_cap = int(np.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
-    return rig.preload_per_roller_n + per_step * np.arange(max(n_cap + 1, 0))
+    return rig.preload_per_roller_n + per_step * np.arange(max(knob_steps_to_cap(spec, rig) + 1, 0))
 
 
 @dataclass
