@@ -18,7 +18,7 @@ against the pure error.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -251,9 +251,7 @@ def _robust_outliers(x: np.ndarray, u: np.ndarray, informative: np.ndarray, grou
 def estimate_noise(data: Dataset) -> NoiseFloor:
     """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
     groups: list[np.ndarray] = []
-    case_groups: list[list[np.ndarray]] = []
-    for c in data.cases:
-        case_groups.append(_case_groups(c))
+    case_groups = [_case_groups(c) for c in data.cases]
     slices = data.case_slices()
     for cg, sl in zip(case_groups, slices, strict=True):
         groups.extend(g + sl.start for g in cg)
@@ -282,8 +280,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
                            outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
         tau, tau_dof = _seating_sigma(data, floor, case_groups, keep)
-        return NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma, tau, tau_dof,
-                          floor.outliers)
+        return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:
         raise InputError("cannot estimate the measurement noise: give repetitions of the load steps or at least "
