@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import sys
 import tempfile
 import time
 from collections.abc import Sequence
@@ -42,6 +43,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's labctl and tests/
 
 from labctl.campaign import run_campaign
 from labctl.discrepancy.data import build_dataset
@@ -56,26 +59,7 @@ from labctl.planning.rivals import Rival, from_fit
 from labctl.protocol import load_protocol
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.table import campaign_stiffness_points
-
-PROTOCOL = """
-[protocol]
-name = "{name}"
-[specimen]
-roller_type = {type_id}
-rail_ra_um = 0.2
-max_load_n = {cap}
-knob_step_deg = 90.0
-[acquisition]
-samples = 8192
-impacts_per_step = 2
-timeout_s = 5.0
-[loading]
-settle_poll_s = 0.0
-settle_timeout_s = 5.0
-max_steps = {steps}
-[repetitions]
-count = {reps}
-"""
+from tests.engine_util import stepped_protocol_text
 
 
 @dataclass(frozen=True)
@@ -187,10 +171,9 @@ def added_loads(path: Path) -> list[list[float]]:
 def rig_noise(d: Path, args: argparse.Namespace) -> NoiseFloor:
     """The rig's noise model from a campaign of its own (seed 0) at every knob step, ``--rig-noise`` repetitions."""
     proto = d / "noise.toml"
-    proto.write_text(PROTOCOL.format(name="noise", type_id=args.type, cap=args.cap, steps=1, reps=1))
+    proto.write_text(stepped_protocol_text("noise", args.type, args.cap, max_steps=1, reps=1))
     steps = knob_loads(load_protocol(proto).specimens[0], load_rig()).size
-    proto.write_text(PROTOCOL.format(name="noise", type_id=args.type, cap=args.cap, steps=steps,
-                                     reps=args.rig_noise))
+    proto.write_text(stepped_protocol_text("noise", args.type, args.cap, max_steps=steps, reps=args.rig_noise))
     o = run_campaign(proto, out=d / "noise.h5", seed=0, world=args.world)
     assert o.status == "complete", o.message
     noise = estimate_noise(build_dataset(campaign_stiffness_points(d / "noise.h5")))
@@ -237,8 +220,7 @@ def main() -> None:
             points: dict[str, list[StiffnessPoint]] = {}
             for mode, steps in (("fixed", args.base + args.budget), ("adaptive", args.base)):
                 proto = d / f"{mode}.toml"
-                proto.write_text(PROTOCOL.format(name=mode, type_id=args.type, cap=args.cap, steps=steps,
-                                                 reps=args.reps))
+                proto.write_text(stepped_protocol_text(mode, args.type, args.cap, max_steps=steps, reps=args.reps))
                 out = d / f"{mode}_{seed}.h5"
                 o = run_campaign(proto, out=out, seed=seed, world=args.world, adaptive=mode == "adaptive",
                                  budget_steps=args.budget)

@@ -31,6 +31,33 @@ def short_protocol(max_load: float = 120.0, step: float = 360.0, samples: int = 
                           "short.toml")
 
 
+STEPPED = """
+[protocol]
+name = "{name}"
+[specimen]
+roller_type = {roller_type}
+rail_ra_um = 0.2
+max_load_n = {max_load}
+knob_step_deg = 90.0
+[acquisition]
+samples = 8192
+impacts_per_step = 2
+timeout_s = 5.0
+[loading]
+settle_poll_s = 0.0
+settle_timeout_s = 5.0
+max_steps = {max_steps}
+[repetitions]
+count = {reps}
+"""
+
+
+def stepped_protocol_text(name: str, roller_type: int, max_load: float, max_steps: int, reps: int) -> str:
+    """TOML of a short roller protocol on Ra 0.2 µm rails: 90° knob steps, at most ``max_steps`` load steps of
+    two 8192-sample impacts (the adaptive-campaign tests and bench)."""
+    return STEPPED.format(name=name, roller_type=roller_type, max_load=max_load, max_steps=max_steps, reps=reps)
+
+
 class Recorder:
     """Collects every event; ``of(T)`` filters by type."""
 

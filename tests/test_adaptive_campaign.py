@@ -17,31 +17,12 @@ from labctl.physics import ContactLaw, SurfaceRoughness, load_rig
 from labctl.planning.adaptive import PlanAdvisor, knob_loads
 from labctl.protocol import load_protocol
 from tests.cli_util import labctl_here_json
-
-PROTOCOL = """
-[protocol]
-name = "adaptive_short"
-[specimen]
-roller_type = 1
-rail_ra_um = 0.2
-max_load_n = 300.0
-knob_step_deg = 90.0
-[acquisition]
-samples = 8192
-impacts_per_step = 2
-timeout_s = 5.0
-[loading]
-settle_poll_s = 0.0
-settle_timeout_s = 5.0
-max_steps = 3
-[repetitions]
-count = {reps}
-"""
+from tests.engine_util import stepped_protocol_text
 
 
 def _protocol(tmp_path, reps: int = 1):  # noqa: ANN001, ANN202
     path = tmp_path / "adaptive.toml"
-    path.write_text(PROTOCOL.format(reps=reps))
+    path.write_text(stepped_protocol_text("adaptive_short", roller_type=1, max_load=300.0, max_steps=3, reps=reps))
     return path
 
 

@@ -68,6 +68,11 @@ class Dataset:
     def load_n(self) -> np.ndarray:
         return np.concatenate([c.load_n for c in self.cases])
 
+    @property
+    def load_per_length_n_per_m(self) -> np.ndarray:
+        """F/L_we of every point (the roller's effective contact length)."""
+        return np.concatenate([c.load_n / c.case.roller.contact_length_m for c in self.cases])
+
     def case_slices(self) -> list[slice]:
         """Where each case's points sit in the concatenated vectors."""
         out, start = [], 0

@@ -41,7 +41,7 @@ def bent_ss(fit: Fit, data: Dataset, noise: NoiseFloor) -> float:
     """Whitened sum of squares of ``fit`` with each term's contribution bent with load (see the module doc)."""
     if not fit.spec.terms:
         return float(fit.z @ fit.z)
-    ln_p = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+    ln_p = np.log(data.load_per_length_n_per_m)
     ln_p = ln_p - ln_p.mean()
     cols = []
     for name in fit.spec.terms:

@@ -18,7 +18,7 @@ against the pure error.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -72,7 +72,7 @@ class NoiseFloor:
 
     def sigma_at(self, data: Dataset) -> np.ndarray:
         """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands."""
-        x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+        x = np.log(data.load_per_length_n_per_m)
         if len(self.band_sigma) < 2:
             return np.full(x.size, self.sigma)
         return np.exp(np.interp(x, self.band_ln_p, np.log(self.band_sigma)))
@@ -251,15 +251,13 @@ def _robust_outliers(x: np.ndarray, u: np.ndarray, informative: np.ndarray, grou
 def estimate_noise(data: Dataset) -> NoiseFloor:
     """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
     groups: list[np.ndarray] = []
-    case_groups: list[list[np.ndarray]] = []
-    for c in data.cases:
-        case_groups.append(_case_groups(c))
+    case_groups = [_case_groups(c) for c in data.cases]
     slices = data.case_slices()
     for cg, sl in zip(case_groups, slices, strict=True):
         groups.extend(g + sl.start for g in cg)
     y = data.ln_stiffness
     runs = data.run_ids()
-    x = np.concatenate([np.log(c.load_n / c.case.roller.contact_length_m) for c in data.cases])
+    x = np.log(data.load_per_length_n_per_m)
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
         resid = np.full(y.size, np.nan)
@@ -282,8 +280,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
                            outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
         tau, tau_dof = _seating_sigma(data, floor, case_groups, keep)
-        return NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma, tau, tau_dof,
-                          floor.outliers)
+        return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:
         raise InputError("cannot estimate the measurement noise: give repetitions of the load steps or at least "

@@ -154,7 +154,7 @@ def _plot_steps(result: DiscrepancyResult, path: Path) -> None:
     stages = [("baseline", None, result.baseline)] + [(f"+ {s.name}", s.before, s.fit) for s in result.steps]
     fig = Figure(figsize=(4.2 * len(stages), 3.2), layout="constrained")
     axes = fig.subplots(1, len(stages), squeeze=False, sharey=True).ravel()
-    x = np.concatenate([c.load_n / c.case.roller.contact_length_m * 1e-3 for c in result.data.cases])
+    x = result.data.load_per_length_n_per_m * 1e-3
     for ax, (label, before, fit) in zip(axes, stages, strict=True):
         ax.axhspan(-2.0, 2.0, color="0.85", label="±2σ")
         if before is not None:

@@ -135,7 +135,7 @@ def _length_words(spec: Specimen, measured: list[float], materials: set[str]) ->
 
 def _load_words(loads: np.ndarray, spec: Specimen, data: Dataset) -> str:
     p = loads / spec.roller.contact_length_m
-    measured = np.concatenate([c.load_n / c.case.roller.contact_length_m for c in data.cases])
+    measured = data.load_per_length_n_per_m
     lo, hi = np.log(measured.min()), np.log(measured.max())
     span = max(hi - lo, 1e-9)
     u = (np.log(p) - lo) / span
