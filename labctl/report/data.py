@@ -7,14 +7,14 @@ model curves come from ``labctl.physics``.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from labctl.errors import InputError
-from labctl.physics import ContactCase, RigConfig, material
+from labctl.physics import ContactCase, RigConfig
 from labctl.reprocess import rig_of
 from labctl.storage import CampaignReader, RunInfo, StepInfo
 from labctl.storage.table import specimen_point
@@ -133,9 +133,7 @@ class ReportData:
 
 def specimen_case(specimen: dict[str, Any]) -> ContactCase:
     """The contact case of a stored specimen (the stiffness table's reading of it, with the stored rails)."""
-    case = specimen_point(specimen, 1, 1.0, 1.0).case()
-    rail = specimen.get("rail_material")
-    return replace(case, rail=material(rail)) if rail else case
+    return specimen_point(specimen, 1, 1.0, 1.0).case()
 
 
 def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
