@@ -15,6 +15,7 @@ import numpy as np
 
 from labctl.physics.rig_config import RigConfig
 from labctl.processing import CheckConfig, ProcessingError, check_impact, identify
+from labctl.storage.reader import stack_impacts
 from labctl.storage.records import (
     CHECKS,
     Calibration,
@@ -81,14 +82,11 @@ def process_step(records: Sequence[ImpactRecord], rig: RigConfig, checks: CheckC
     records = list(records)
     if not records:
         return failed_step("no impacts stored")
-    forced = forced_verdicts(records)
-    attempts = [r.attempt for r in records]
-    cal = records[-1].calibration
+    data = stack_impacts(records)
     try:
-        ident = identify(np.stack([r.force_n for r in records]), np.stack([r.accel_m_per_s2 for r in records]),
-                         records[-1].sample_rate_hz, records[-1].channels, rig,
-                         accel_ranges=None if cal.accel_range_m_per_s2 is None else list(cal.accel_range_m_per_s2),
-                         force_range_n=cal.force_range_n, config=checks, forced=forced)
+        ident = identify(data.force_n, data.accel_m_per_s2, data.sample_rate_hz, data.channels, rig,
+                         accel_ranges=data.accel_ranges, force_range_n=data.force_range_n, config=checks,
+                         forced=forced_verdicts(records))
     except ProcessingError as exc:
         return failed_step(str(exc), [ImpactOutcome(r.attempt, False, r.info.reasons) for r in records])
-    return step_result(ident, attempts)
+    return step_result(ident, data.attempts)

@@ -32,8 +32,9 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
 
     matplotlib.use("Agg")  # files only, never a window
     from labctl.report.data import load_report_data
-    from labctl.report.figures import make_figures, save
+    from labctl.report.figures import is_simulated, make_figures, save
     from labctl.report.html import write_html
+    from labctl.report.verdict import series_verdicts
     from labctl.stiffness_table import write_stiffness_table
     from labctl.storage import campaign_stiffness_points
 
@@ -51,12 +52,9 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     csv = folder / "stiffness.csv" if points else None
     if csv is not None:
         write_stiffness_table(csv, points)
-    page = write_html(data, written, folder, csv.name if csv else None, band)
-    st = data.impacts
-    from labctl.report.figures import is_simulated
-    from labctl.report.verdict import series_verdicts
-
     verdicts = [v for s in data.series if s.runs for v in series_verdicts(s, data.rig, band)]
+    page = write_html(data, written, folder, csv.name if csv else None, verdicts, band)
+    st = data.impacts
     return ReportResult(str(page), str(csv) if csv else None,
                         [{"name": n, "title": t, "png": str(p), "svg": str(s)} for n, t, p, s in written],
                         {"accepted": st.accepted, "rejected": st.rejected, "by_reason": st.by_reason},

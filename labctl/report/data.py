@@ -7,16 +7,17 @@ model curves come from ``labctl.physics``.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from labctl.errors import InputError
-from labctl.physics import ContactCase, RigConfig, material
+from labctl.physics import ContactCase, RigConfig
 from labctl.reprocess import rig_of
 from labctl.storage import CampaignReader, RunInfo, StepInfo
+from labctl.storage.records import curve_from_steps
 from labctl.storage.table import specimen_point
 
 
@@ -133,9 +134,7 @@ class ReportData:
 
 def specimen_case(specimen: dict[str, Any]) -> ContactCase:
     """The contact case of a stored specimen (the stiffness table's reading of it, with the stored rails)."""
-    case = specimen_point(specimen, 1, 1.0, 1.0).case()
-    rail = specimen.get("rail_material")
-    return replace(case, rail=material(rail)) if rail else case
+    return specimen_point(specimen, 1, 1.0, 1.0).case()
 
 
 def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
@@ -156,13 +155,12 @@ def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
 
 
 def _run_curve(run: RunInfo) -> RunCurve | None:
-    rows = [(s.step, s.load_n, s.result.roller_stiffness_n_per_m, s.result.bounce_hz,
-             *(tuple(s.result.tilt_hz) + (np.nan, np.nan))[:2])
-            for s in run.steps if s.result is not None and s.result.identified]
-    if not rows:
+    c = curve_from_steps(run.series, run.run, "",
+                         [(s.step, s.load_n, s.knob_angle_deg, s.result) for s in run.steps if s.result is not None])
+    if not len(c):
         return None
-    a = np.array(rows, dtype=float)
-    return RunCurve(run.run, a[:, 0].astype(int), a[:, 1], a[:, 2], a[:, 3], a[:, 4:6])
+    return RunCurve(run.run, c.step, c.load_n, c.stiffness_n_per_m, c.bounce_hz,
+                    np.column_stack([c.tilt_a_hz, c.tilt_b_hz]))
 
 
 def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int, int] | None) -> FrfStep | None:

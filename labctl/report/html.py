@@ -17,7 +17,7 @@ from labctl.physics.references import fit_for_rail, model_curve
 from labctl.physics.world import world_path
 from labctl.report.data import ReportData, SeriesData
 from labctl.report.figures import is_simulated
-from labctl.report.verdict import COVERAGE, FAIL, PASS, StepVerdict, rig_parameters, series_verdicts
+from labctl.report.verdict import COVERAGE, FAIL, PASS, StepVerdict, rig_parameters
 
 STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
@@ -87,8 +87,7 @@ def _verdict_rows(verdicts: list[StepVerdict]) -> list[str]:
     return rows
 
 
-def _verdicts(data: ReportData, band: float | None) -> str:
-    verdicts = [v for s in data.series if s.runs for v in series_verdicts(s, data.rig, band)]
+def _verdicts(verdicts: list[StepVerdict], band: float | None) -> str:
     if not verdicts:
         return "<p>No identified step to judge.</p>"
     counts = {k: sum(v.verdict == k for v in verdicts) for k in dict.fromkeys(v.verdict for v in verdicts)}
@@ -154,10 +153,11 @@ def _specimens(data: ReportData) -> str:
 
 
 def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out: Path, csv_name: str | None,
-               band: float | None = None) -> Path:
+               verdicts: list[StepVerdict], band: float | None = None) -> Path:
     """Write ``report.html`` into ``out``; ``figures`` are (name, title, png, svg) of files already written.
 
-    ``band`` is the verdict band for rollers (default ±10 %; balls ±5 %), see labctl.report.verdict."""
+    ``verdicts`` are the steps judged with ``band``, the verdict band for rollers (default ±10 %; balls ±5 %),
+    see labctl.report.verdict."""
     a = data.attrs
     summary = [["campaign file", str(data.path)], ["protocol", a.get("protocol_name", "")],
                ["status", f"{a.get('status', '')} {a.get('status_message', '')}".strip()],
@@ -174,7 +174,7 @@ def write_html(data: ReportData, figures: list[tuple[str, str, Path, Path]], out
     kind = "simulated" if sim else ("imported" if a.get("backend") == "import" else "measured")
     body = [*banner, f"<h1>Campaign report ({kind}): {_e(a.get('protocol_name', data.path.name))}</h1>",
             _table(["", ""], summary, left=2), "<h2>Specimens</h2>", _specimens(data),
-            "<h2>Verdict against the model band</h2>", _verdicts(data, band),
+            "<h2>Verdict against the model band</h2>", _verdicts(verdicts, band),
             "<h2>Figures</h2>", *([_figure(*f) for f in figures] or ["<p>No identified step to plot.</p>"]),
             "<h2>Stiffness</h2>", *(_stiffness_table(s) for s in data.series if s.runs)]
     if csv_name:

@@ -196,6 +196,18 @@ def curve_of(run_group: h5py.Group, series: int, specimen: str) -> RepetitionCur
     return RepetitionCurve(series, run, specimen, **cols)
 
 
+def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
+    """The stored curve of every finished repetition of a campaign, in series and run order."""
+    out = []
+    for sg in s.children(h5, "series_"):
+        label = str(_decode(sg.attrs.get("label", "")))
+        for rg in s.children(sg, "run_"):
+            curve = curve_of(rg, s.number(sg), label)
+            if curve is not None:
+                out.append(curve)
+    return out
+
+
 class CampaignReader:
     """Read-only view of a campaign file; errors on corrupt or foreign files name the file."""
 
@@ -289,13 +301,7 @@ class CampaignReader:
 
     def curves(self) -> list[RepetitionCurve]:
         """The stored curve of every finished repetition, in series and run order."""
-        out = []
-        for series in self.series_indices():
-            for rg in s.children(self.h5[s.series_name(series)], "run_"):
-                curve = self.curve(series, s.number(rg))
-                if curve is not None:
-                    out.append(curve)
-        return out
+        return curves_of(self.h5)
 
 
 @dataclass

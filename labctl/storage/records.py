@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from dataclasses import asdict, dataclass, field, fields, is_dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -109,9 +109,6 @@ class ImpactRecord:
     @property
     def sample_rate_hz(self) -> float:
         return self.info.sample_rate_hz
-
-    def with_verdict(self, verdict: Verdict) -> ImpactRecord:
-        return replace(self, info=replace(self.info, verdict=verdict))
 
 
 @dataclass(frozen=True)

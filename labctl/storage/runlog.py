@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import astuple, dataclass, fields
-from typing import Literal
 
 import h5py
 import numpy as np
@@ -19,9 +18,6 @@ import numpy as np
 LOG = "log"
 ENTRIES = "entries"
 LOG_CHUNK = 64  # rows per chunk of the log table
-
-Level = Literal["info", "warning", "error"]
-LEVELS: tuple[str, ...] = ("info", "warning", "error")
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from labctl import __version__
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
-from labctl.storage.reader import attrs_of, complete_impacts, curve_of, impact_info, impact_record, step_info
+from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
@@ -350,14 +350,7 @@ class CampaignWriter:
 
     def curves(self) -> list[RepetitionCurve]:
         """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
-        out = []
-        for sg in s.children(self.h5, "series_"):
-            label = str(sg.attrs.get("label", ""))
-            for rg in s.children(sg, "run_"):
-                curve = curve_of(rg, s.number(sg), label)
-                if curve is not None:
-                    out.append(curve)
-        return out
+        return curves_of(self.h5)
 
     def append_log(self, entry: LogEntry) -> None:
         """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""
