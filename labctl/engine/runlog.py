@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from datetime import UTC, datetime
 from typing import Protocol
 
 from labctl import events as ev
 from labctl.storage import LogEntry
+from labctl.storage.writer import utc_now
 
 log = logging.getLogger("labctl.engine.runlog")
 
@@ -26,10 +26,6 @@ class LogSink(Protocol):
     """Where entries go (the campaign writer)."""
 
     def append_log(self, entry: LogEntry) -> None: ...
-
-
-def utc_now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
 def entry_fields(event: ev.Event) -> tuple[str, str, str] | None:
