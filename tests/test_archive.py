@@ -321,3 +321,16 @@ def test_dask_is_imported_only_when_a_cluster_is_used():
                           cwd=Path(__file__).resolve().parents[1])
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"
+
+
+def test_catalogue_points_keep_the_rails_material_and_tell_rail_materials_apart():
+    """A catalogue row's rail material reaches the stiffness table, and two rail materials are two contact
+    cases (their repetitions are numbered apart)."""
+    from labctl.archive.query import stiffness_points
+
+    row = {"diameter_mm": 5.0, "contact_length_mm": 9.0, "rail_ra_um": 0.2, "load_n": 100.0,
+           "stiffness_n_per_m": 3e7, "roller_type": 1, "material": "1.3505", "path": "a.h5", "series": 1, "run": 1}
+    points, left_out = stiffness_points([dict(row, rail_material="1.4034"), dict(row, path="b.h5")])
+    assert left_out == 0
+    assert [p.rail_material for p in points] == ["1.4034", None]
+    assert [p.repetition for p in points] == [1, 1]

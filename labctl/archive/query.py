@@ -18,7 +18,7 @@ from labctl.stiffness_table import StiffnessPoint
 
 _ALLOWED = {sqlite3.SQLITE_SELECT, sqlite3.SQLITE_READ, sqlite3.SQLITE_FUNCTION}
 _CASE_FIELDS = ("diameter_mm", "contact_length_mm", "rail_ra_um", "roller_type", "roller_length_mm", "material",
-                "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc")
+                "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc", "rail_material")
 
 
 @dataclass(frozen=True)
@@ -98,5 +98,6 @@ def stiffness_points(rows: list[dict[str, Any]]) -> tuple[list[StiffnessPoint], 
             roller_length_m=None if r.get("roller_length_mm") is None else r["roller_length_mm"] * 1e-3,
             material=r.get("material"),
             youngs_modulus_pa=None if r.get("youngs_modulus_gpa") is None else r["youngs_modulus_gpa"] * 1e9,
-            poisson_ratio=r.get("poisson_ratio"), hardness_hrc=r.get("hardness_hrc"), repetition=rep))
+            poisson_ratio=r.get("poisson_ratio"), hardness_hrc=r.get("hardness_hrc"), repetition=rep,
+            rail_material=r.get("rail_material")))
     return points, left_out
