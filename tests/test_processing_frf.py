@@ -9,7 +9,16 @@ import pytest
 
 from labctl.errors import InputError
 from labctl.processing.checks import locate_pulse
-from labctl.processing.frf import WindowConfig, blow_spectra, estimate_frf, force_window, impact_spectra
+from labctl.processing.frf import (
+    MIN_SPAN_S,
+    WindowConfig,
+    analysed_samples,
+    blow_spectra,
+    estimate_frf,
+    force_window,
+    impact_spectra,
+    ring_down_samples,
+)
 from labctl.processing.modes import fit_modes
 from tests.synth_impacts import SynthMode, accelerance, synth_impacts
 
@@ -71,7 +80,7 @@ def test_the_fit_removes_the_windows_added_damping_exactly(clean):
 
 def test_noise_lowers_coherence_and_h2_overestimates():
     s = synth_impacts(SINGLE, CHANNELS, n_samples=32768, snr_db=0.0, seed=2, n_impacts=4)
-    frf = estimate_frf(spectra_of(s, WindowConfig()), [0, 1, 2, 3])
+    frf = estimate_frf(spectra_of(s, WindowConfig(trim_to_decay=False)), [0, 1, 2, 3])
     far = (frf.frequencies_hz > 2000) & (frf.frequencies_hz < 2900)
     near = np.abs(frf.frequencies_hz - F0) < 3
     assert frf.coherence[0, near].min() > 0.98
@@ -118,3 +127,38 @@ def test_blow_spectra_of_raw_blows_give_the_analytic_frf_and_the_same_estimate_a
     assert one.h1.shape == windowed.h1.shape and one.used == (0,)
     with pytest.raises(InputError, match="expected"):
         blow_spectra(clean.force_n, clean.accel_m_per_s2[:2], clean.fs_hz)
+
+
+def test_the_analysed_span_follows_the_ring_down():
+    """Lighter damping rings longer and gets a longer span; noise alone, or with a steady tone (mains hum), gets
+    the least span; a record too short to tell is kept whole."""
+    fs, n = 20480.0, 65536
+    t = np.arange(n) / fs
+    rng = np.random.default_rng(3)
+    noise = rng.normal(0.0, 1e-3, (2, 3, n))
+    spans = []
+    for zeta in (0.02, 0.005, 0.002):
+        ring = np.exp(-zeta * 2 * np.pi * 600.0 * t) * np.sin(2 * np.pi * 600.0 * t)
+        spans.append(ring_down_samples(noise + ring))
+        # where the ring has sunk into the noise: its amplitude a few times the noise's σ at most
+        assert np.exp(-zeta * 2 * np.pi * 600.0 * spans[-1] / fs) < 0.01
+        assert np.exp(-zeta * 2 * np.pi * 600.0 * max(spans[-1] - 1024, 0) / fs) > 1e-4
+    assert spans[0] < spans[1] < spans[2]
+    assert analysed_samples(noise, fs) == pytest.approx(MIN_SPAN_S * fs, rel=0.05)
+    hum = 0.01 * np.sin(2 * np.pi * 50.0 * t)
+    assert analysed_samples(noise + hum, fs) == analysed_samples(noise, fs)
+    assert analysed_samples(noise[..., :4096], fs) == 4096
+    slow = noise + 0.1 * np.sin(2 * np.pi * 5.0 * t) * np.exp(-0.5 * t)  # a support mode 100 σ strong: no ring-down
+    assert ring_down_samples(slow) < 0.05 * n
+
+
+def test_trimmed_spectra_keep_the_blow_and_the_windows_rate():
+    s = synth_impacts(SINGLE, CHANNELS, n_samples=32768, snr_db=60.0, seed=4)
+    sp = spectra_of(s, WindowConfig())
+    whole = spectra_of(s, WindowConfig(trim_to_decay=False))
+    assert sp.n_samples < whole.n_samples == s.force_n.shape[1]
+    assert sp.decay_rate_per_s == whole.decay_rate_per_s  # the window's rate is the record's, trimmed or not
+    h_trim = estimate_frf(sp, [0, 1, 2]).h1[0]
+    h_whole = np.interp(sp.frequencies_hz, whole.frequencies_hz, estimate_frf(whole, [0, 1, 2]).h1[0].real)
+    near = np.abs(sp.frequencies_hz - F0) < 50
+    assert np.allclose(h_trim.real[near], h_whole[near], rtol=1e-3, atol=1e-3 * np.abs(h_whole[near]).max())

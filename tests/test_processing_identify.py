@@ -176,16 +176,35 @@ def test_no_exponential_window_gives_the_same_modes(paper_case):
 def test_fitting_every_third_line_keeps_the_answer_and_its_sigma(monkeypatch):
     """The window correlates neighbouring lines, so a fit on every ``fit_line_step``-th line (its noise
     inflation divided by the step) gives the every-line answer within a fraction of σ and the same σ."""
+    from labctl.processing import WindowConfig
     from labctl.processing.frf import Spectra
 
     sets = [synth_impacts(paper_case_modes(), RIG.channels, n_samples=N, snr_db=40.0, seed=300 + i,
                           force_peak_snr_db=50.0) for i in range(4)]
-    thinned = [run(s) for s in sets]
+    whole = IdentifyConfig(window=WindowConfig(trim_to_decay=False))  # the window's correlation spans the record
+    thinned = [run(s, config=whole) for s in sets]
+    assert all(r.frequencies_hz[1] * N == pytest.approx(r.fs_hz) for r in thinned)
     monkeypatch.setattr(Spectra, "fit_line_step", property(lambda self: 1))
-    every = [run(s) for s in sets]
+    every = [run(s, config=whole) for s in sets]
     for a, b in zip(thinned, every, strict=True):
         assert abs(a.bounce_hz - b.bounce_hz) < 0.2 * b.bounce_hz_std
         assert a.bounce_hz_std == pytest.approx(b.bounce_hz_std, rel=0.05)
+
+
+def test_the_spectra_span_the_ring_down_and_keep_the_whole_records_answer():
+    """Past the ring-down a record holds noise only: the spectra of the span up to twice the ring-down give the
+    whole record's answer within a fraction of its σ, with no larger σ, on a fraction of the lines."""
+    from labctl.processing import WindowConfig
+
+    whole = IdentifyConfig(window=WindowConfig(trim_to_decay=False))
+    for i in range(3):
+        s = synth_impacts(paper_case_modes(), RIG.channels, n_samples=N, snr_db=40.0, seed=310 + i,
+                          force_peak_snr_db=50.0)
+        trimmed, full = run(s), run(s, config=whole)
+        assert trimmed.frequencies_hz[1] >= 4 * full.frequencies_hz[1]  # a quarter of the record or less
+        assert abs(trimmed.bounce_hz - full.bounce_hz) < 0.5 * full.bounce_hz_std
+        assert trimmed.bounce_hz_std < 1.1 * full.bounce_hz_std
+        assert abs(trimmed.bounce_hz - 745.0) < 3 * trimmed.bounce_hz_std
 
 
 def test_a_pole_far_less_damped_than_the_rigs_modes_is_residue_not_a_tilt():

@@ -7,6 +7,15 @@ multiplied by the same exponential window ``exp(-a·t)``. Multiplying both by ``
 measured FRF into ``H(s)`` evaluated at ``s = iω + a``: every pole appears shifted by ``-a`` (the window's
 "added damping"), which the mode fit undoes exactly by evaluating its model at ``iω + a``.
 Spectra are computed in single precision (the FFT's round-off stays > 100 dB below the signal).
+
+The spectra span only the part of the record that holds the response: the records are cut at twice the time
+the responses' ring-down takes to sink into each channel's noise (the start of the first run of blocks in
+which no channel's energy of sample-to-sample differences — a high-pass that leaves out the slow support
+modes and offsets — stands out of the level of the record's last blocks, at a false-alarm rate of 1e-3 over
+the record), at least ``MIN_SPAN_S``. Past that point a record holds noise only: it would add to every line
+of the spectra and nothing to the modes, while the shorter transform and the fewer lines cost a fraction of
+the work. The exponential window keeps its rate (its end value at the record's end), so the window adds the
+same small damping whatever the span.
 """
 
 from __future__ import annotations
@@ -17,12 +26,20 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
+from scipy.stats import chi2
 
 from labctl.errors import InputError
 from labctl.processing.checks import CheckConfig, check_impact
 
 WORKERS = 2
 _WORK = threading.local()
+DECAY_BLOCK = 512  # samples per block of the ring-down scan (25 ms at 20 480 Hz) ...
+DECAY_STRIDE = 4  # ... of which every so-many sample pairs are differenced (independent noise terms)
+DECAY_FALSE_ALARM = 1e-3  # chance that noise alone lengthens the analysed span, over the whole record
+NOISE_BLOCKS = 16  # the record's last blocks give each channel's noise level
+QUIET_BLOCKS = 3  # the ring-down ends where this many blocks in a row hold noise only ...
+SCAN_BLOCKS = 8  # ... scanned from the start this many blocks at a time
+MIN_SPAN_S = 0.2  # the analysed span's least length (5 Hz lines): a few lines across any contact mode
 
 
 @dataclass(frozen=True)
@@ -30,6 +47,7 @@ class WindowConfig:
     """Exponential window end value (None: no window) and the force window's extent around the blow."""
 
     exponential_end: float | None = 0.01  # the window's value at the end of the record
+    trim_to_decay: bool = True  # analyse up to twice the responses' ring-down (False: the whole record)
     force_pre_s: float = 0.5e-3  # the force window reaches at most this far before the pulse ...
     force_post_s: float = 2.0e-3  # ... and after it, where the force still stands above its noise (ringing)
     force_noise_sigmas: float = 4.0
@@ -118,6 +136,47 @@ def _one_window(force_n: np.ndarray, fs_hz: float, start: int, end: int, noise_n
     return lo, w
 
 
+def ring_down_samples(responses: np.ndarray) -> int:
+    """Samples from the record's start to the first of ``QUIET_BLOCKS`` blocks in a row in which no response
+    stands out of its channel's noise (the record's length if none). ``responses`` is (n_impacts, n_channels,
+    n); the noise is the record's last ``NOISE_BLOCKS`` blocks; the scan uses differences of neighbouring
+    samples, so slow support modes and sensor offsets do not keep it going."""
+    n = responses.shape[-1]
+    n_blocks = n // DECAY_BLOCK
+    if n_blocks < NOISE_BLOCKS + QUIET_BLOCKS + 1:
+        return n
+    dof = DECAY_BLOCK // DECAY_STRIDE
+
+    def energy(first: int, last: int) -> np.ndarray:
+        a, b = first * DECAY_BLOCK, last * DECAY_BLOCK
+        d = responses[..., a + 1:b:DECAY_STRIDE] - responses[..., a:b:DECAY_STRIDE]
+        d = d.reshape(*responses.shape[:-1], last - first, dof)
+        return np.einsum("...k,...k->...", d, d, dtype=np.float64)
+
+    floor = energy(n_blocks - NOISE_BLOCKS, n_blocks).mean(axis=-1, keepdims=True)
+    limit = floor * float(chi2.isf(DECAY_FALSE_ALARM / (floor.size * n_blocks), dof)) / dof
+    first, stop = 0, n_blocks - NOISE_BLOCKS
+    while True:
+        last = min(first + SCAN_BLOCKS, stop)
+        loud = (energy(first, last) > limit).reshape(-1, last - first).any(axis=0)
+        run = 0
+        for j, is_loud in enumerate(loud):
+            run = 0 if is_loud else run + 1
+            if run == QUIET_BLOCKS:
+                return (first + j + 1 - QUIET_BLOCKS) * DECAY_BLOCK
+        if last == stop:
+            return n
+        first = last - run  # a quiet run cut by the chunk's end is scanned again
+
+
+def analysed_samples(responses: np.ndarray, fs_hz: float, least: int = 0) -> int:
+    """The analysed span: twice the responses' ring-down, at least ``MIN_SPAN_S`` and ``least`` samples, at
+    most the record, rounded up to a fast transform length."""
+    n = responses.shape[-1]
+    want = max(2 * ring_down_samples(responses), int(math.ceil(MIN_SPAN_S * fs_hz)), least)
+    return min(n, sfft.next_fast_len(want, real=True))
+
+
 def response_buffer(accel_m_per_s2: np.ndarray) -> np.ndarray:
     """Single-precision work array (n_impacts, 1 + n_channels, n): row 0 for the force, then the responses.
 
@@ -150,17 +209,22 @@ def impact_spectra(
     data may be passed: it is overwritten."""
     everything = list(range(accel_m_per_s2.shape[0]))
     use = everything if use is None else list(use)
-    n = accel_m_per_s2.shape[2]
-    rate = cfg.decay_rate_per_s(n, fs_hz)
-    expw = np.exp(-rate * np.arange(n) / fs_hz)
-    n_f = n // 2 + 1
-    if cfg.max_frequency_hz is not None:
-        n_f = min(n_f, int(math.floor(cfg.max_frequency_hz * n / fs_hz)) + 1)
     if buffer is None:
         buf = response_buffer(accel_m_per_s2[use] if use != everything else accel_m_per_s2)
     else:
         buf = buffer if use == everything else buffer[use]
+    n = accel_m_per_s2.shape[2]
+    rate = cfg.decay_rate_per_s(n, fs_hz)
+    if cfg.trim_to_decay:
+        ends = [end for _, end, _ in pulses] + [b for extra in (segments or []) for _, b in extra]
+        blow = max(ends, default=0) + int(math.ceil((cfg.force_post_s + 2 * cfg.taper_s) * fs_hz)) + 2
+        n = analysed_samples(buf[:, 1:], fs_hz, least=blow)
+    expw = np.exp(-rate * np.arange(n) / fs_hz)
+    n_f = n // 2 + 1
+    if cfg.max_frequency_hz is not None:
+        n_f = min(n_f, int(math.floor(cfg.max_frequency_hz * n / fs_hz)) + 1)
     expw32 = expw.astype(np.float32)
+    buf = buf[..., :n]
     buf[:, 1:] *= expw32
     windows = []
     for i, (j, (start, end, noise)) in enumerate(zip(use, pulses, strict=True)):
@@ -172,7 +236,7 @@ def impact_spectra(
                 buf[i, 1 + c] -= np.float32(offset[c]) * expw32
         f_off = float(np.median(force_n[j, :start])) if start >= 16 else 0.0
         extra = segments[i] if segments is not None else ()
-        lo, w = force_window(force_n[j] - f_off, fs_hz, start, end, noise, cfg, extra)
+        lo, w = force_window(force_n[j, :n] - f_off, fs_hz, start, end, noise, cfg, extra)
         buf[i, 0, lo:lo + len(w)] = (force_n[j, lo:lo + len(w)] - f_off) * expw[lo:lo + len(w)] * w
         keep = np.flatnonzero(w > 0)
         windows.append((lo + keep, w[keep] * expw[lo + keep]))
