@@ -31,8 +31,9 @@ MIN_RELATIVE_STRENGTH = 0.01  # a fitted "mode" with a smaller peak response is 
 PLAUSIBLE_DAMPING = 5.0  # contact modes damp alike: a pole damped far beyond (or below) the rig's ratio is residue
 SHARPNESS = 0.1  # a real mode's frequency is known to better than this share of its half-power width
 SPLITS = (0.05, 0.15, 0.4)  # tilt-pair start separations, in half-power widths of the single tilt
-FIRST_FIT_ITER = 8  # a three-mode fit from the LSCF poles still moving after this many steps sits in a
+FIRST_FIT_ITER = 4  # a three-mode fit from the LSCF poles still moving after this many steps sits in a
 # degenerate valley (a pole turning into residue): the two-mode fit and the split starts take over
+TRIAL_ITER = 4  # the split starts are only ranked by their cost: the best one is refined to convergence
 RESOLUTION_LEVEL = 0.001  # level of the one-pole-or-two test on the tilt pair (and of each mode's presence)
 Widen = Callable[[ModalFit], ModalFit]  # adds what the residuals cannot show (the force noise) to a fit's stds
 
@@ -193,7 +194,7 @@ def fit_contact_modes(
     classes = classify(fit.constants, fit.frequencies_hz, pred, live)
     if _trusted(fit, penalty, zeta) and _apart(fit, classes.tilt, wid):
         return ContactModes(fit, classes, True, band)
-    if _valid(fit):
+    if _valid(fit, require_convergence=False):  # a three-mode fit stopped early still gives good starts
         keep = sorted(np.argsort(fit.significance)[1:])
         start2 = [(float(fit.frequencies_hz[i]), float(fit.damping_ratios[i])) for i in keep]
     else:
@@ -208,8 +209,9 @@ def fit_contact_modes(
         trials = []
         for split in SPLITS:
             d = split * 2.0 * zt * ft
-            trial = fit_modes(f[::step], hb[:, ::step], [(ft - d / 2, zt), (ft + d / 2, zt), (fb, zb)], **kw)
-            if _valid(trial):
+            trial = fit_modes(f[::step], hb[:, ::step], [(ft - d / 2, zt), (ft + d / 2, zt), (fb, zb)],
+                              max_iter=TRIAL_ITER, **kw)
+            if _valid(trial, require_convergence=False):
                 trials.append(trial)
         if trials:
             pick = min(trials, key=lambda t: t.cost)
