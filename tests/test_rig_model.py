@@ -88,3 +88,23 @@ def test_inverse_refuses_impossible_frequency():
 
 def test_preload_is_upper_disc_weight_shared_by_three_rollers():
     assert RIG.preload_per_roller_n == pytest.approx(38.0, rel=0.02)
+
+
+def test_bounce_sensitivity_matches_finite_differences_of_the_rig_model():
+    from labctl.physics.rig import bounce_sensitivity
+
+    k, h = 4.65e7, 1e-6
+    sens = bounce_sensitivity(RIG, k)
+    f0 = rig_modes(RIG, k).bounce_hz
+
+    def scaled(d):
+        return dataclasses.replace(d, mass_kg=d.mass_kg * (1 + h), inertia_kg_m2=d.inertia_kg_m2 * (1 + h))
+
+    heavier = dataclasses.replace(RIG, upper=scaled(RIG.upper), lower=scaled(RIG.lower))
+    assert sens.per_disc_mass == pytest.approx((rig_modes(heavier, k).bounce_hz - f0) / (RIG.upper.mass_kg * h),
+                                               rel=1e-4)
+    stiffer = RIG.with_setup_stiffness(RIG.setup_stiffness_n_per_m * (1 + h))
+    assert sens.per_setup_stiffness == pytest.approx(
+        (rig_modes(stiffer, k).bounce_hz - f0) / (RIG.setup_stiffness_n_per_m * h), rel=1e-3)
+    assert sens.per_roller_stiffness == pytest.approx((rig_modes(RIG, k * (1 + h)).bounce_hz - f0) / (k * h), rel=1e-3)
+    assert sens.per_disc_mass < 0 < sens.per_roller_stiffness

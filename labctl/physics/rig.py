@@ -155,16 +155,6 @@ def roller_stiffness_from_bounce(config: RigConfig, bounce_frequency_hz: float) 
     return float(10.0**log_k)
 
 
-def with_disc_mass_scaled(config: RigConfig, factor: float) -> RigConfig:
-    """The rig with both discs' mass (and, the shape unchanged, their inertia) scaled by ``factor``."""
-    from dataclasses import replace
-
-    def scaled(d):
-        return replace(d, mass_kg=d.mass_kg * factor, inertia_kg_m2=d.inertia_kg_m2 * factor)
-
-    return replace(config, upper=scaled(config.upper), lower=scaled(config.lower))
-
-
 @dataclass(frozen=True)
 class BounceSensitivity:
     """How the bounce frequency moves with the roller stiffness and the rig parameters (Hz per unit)."""
@@ -176,18 +166,14 @@ class BounceSensitivity:
 
 def bounce_sensitivity(config: RigConfig, roller_stiffness_n_per_m: float) -> BounceSensitivity:
     """Derivatives of the bounce frequency (forward differences of the rig model) for the uncertainty budget."""
-    k = np.full(3, float(roller_stiffness_n_per_m))
-
-    def f(c: RigConfig, kk: np.ndarray) -> float:
-        return float(ContactModeModel(c)(kk)[0][0])
-
-    f0 = f(config, k)
+    k = float(roller_stiffness_n_per_m)
     h = 1e-5
-    dk = (f(config, k * (1 + h)) - f0) / (k[0] * h)
-    dm = (f(with_disc_mass_scaled(config, 1 + h), k) - f0) / (config.upper.mass_kg * h)
+    f0, f_k = ContactModeModel(config).many(np.array([[k] * 3, [k * (1 + h)] * 3]))[0][:, 0]
     ks = config.setup_stiffness_n_per_m
-    dks = (f(config.with_setup_stiffness(ks * (1 + h)), k) - f0) / (ks * h)
-    return BounceSensitivity(dk, dm, dks)
+    f_ks = float(ContactModeModel(config.with_setup_stiffness(ks * (1 + h)))(np.full(3, k))[0][0])
+    # the discs' masses and inertias all scaled by (1 + h) scale every ω² by 1/(1 + h): df/dm = -f/(2m)
+    dm = -0.5 * float(f0) / config.upper.mass_kg
+    return BounceSensitivity(float(f_k - f0) / (k * h), dm, (f_ks - float(f0)) / (ks * h))
 
 
 class ContactModeModel:
@@ -206,20 +192,28 @@ class ContactModeModel:
 
     def __call__(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3)."""
+        freqs, shapes = self.many(np.asarray(roller_stiffness_n_per_m, dtype=float)[None, :])
+        return freqs[0], shapes[0]
+
+    def many(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The same for n sets of three stiffnesses (n, 3) at once: frequencies (n, 3), shapes (n, 6, 3)."""
         k = np.asarray(roller_stiffness_n_per_m, dtype=float)
         if np.any(~np.isfinite(k)) or np.any(k <= 0):
             raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
         k_path = 1.0 / (1.0 / k + self.inv_setup)
-        stiff = self.support + (self.rows.T * k_path) @ self.rows
+        stiff = self.support + np.einsum("ci,nc,cj->nij", self.rows, k_path, self.rows)
         omega2, v = np.linalg.eigh(stiff * self.outer)
-        shapes = v[:, 3:] * self.scale[:, None]
-        freqs = np.sqrt(np.clip(omega2[3:], 0.0, None)) / (2.0 * math.pi)
-        b = _bounce_index(self.rows @ shapes)
-        t = [i for i in range(3) if i != b]
-        if freqs[t[0]] > freqs[t[1]]:
-            t.reverse()
-        order = [b, *t]
-        return freqs[order], shapes[:, order]
+        shapes = v[:, :, 3:] * self.scale[None, :, None]
+        freqs = np.sqrt(np.clip(omega2[:, 3:], 0.0, None)) / (2.0 * math.pi)
+        approach = np.einsum("cj,njm->ncm", self.rows, shapes)  # roller approaches per mode
+        rms = np.sqrt(np.mean(approach**2, axis=1))
+        b = np.argmax(np.abs(approach.mean(axis=1)) / np.where(rms > 0, rms, 1.0), axis=1)  # as _bounce_index
+        others = np.array([[1, 2], [0, 2], [0, 1]])[b]
+        rows = np.arange(len(k))
+        swap = freqs[rows, others[:, 0]] > freqs[rows, others[:, 1]]
+        others[swap] = others[swap][:, ::-1]
+        order = np.column_stack([b, others])
+        return np.take_along_axis(freqs, order, axis=1), np.take_along_axis(shapes, order[:, None, :], axis=2)
 
 
 def contact_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -246,9 +240,9 @@ def equal_roller_stiffness(config: RigConfig, bounce_frequency_hz: float,
     inv = 2.0 / (mass * w2) - 1.0 / config.setup_stiffness_n_per_m  # Eq. 4: 1/(3k) = 2/(m ω²) - 1/K_setup
     k = 1.0 / (3.0 * inv) if inv > 0 else roller_stiffness_from_bounce(config, bounce_frequency_hz)
     for _ in range(8):
-        f0 = float(m(np.full(3, k))[0][0])
         dk = 1e-6 * k
-        slope = (float(m(np.full(3, k + dk))[0][0]) - f0) / dk
+        f0, f1 = (float(v) for v in m.many(np.array([[k] * 3, [k + dk] * 3]))[0][:, 0])
+        slope = (f1 - f0) / dk
         if not slope > 0:
             break
         step = (bounce_frequency_hz - f0) / slope

@@ -75,10 +75,13 @@ def _tilt_basis(rig: RigConfig, sensors: np.ndarray, k: float) -> np.ndarray:
     return u[:, :2]
 
 
-def _model(model: ContactModeModel, k: np.ndarray, sensors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(bounce, tilt lo, tilt hi) Hz and the two tilt shapes (2, n_live) over the live channels."""
-    freqs, shapes = model(k)
-    return freqs, (sensors @ shapes[:, 1:]).T
+def _model(model: ContactModeModel, k: np.ndarray, sensors: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray,
+                                                                                                      np.ndarray]:
+    """For n sets of stiffnesses (n, 3): (bounce, tilt lo, tilt hi) Hz (n, 3) and the angles (n, 2) of the two
+    tilt shapes over the live channels inside the equal-roller tilt subspace ``basis``."""
+    freqs, shapes = model.many(k)
+    p = np.einsum("ca,cj,njm->nam", basis, sensors, shapes[:, :, 1:])  # (n, 2 basis components, 2 tilt modes)
+    return freqs, np.arctan2(p[:, 1], p[:, 0])
 
 
 def _angle(basis: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray]:
@@ -86,8 +89,8 @@ def _angle(basis: np.ndarray, v: np.ndarray) -> tuple[float, np.ndarray]:
     return math.atan2(float(p[1]), float(p[0])), p
 
 
-def _wrap(d: float) -> float:
-    """An angle difference modulo π (a mode shape's sign is arbitrary), in (-π/2, π/2]."""
+def _wrap(d: np.ndarray) -> np.ndarray:
+    """Angle differences modulo π (a mode shape's sign is arbitrary), in (-π/2, π/2]."""
     return (d + 0.5 * math.pi) % math.pi - 0.5 * math.pi
 
 
@@ -98,18 +101,33 @@ def _split_per_deviation(rig: RigConfig, k: float) -> float:
     return (hi - lo) / eps
 
 
-def _jacobian(residual, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.ndarray:
-    return np.column_stack([(residual(u + h * e) - r0) / h for e in np.eye(len(u))])
+def _jacobian(residuals, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Forward differences, every parameter's step evaluated in one batch of ``residuals`` ((n, p) → (n, m))."""
+    return ((residuals(u + h * np.eye(len(u))) - r0) / h).T
 
 
-def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
-    """Minimise |residual(u)|² (a few parameters, a good start): Gauss–Newton steps, halved when they do not
-    lower the cost; returns the solution and the Jacobian there."""
+STEP_TOLERANCE = 0.01  # converged when a full Gauss–Newton step moves every parameter by less than this share
+# of its 1-σ: the solution then sits far closer to the minimum than its stated uncertainty can tell
+
+
+def _gauss_newton(residuals, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise |residual(u)|² (a few parameters, whitened residuals, a good start; ``residuals`` maps a batch of
+    parameter sets (n, p) to theirs (n, m)): Gauss–Newton steps, halved when they do not lower the cost;
+    returns the solution and the Jacobian there (at the last step's start when that step was below
+    ``STEP_TOLERANCE`` of the parameters' σ)."""
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        return residuals(v[None, :])[0]
+
     u = u0.copy()
     r = residual(u)
-    jac = _jacobian(residual, u, r)
+    jac = _jacobian(residuals, u, r)
     for _ in range(max_iter):
         step = np.linalg.lstsq(jac, -r, rcond=None)[0]
+        try:
+            sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(jac.T @ jac)), 0.0, None))
+        except np.linalg.LinAlgError:
+            sigma = np.zeros(len(u))
         cost = float(r @ r)
         for _ in range(20):
             r_new = residual(u + step)
@@ -119,9 +137,9 @@ def _gauss_newton(residual, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndarr
         else:
             break
         u, r = u + step, r_new
-        jac = _jacobian(residual, u, r)
-        if float(np.max(np.abs(step))) < 1e-7:  # 1e-7 of each k: far below any stated uncertainty
+        if np.all(np.abs(step) < STEP_TOLERANCE * sigma) or float(np.max(np.abs(step))) < 1e-7:
             break
+        jac = _jacobian(residuals, u, r)
     return u, jac
 
 
@@ -176,22 +194,18 @@ def solve_rollers(
             sig_angles.append(ANGLE_FALLBACK_RAD)
         meas_angles.append(ang)
 
-    def residual(u: np.ndarray) -> np.ndarray:
-        f, shapes = _model(model, np.exp(u), sensors)
-        out = [(f[0] - measured[0]) / sig[0], ((f[2] - f[1]) - (measured[2] - measured[1])) / sig_split]
-        for r in range(2):
-            ang, _ = _angle(basis, shapes[r])
-            out.append(_wrap(ang - meas_angles[r]) / sig_angles[r])
-        return np.array(out)
+    def residuals(u: np.ndarray) -> np.ndarray:
+        f, angles = _model(model, np.exp(u), sensors, basis)
+        return np.column_stack([(f[:, 0] - measured[0]) / sig[0],
+                                ((f[:, 2] - f[:, 1]) - (measured[2] - measured[1])) / sig_split,
+                                _wrap(angles - np.asarray(meas_angles)) / np.asarray(sig_angles)])
 
     split = measured[2] - measured[1]
     eps0 = split / max(abs(_split_per_deviation(rig, k_equal)), 1e-300)
-    starts = []
-    for theta in np.radians(np.arange(0.0, 360.0, 45.0)):
-        e = np.cos(theta - np.radians([0.0, 120.0, 240.0]))
-        starts.append(np.log(k_equal * np.clip(1.0 + eps0 * e, 0.2, 5.0)))
-    best = min(starts, key=lambda u: float(np.sum(residual(u) ** 2)))
-    u, jac = _gauss_newton(residual, best)
+    theta = np.radians(np.arange(0.0, 360.0, 45.0))[:, None]
+    starts = np.log(k_equal * np.clip(1.0 + eps0 * np.cos(theta - np.radians([0.0, 120.0, 240.0])), 0.2, 5.0))
+    best = starts[int(np.argmin(np.sum(residuals(starts) ** 2, axis=1)))]
+    u, jac = _gauss_newton(residuals, best)
     k = np.exp(u)
     try:
         cov_u = np.linalg.inv(jac.T @ jac)
