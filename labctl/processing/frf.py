@@ -177,19 +177,21 @@ def analysed_samples(responses: np.ndarray, fs_hz: float, least: int = 0) -> int
     return min(n, sfft.next_fast_len(want, real=True))
 
 
-def response_buffer(accel_m_per_s2: np.ndarray) -> np.ndarray:
-    """Single-precision work array (n_impacts, 1 + n_channels, n): row 0 for the force, then the responses.
+def response_buffer(accel_m_per_s2: np.ndarray, n: int | None = None) -> np.ndarray:
+    """Single-precision work array (n_impacts, 1 + n_channels, n) of the records' first ``n`` samples (default
+    all): row 0 for the force, then the responses.
 
-    ``impact_spectra`` windows and transforms it in place; made once, it also gives the channels' extremes.
-    The array is the calling thread's scratch space: the next call overwrites it.
+    ``impact_spectra`` windows and transforms it in place; made once, it also gives the channels' extremes over
+    the samples analysed. The array is the calling thread's scratch space: the next call overwrites it.
     """
-    n_imp, n_ch, n = accel_m_per_s2.shape
+    n_imp, n_ch, n_all = accel_m_per_s2.shape
+    n = n_all if n is None else min(n, n_all)
     shape = (n_imp, n_ch + 1, n)
     buf = getattr(_WORK, "buffer", None)
     if buf is None or buf.shape != shape:  # one per thread, reused: a fresh 10 MB array costs page faults
         buf = _WORK.buffer = np.empty(shape, dtype=np.float32)
     buf[:, 0] = 0.0
-    np.copyto(buf[:, 1:], accel_m_per_s2, casting="same_kind")
+    np.copyto(buf[:, 1:], accel_m_per_s2[..., :n], casting="same_kind")
     return buf
 
 
@@ -206,25 +208,24 @@ def impact_spectra(
     """Window and transform the impacts ``use`` (default all); ``pulses`` holds (first sample, last sample,
     force noise N) of each of them, ``segments`` their further pulses (second hits) kept in the force
     window. Sensor offsets (the record before each blow) are removed. A ``response_buffer`` of the same
-    data may be passed: it is overwritten."""
+    data may be passed (its length is the span analysed, unless the blows reach beyond it): it is overwritten."""
     everything = list(range(accel_m_per_s2.shape[0]))
     use = everything if use is None else list(use)
-    if buffer is None:
-        buf = response_buffer(accel_m_per_s2[use] if use != everything else accel_m_per_s2)
-    else:
-        buf = buffer if use == everything else buffer[use]
     n = accel_m_per_s2.shape[2]
     rate = cfg.decay_rate_per_s(n, fs_hz)
-    if cfg.trim_to_decay:
-        ends = [end for _, end, _ in pulses] + [b for extra in (segments or []) for _, b in extra]
-        blow = max(ends, default=0) + int(math.ceil((cfg.force_post_s + 2 * cfg.taper_s) * fs_hz)) + 2
-        n = analysed_samples(buf[:, 1:], fs_hz, least=blow)
+    ends = [end for _, end, _ in pulses] + [b for extra in (segments or []) for _, b in extra]
+    blow = min(n, max(ends, default=0) + int(math.ceil((cfg.force_post_s + 2 * cfg.taper_s) * fs_hz)) + 2)
+    if buffer is not None and buffer.shape[-1] >= blow:  # the caller's span (see ``analysed_samples``)
+        n = buffer.shape[-1]
+        buf = buffer if use == everything else buffer[use]
+    else:
+        n = analysed_samples(accel_m_per_s2, fs_hz, least=blow) if cfg.trim_to_decay else n
+        buf = response_buffer(accel_m_per_s2 if use == everything else accel_m_per_s2[use, :, :n], n)
     expw = np.exp(-rate * np.arange(n) / fs_hz)
     n_f = n // 2 + 1
     if cfg.max_frequency_hz is not None:
         n_f = min(n_f, int(math.floor(cfg.max_frequency_hz * n / fs_hz)) + 1)
     expw32 = expw.astype(np.float32)
-    buf = buf[..., :n]
     buf[:, 1:] *= expw32
     windows = []
     for i, (j, (start, end, noise)) in enumerate(zip(use, pulses, strict=True)):

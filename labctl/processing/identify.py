@@ -23,6 +23,7 @@ from labctl.processing.force_noise import ForceNoiseWidener
 from labctl.processing.frf import (
     FrfEstimate,
     Spectra,
+    analysed_samples,
     coherence_at,
     estimate_frf,
     impact_spectra,
@@ -130,7 +131,8 @@ def identify(
     """
     cfg = config if isinstance(config, IdentifyConfig) else IdentifyConfig(checks=config or CheckConfig())
     force, accel, names = _inputs(force_n, accel_m_per_s2, fs_hz, channels, rig)
-    buf = response_buffer(accel)
+    # the span analysed: the records up to twice their ring-down (checks look at what the spectra will hold)
+    buf = response_buffer(accel, analysed_samples(accel, fs_hz) if cfg.window.trim_to_decay else None)
     top, bottom = buf[:, 1:].max(axis=-1), buf[:, 1:].min(axis=-1)
     checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
                            config=cfg.checks, channels=names, extremes=(top[i], bottom[i]))
