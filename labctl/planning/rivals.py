@@ -9,12 +9,12 @@ decade for Tripp's depth, so a parameter the data do not determine keeps its pla
 collapsing to zero.
 
 A term with a kink in k(F) (``KINK`` of the effect: the hardness onset) is not described by one linearisation:
-fitted just past a measured load, the kink makes its parameters look determined when the data only bracket it.
-Such a model is spread over the kink positions the data still allow (``spread_kinks``): beside its best fit,
-the model held at each value of a grid across the kink parameter's range (the other parameters refitted), every
-one whose BIC is within ``DECISIVE_BIC`` of the best model in play, the model's weight shared among them in
-proportion to exp(−BIC/2) (a discretised posterior over the kink). The criterion then values loads that tell
-the kink positions apart as it values loads that tell models apart.
+fitted just past a measured load, the kink makes its parameters look determined when the data only bracket it. Such
+a model is spread over the kink positions the data still allow (``spread_kinks``): its best fit with the kink held
+where it was fitted, and the model held at each value of a grid across the kink parameter's range (the other
+parameters refitted), every one whose BIC is within ``DECISIVE_BIC`` of the best model in play, the model's weight
+shared among them in proportion to exp(−BIC/2) (a discretised posterior over the kink). The criterion then values
+loads that tell the kink positions apart as it values loads that tell models apart.
 """
 
 from __future__ import annotations
@@ -121,6 +121,15 @@ def _held(predict: Predictor, row: int, value: float) -> Predictor:
     return held
 
 
+def held_at_fit(rival: Rival) -> Rival:
+    """The rival with its kink parameter held at its fitted value (the others keep their fit and prior)."""
+    j = rival.kink
+    assert j is not None
+    free = np.arange(rival.theta.size) != j
+    return Rival(rival.terms, _held(rival.predict, j, float(rival.theta[j])), rival.theta[free], rival.lower[free],
+                 rival.upper[free], rival.prior_sd[free], rival.bic)
+
+
 def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
     """The rival held at each of ``KINK_GRID`` values of its kink parameter (bin centres across its range), its
     other parameters refitted by the workflow's whitened least squares, each with its BIC (same n, same count of
@@ -150,17 +159,24 @@ def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], n
 
 def spread_kinks(models: Sequence[Rival], weights: np.ndarray, data: Dataset,
                  whiten: Callable[[np.ndarray], np.ndarray]) -> tuple[list[Rival], np.ndarray]:
-    """Each model with a kink followed by its kink particles still in play (BIC within ``DECISIVE_BIC`` of the
-    best model), with covariances; the model's weight is shared among them in proportion to exp(−BIC/2)."""
+    """Each model with a kink replaced by itself held at its fitted kink and by its kink particles still in play
+    (BIC within ``DECISIVE_BIC`` of the best model), with covariances; the model's weight is shared among them
+    in proportion to exp(−BIC/2). A linearisation across the kink is never used: the kink is represented by
+    the particles alone."""
     best = min(m.bic for m in models)
     out: list[Rival] = []
     out_w: list[float] = []
     for m, w in zip(models, weights, strict=True):
-        parts = [p.with_covariance(data, whiten) for p in kink_particles(m, data, whiten)
-                 if p.bic <= best + DECISIVE_BIC]
-        bic = np.array([m.bic] + [p.bic for p in parts])
+        if m.kink is None:
+            out.append(m)
+            out_w.append(float(w))
+            continue
+        parts = [held_at_fit(m).with_covariance(data, whiten)]
+        parts += [p.with_covariance(data, whiten) for p in kink_particles(m, data, whiten)
+                  if p.bic <= best + DECISIVE_BIC]
+        bic = np.array([p.bic for p in parts])
         share = np.exp(-0.5 * (bic - bic.min()))
-        out.extend([m, *parts])
+        out.extend(parts)
         out_w.extend(float(w) * share / share.sum())
     return out, np.array(out_w)
 
