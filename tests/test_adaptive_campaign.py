@@ -109,3 +109,33 @@ def test_adaptive_refuses_a_zero_budget_before_creating_a_file(tmp_path):
     with pytest.raises(InputError, match="budget-steps 0"):
         run_campaign(proto, out=out, adaptive=True, budget_steps=0)
     assert not out.exists()
+
+
+def test_advisor_asks_for_a_second_level_above_an_onset_the_data_only_bracket(tmp_path):
+    """A hardness onset at 310 N (type 1, gain 0.3, threshold 0.30) with one measured level above it (382 N):
+    one linearisation at the best fit puts the onset just past the 281 N step and calls it determined; spread
+    over the onsets the data still allow, the planner asks for loads between 281 N and the top, so that two
+    levels lie above the onset."""
+    import numpy as np
+
+    from labctl.physics import MaterialHardness
+    from labctl.stiffness_table import StiffnessPoint
+
+    rig = load_rig()
+    proto = tmp_path / "onset.toml"
+    proto.write_text(stepped_protocol_text("onset", roller_type=1, max_load=400.0, max_steps=3, reps=2))
+    spec = load_protocol(proto).specimens[0]
+    case = spec.case()
+    law = ContactLaw("tripp", 1.5e-3, (MaterialHardness(0.3, 0.30),))
+    rng = np.random.default_rng(1)
+    loads = {1: [37.9, 159.4, 280.9, 37.9, 37.9, 382.2], 2: [37.9, 159.4, 280.9]}
+    points = []
+    for rep, fs in loads.items():
+        seat = 1e-3 * rng.standard_normal()
+        for f in fs:
+            k = float(law.stiffness_n_per_m(case, f)) * np.exp(seat + 3e-4 * rng.standard_normal())
+            points.append(StiffnessPoint(case.roller.diameter_m, case.roller.contact_length_m, spec.rail_ra_m, f, k,
+                                         roller_type=1, repetition=rep))
+    added = PlanAdvisor(rig).extra_steps(points, spec, 3)
+    above = {round(a.target_load_n) for a in added if a.target_load_n > 310.0}
+    assert len(above - {382}) >= 1, [a.target_load_n for a in added]

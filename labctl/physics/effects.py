@@ -112,6 +112,8 @@ class MaterialHardness(BoundedParams):
     threshold: float = 0.3
     name: ClassVar[str] = "material_hardness"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 2.0), "threshold": (0.05, 1.0)}
+    KINK: ClassVar[str] = "threshold"
+    """The parameter that places the term's kink in k(F) (the onset load)."""
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
         yield_pa = self.threshold * case.softer_hardness_pa

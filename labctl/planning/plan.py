@@ -27,7 +27,7 @@ from labctl.errors import InputError
 from labctl.physics.effects import EFFECTS
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.planning.criterion import ModelAt, Score, greedy_loads
-from labctl.planning.rivals import Rival, rivals_in_play
+from labctl.planning.rivals import Rival, kink_words, rivals_in_play, spread_kinks, whitener
 from labctl.planning.specimens import RAIL_RA_UM, Specimen, candidate_specimens
 from labctl.protocol import Protocol, load_protocol
 from labctl.stiffness_table import StiffnessPoint
@@ -161,7 +161,8 @@ def _reason(spec: Specimen, loads: np.ndarray, score: Score, models: list[ModelA
     where = f"{_length_words(spec, lengths, materials)}{rail_words} {_load_words(loads, spec, data)}"
     if score.pair_terms and float(score.discrimination[0]) >= float(score.parameters[0]):
         (i, j), _ = max(score.pair_terms.items(), key=lambda kv: float(kv[1][0]))
-        what = _differs(models[i].rival.terms, models[j].rival.terms)
+        a, b = models[i].rival.terms, models[j].rival.terms
+        what = f"locates {kink_words(a)}" if a == b else _differs(a, b)
     elif score.param_terms:
         k, _ = max(score.param_terms.items(), key=lambda kv: float(kv[1][0]))
         what = f"pins down the parameters of {models[k].rival.label}"
@@ -186,6 +187,8 @@ def _predictable(spec: Specimen, play: list[Rival]) -> Specimen | None:
 def _would_change(score: Score, models: list[ModelAt]) -> bool:
     final = models[0].rival
     for i in range(1, len(models)):
+        if models[i].rival.terms == final.terms:
+            continue  # the final model at another kink position: not a rival verdict
         need = max(1.0, DECISIVE_BIC + models[i].rival.bic - final.bic)
         if 2.0 * float(score.kl[(i, 0)][0]) >= need:
             return True
@@ -216,10 +219,11 @@ def score_specimen(result: DiscrepancyResult, play: list[Rival], weights: np.nda
 
 def models_in_play(result: DiscrepancyResult, candidates: Sequence[str] | None = None
                    ) -> tuple[list[Rival], np.ndarray]:
-    """The final model first, then its rivals still in play, with their BIC weights."""
+    """The final model first, then its rivals still in play, with their BIC weights; a model with a kink is
+    followed by its other kink positions still in play (``spread_kinks``), sharing its weight."""
     final, play = rivals_in_play(result, candidate_terms() if candidates is None else candidates)
     play = [final, *play[1:]]
-    return play, _weights(play)
+    return spread_kinks(play, _weights(play), result.data, whitener(result))
 
 
 def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | None = None,
@@ -242,7 +246,7 @@ def plan_from_result(result: DiscrepancyResult, *, candidates: Sequence[str] | N
         change = change or would_change
         ranked.append((total, rec))
     ranked.sort(key=lambda t: -t[0])
-    return Plan(tuple(r for _, r in ranked[:top]), not change, result, tuple(m.label for m in play))
+    return Plan(tuple(r for _, r in ranked[:top]), not change, result, tuple(dict.fromkeys(m.label for m in play)))
 
 
 def plan_measurements(points: Sequence[StiffnessPoint], *, baseline: str = "tripp",

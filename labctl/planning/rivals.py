@@ -7,21 +7,31 @@ best (the data do not yet decide against it). Each model carries its parameter c
 (linearised, whitened with the noise model) with a weak prior: half of each term's bounded range, half a
 decade for Tripp's depth, so a parameter the data do not determine keeps its plausible spread instead of
 collapsing to zero.
+
+A term with a kink in k(F) (``KINK`` of the effect: the hardness onset) is not described by one linearisation:
+fitted just past a measured load, the kink makes its parameters look determined when the data only bracket it. Such
+a model is spread over the kink positions the data still allow (``spread_kinks``): its best fit with the kink held
+where it was fitted, and the model held at each value of a grid across the kink parameter's range (the other
+parameters refitted), every one whose BIC is within ``DECISIVE_BIC`` of the best model in play, the model's weight
+shared among them in proportion to exp(−BIC/2) (a discretised posterior over the kink). The criterion then values
+loads that tell the kink positions apart as it values loads that tell models apart.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import EmpiricalTerm, features
-from labctl.discrepancy.model import Fit, ModelSpec, predict_ln
+from labctl.discrepancy.model import BAD_RESIDUAL, Fit, ModelSpec, predict_ln
 from labctl.discrepancy.search import DECISIVE_BIC, Search
 from labctl.discrepancy.workflow import DiscrepancyResult
+from labctl.physics.effects import EFFECTS
 
 PRIOR_SD_SCALED = 0.5
 """Prior σ of a term's parameter, as a fraction of its bounded range."""
@@ -29,6 +39,8 @@ PRIOR_SD_LOG10_DEPTH = 0.5
 PRIOR_SD_EMPIRICAL = 1.0
 """Prior σ of an empirical coefficient (ln k per unit of its feature)."""
 FD_STEP = 1e-4
+KINK_GRID = 96
+"""Values of a kink parameter tried across its bounded range (steps of about 1 % of the range)."""
 
 Predictor = Callable[[Dataset, np.ndarray], np.ndarray]
 
@@ -45,6 +57,8 @@ class Rival:
     prior_sd: np.ndarray
     bic: float
     covariance: np.ndarray | None = None
+    kink: int | None = None
+    """Row in ``theta`` of the parameter that places a kink in k(F) (``KINK`` of an effect), if any."""
 
     @property
     def label(self) -> str:
@@ -66,8 +80,7 @@ class Rival:
         _, jac = self.jacobian(data)
         jw = whiten(jac)
         precision = jw.T @ jw + np.diag(1.0 / self.prior_sd**2)
-        return Rival(self.terms, self.predict, self.theta, self.lower, self.upper, self.prior_sd, self.bic,
-                     np.linalg.inv(precision))
+        return replace(self, covariance=np.linalg.inv(precision))
 
 
 def _spec_predictor(spec: ModelSpec) -> Predictor:
@@ -82,10 +95,90 @@ def _prior(spec: ModelSpec) -> np.ndarray:
     return np.array(head + [PRIOR_SD_SCALED] * len(spec.slots()), dtype=float)
 
 
+def kink_row(spec: ModelSpec) -> int | None:
+    """Row of the first kink parameter (``KINK`` of an effect) in the spec's parameter vector, if any."""
+    for i, (name, key, _, _) in enumerate(spec.slots()):
+        if name in EFFECTS and getattr(EFFECTS[name], "KINK", None) == key:
+            return int(spec.fits_depth) + i
+    return None
+
+
+def kink_words(terms: Sequence[str]) -> str:
+    """Which kink a model's terms place, in words (e.g. "the threshold of material_hardness")."""
+    names = [f"the {EFFECTS[t].KINK} of {t}" for t in terms if t in EFFECTS and getattr(EFFECTS[t], "KINK", None)]
+    return names[0] if names else "its kink"
+
+
 def from_fit(fit: Fit) -> Rival:
     lo, hi = fit.spec.bounds()
     return Rival(fit.spec.terms, _spec_predictor(fit.spec), np.asarray(fit.x, dtype=float), lo, hi,
-                 _prior(fit.spec), fit.bic)
+                 _prior(fit.spec), fit.bic, kink=kink_row(fit.spec))
+
+
+def _held(predict: Predictor, row: int, value: float) -> Predictor:
+    def held(data: Dataset, x: np.ndarray) -> np.ndarray:
+        return predict(data, np.insert(x, row, value))
+    return held
+
+
+def held_at_fit(rival: Rival) -> Rival:
+    """The rival with its kink parameter held at its fitted value (the others keep their fit and prior)."""
+    j = rival.kink
+    assert j is not None
+    free = np.arange(rival.theta.size) != j
+    return Rival(rival.terms, _held(rival.predict, j, float(rival.theta[j])), rival.theta[free], rival.lower[free],
+                 rival.upper[free], rival.prior_sd[free], rival.bic)
+
+
+def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
+    """The rival held at each of ``KINK_GRID`` values of its kink parameter (bin centres across its range), its
+    other parameters refitted by the workflow's whitened least squares, each with its BIC (same n, same count of
+    parameters as the rival: the kink's value is fitted, by this grid)."""
+    j = rival.kink
+    if j is None:
+        return []
+    free = np.arange(rival.theta.size) != j
+    lo, hi = rival.lower[free], rival.upper[free]
+    x0 = np.clip(rival.theta[free], lo, hi)
+    measured = data.ln_stiffness
+    n = measured.size
+    out = []
+    for u in rival.lower[j] + (rival.upper[j] - rival.lower[j]) * (np.arange(KINK_GRID) + 0.5) / KINK_GRID:
+        predict = _held(rival.predict, j, float(u))
+
+        def residuals(x: np.ndarray, predict: Predictor = predict) -> np.ndarray:
+            r = predict(data, x) - measured
+            return whiten(np.where(np.isfinite(r), r, BAD_RESIDUAL))
+
+        sol = least_squares(residuals, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7,
+                            max_nfev=200)
+        bic = n * math.log(max(float(np.mean(sol.fun**2)), 1e-300)) + rival.theta.size * math.log(n)
+        out.append(Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic))
+    return out
+
+
+def spread_kinks(models: Sequence[Rival], weights: np.ndarray, data: Dataset,
+                 whiten: Callable[[np.ndarray], np.ndarray]) -> tuple[list[Rival], np.ndarray]:
+    """Each model with a kink replaced by itself held at its fitted kink and by its kink particles still in play
+    (BIC within ``DECISIVE_BIC`` of the best model), with covariances; the model's weight is shared among them
+    in proportion to exp(−BIC/2). A linearisation across the kink is never used: the kink is represented by
+    the particles alone."""
+    best = min(m.bic for m in models)
+    out: list[Rival] = []
+    out_w: list[float] = []
+    for m, w in zip(models, weights, strict=True):
+        if m.kink is None:
+            out.append(m)
+            out_w.append(float(w))
+            continue
+        parts = [held_at_fit(m).with_covariance(data, whiten)]
+        parts += [p.with_covariance(data, whiten) for p in kink_particles(m, data, whiten)
+                  if p.bic <= best + DECISIVE_BIC]
+        bic = np.array([p.bic for p in parts])
+        share = np.exp(-0.5 * (bic - bic.min()))
+        out.extend(parts)
+        out_w.extend(float(w) * share / share.sum())
+    return out, np.array(out_w)
 
 
 def from_empirical(final: Fit, term: EmpiricalTerm, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]
@@ -135,16 +228,22 @@ def neighbour_specs(final: ModelSpec, candidates: Sequence[str]) -> list[ModelSp
     return unique
 
 
-def rivals_in_play(result: DiscrepancyResult, candidates: Sequence[str], empirical: bool = True
-                   ) -> tuple[Rival, list[Rival]]:
-    """The final model and every model in play (the final one first), each with its parameter covariance."""
+def whitener(result: DiscrepancyResult) -> Callable[[np.ndarray], np.ndarray]:
+    """Whitening of residuals (n or n×k) at the result's points with its noise model."""
     data, noise = result.data, result.noise
-    search = Search(data, noise)
-    sigma = search.sigma
+    sigma = noise.sigma_at(data)
 
     def whiten(a: np.ndarray) -> np.ndarray:
         return noise.whiten(data, a, sigma)
+    return whiten
 
+
+def rivals_in_play(result: DiscrepancyResult, candidates: Sequence[str], empirical: bool = True
+                   ) -> tuple[Rival, list[Rival]]:
+    """The final model and every model in play (the final one first), each with its parameter covariance."""
+    data = result.data
+    search = Search(data, result.noise)
+    whiten = whitener(result)
     final = from_fit(result.final)
     models = [final] + [from_fit(search.fit(s, warm=result.final)) for s in neighbour_specs(result.final.spec,
                                                                                            candidates)]
