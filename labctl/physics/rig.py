@@ -168,17 +168,30 @@ def bounce_sensitivity(config: RigConfig, roller_stiffness_n_per_m: float) -> Bo
     """Derivatives of the bounce frequency (forward differences of the rig model) for the uncertainty budget."""
     k = float(roller_stiffness_n_per_m)
     h = 1e-5
-    f0, f_k = ContactModeModel(config).many(np.array([[k] * 3, [k * (1 + h)] * 3]))[0][:, 0]
+    f0, f_k = ContactModeModel.of(config).many(np.array([[k] * 3, [k * (1 + h)] * 3]))[0][:, 0]
+    dk = float(f_k - f0) / (k * h)
     ks = config.setup_stiffness_n_per_m
-    f_ks = float(ContactModeModel(config.with_setup_stiffness(ks * (1 + h)))(np.full(3, k))[0][0])
+    # k and K_setup enter only through the path stiffness 1/(1/k + 3/K_setup): df/dK_setup = df/dk · 3k²/K_setup²;
     # the discs' masses and inertias all scaled by (1 + h) scale every ω² by 1/(1 + h): df/dm = -f/(2m)
-    dm = -0.5 * float(f0) / config.upper.mass_kg
-    return BounceSensitivity(float(f_k - f0) / (k * h), dm, (f_ks - float(f0)) / (ks * h))
+    return BounceSensitivity(dk, -0.5 * float(f0) / config.upper.mass_kg, dk * 3.0 * k * k / (ks * ks))
 
 
 class ContactModeModel:
     """The rig model prepared for many evaluations at different roller stiffnesses (the per-roller inverse):
     the contact geometry, support and mass scaling are computed once; each call is one 6 × 6 eigenproblem."""
+
+    _prepared: dict[int, ContactModeModel] = {}
+
+    @classmethod
+    def of(cls, config: RigConfig) -> ContactModeModel:
+        """The model prepared for ``config``, made once per rig object (a processing run asks for it at every
+        step); a small cache keyed by the object's identity."""
+        model = cls._prepared.get(id(config))
+        if model is None or model.config is not config:
+            if len(cls._prepared) >= 16:
+                cls._prepared.clear()
+            model = cls._prepared[id(config)] = cls(config)
+        return model
 
     def __init__(self, config: RigConfig) -> None:
         self.config = config
@@ -220,7 +233,7 @@ def contact_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tup
     """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3) for three roller
     stiffnesses (the same model as ``rig_modes``)."""
     k = np.broadcast_to(np.asarray(roller_stiffness_n_per_m, dtype=float), (3,))
-    return ContactModeModel(config)(k)
+    return ContactModeModel.of(config)(k)
 
 
 def contact_modes_hz(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[float, float, float]:
@@ -234,7 +247,7 @@ def equal_roller_stiffness(config: RigConfig, bounce_frequency_hz: float,
     """(k, df/dk): the per-roller stiffness of three equal rollers that gives this bounce frequency, by Newton
     steps on ln k from Eq. 4 (the support's small share then included), and the slope there (Hz per N/m).
     Falls back to ``roller_stiffness_from_bounce`` (bracketing) when Newton does not settle."""
-    m = model or ContactModeModel(config)
+    m = model or ContactModeModel.of(config)
     mass = config.upper.mass_kg
     w2 = (2.0 * math.pi * bounce_frequency_hz) ** 2
     inv = 2.0 / (mass * w2) - 1.0 / config.setup_stiffness_n_per_m  # Eq. 4: 1/(3k) = 2/(m ω²) - 1/K_setup

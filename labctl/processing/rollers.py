@@ -22,7 +22,7 @@ import numpy as np
 from scipy.stats import norm
 
 from labctl.errors import ModelDomainError
-from labctl.physics import RigConfig, rig_modes
+from labctl.physics import RigConfig
 from labctl.physics.rig import ContactModeModel, contact_modes_hz, point_displacement
 from labctl.processing.search import ContactModes
 from labctl.processing.stiffness import Stiffness
@@ -67,11 +67,10 @@ def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
     return np.array([by_channel[c] for c in names])
 
 
-def _tilt_basis(rig: RigConfig, sensors: np.ndarray, k: float) -> np.ndarray:
+def _tilt_basis(model: ContactModeModel, sensors: np.ndarray, k: float) -> np.ndarray:
     """Orthonormal basis (n_live, 2) of the equal-roller model's tilt subspace over the live channels."""
-    m = rig_modes(rig, k)
-    rows = sensors @ m.shapes[:, list(m.tilt)]
-    u, _, _ = np.linalg.svd(rows, full_matrices=False)
+    _, shapes = model(np.full(3, k))
+    u, _, _ = np.linalg.svd(sensors @ shapes[:, 1:], full_matrices=False)
     return u[:, :2]
 
 
@@ -178,9 +177,9 @@ def solve_rollers(
     measured = np.asarray(freqs_hz, float)
     sig = np.maximum(np.asarray(freqs_std_hz, float), 1e-9 * measured)
     sig_split = math.hypot(sig[1], sig[2]) if split_std_hz is None else max(split_std_hz, 1e-9 * measured[1])
-    model = ContactModeModel(rig)
+    model = ContactModeModel.of(rig)
     sensors = _sensor_map(rig, names)[live]
-    basis = _tilt_basis(rig, sensors, k_equal)
+    basis = _tilt_basis(model, sensors, k_equal)
     meas_angles, sig_angles = [], []
     for r in range(2):
         v = tilt_constants[r][live]
