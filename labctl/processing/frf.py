@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from labctl.errors import InputError
 from labctl.processing.checks import CheckConfig, check_impact
@@ -154,7 +154,7 @@ def ring_down_samples(responses: np.ndarray) -> int:
         return np.einsum("...k,...k->...", d, d, dtype=np.float64)
 
     floor = energy(n_blocks - NOISE_BLOCKS, n_blocks).mean(axis=-1, keepdims=True)
-    limit = floor * float(chi2.isf(DECAY_FALSE_ALARM / (floor.size * n_blocks), dof)) / dof
+    limit = floor * float(chdtri(dof, DECAY_FALSE_ALARM / (floor.size * n_blocks))) / dof
     first, stop = 0, n_blocks - NOISE_BLOCKS
     while True:
         last = min(first + SCAN_BLOCKS, stop)

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.stats import chi2, norm
+from scipy.special import chdtrc, ndtri
 
 from labctl.processing.force_noise import ForceNoiseWidener, force_noise_on
 from labctl.processing.frf import Spectra
@@ -66,7 +66,7 @@ def linearity_check(peak_force_n: Sequence[float], bounce_hz: Sequence[float], b
         return None
     z = line.slope / line.slope_std
     return Linearity(tuple(map(float, p)), tuple(map(float, f)), tuple(map(float, s)), line.slope, line.slope_std, z,
-                     level, bool(abs(z) > norm.isf(level / 2)))
+                     level, bool(abs(z) > -ndtri(level / 2)))
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,7 @@ def _weighted_line(x: np.ndarray, f: np.ndarray, s: np.ndarray) -> _Line | None:
     fm = float(np.sum(w * f) / np.sum(w))
     slope = float(np.sum(w * (x - xm) * (f - fm)) / sxx)
     misfit = float(np.sum(w * (f - fm - slope * (x - xm)) ** 2))
-    fit_p = float(chi2.sf(misfit, len(x) - 2)) if len(x) > 2 else 1.0
+    fit_p = float(chdtrc(len(x) - 2, misfit)) if len(x) > 2 else 1.0
     return _Line(slope, 1.0 / math.sqrt(sxx), fm, fit_p)
 
 
@@ -154,7 +154,7 @@ def zero_amplitude(amplitude_n_s: Sequence[float], bounce_hz: Sequence[float], b
             a_eff = float(np.sum(x * a) / np.sum(x))
             model = max(abs(shift), abs(steep.slope * a_eff - shift))
     return ZeroAmplitude(c, c_std, a2_eff, shift, math.sqrt((c_std * a2_eff) ** 2 + linearisation**2 + model**2), z,
-                         level, bool(abs(z) > norm.isf(level / 2)))
+                         level, bool(abs(z) > -ndtri(level / 2)))
 
 
 # The impacts' first-order frequencies carry approximate stds: the blows' shift is carried only on strong evidence.

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from labctl.errors import ModelDomainError
 from labctl.physics import RigConfig
@@ -147,7 +147,7 @@ def _differing(values: np.ndarray, cov: np.ndarray, model_rel: float) -> tuple[t
     cov_d = a @ (cov + np.diag((model_rel * values) ** 2)) @ a.T
     d = a @ values
     z = d / np.sqrt(np.maximum(np.diag(cov_d), 1e-300))
-    limit = norm.isf(DIFFER_LEVEL / 2)
+    limit = -ndtri(DIFFER_LEVEL / 2)
     return tuple(float(v) for v in z), tuple(i for i in range(3) if abs(z[i]) > limit)
 
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import find_peaks
-from scipy.stats import chi2, norm
+from scipy.special import chdtri, ndtri
 
 from labctl.physics import RigConfig
 from labctl.processing.errors import ProcessingError
@@ -151,7 +151,7 @@ def _apart(fit: ModalFit, tilt: Sequence[int], widen: Widen | None = None) -> bo
         fit = widen(fit)
     a, b = tilt
     gap = abs(fit.frequencies_hz[a] - fit.frequencies_hz[b])
-    return bool(gap > norm.isf(RESOLUTION_LEVEL / 2) * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
+    return bool(gap > -ndtri(RESOLUTION_LEVEL / 2) * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
 
 
 def fit_contact_modes(
@@ -188,8 +188,8 @@ def fit_contact_modes(
     n_live = int(live.sum())
     # likelihood-ratio limits (in σ² units; the window's line-to-line correlation scales the statistic):
     # a mode's constants on n_live channels; the second tilt pole: its frequency, damping and constants
-    penalty = float(chi2.isf(RESOLUTION_LEVEL, n_live)) * noise_inflation
-    pair_penalty = float(chi2.isf(RESOLUTION_LEVEL, n_live + 2)) * noise_inflation
+    penalty = float(chdtri(n_live, RESOLUTION_LEVEL)) * noise_inflation
+    pair_penalty = float(chdtri(n_live + 2, RESOLUTION_LEVEL)) * noise_inflation
     wid = (lambda fit_: widen(fit_, band)) if widen is not None else None
     classes = classify(fit.constants, fit.frequencies_hz, pred, live)
     if _trusted(fit, penalty, zeta) and _apart(fit, classes.tilt, wid):
