@@ -98,7 +98,8 @@ class _Problem:
         self.coef = _apply_inverse(self.gram, self.g.T @ self.y)
         self.resid = self.y - self.g @ self.coef
         self.d, self.zeta, self.omega = d, zeta, omega
-        self.cost = float(np.sum(self.resid**2))
+        flat = self.resid.ravel()
+        self.cost = float(flat @ flat)
         return self.cost
 
     _FIELDS = ("x", "q", "g", "gram", "coef", "resid", "d", "zeta", "omega", "cost", "_normal")
@@ -154,9 +155,10 @@ def _gram_inverse(basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of the column-scaled Gram matrix of a real basis with few columns (the mode columns: one
     evaluation's every solve reuses it) and the scale."""
     gram = basis.T @ basis
-    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-300))
-    scaled = gram * np.outer(scale, scale) + 1e-13 * np.eye(len(gram))
-    if not np.all(np.isfinite(scaled)):
+    scale = 1.0 / np.sqrt(np.maximum(gram.diagonal(), 1e-300))
+    scaled = gram * scale[:, None] * scale[None, :]
+    scaled.flat[:: len(scaled) + 1] += 1e-13
+    if not math.isfinite(float(scaled.sum())):
         raise np.linalg.LinAlgError("mode columns are not finite")
     return np.linalg.inv(scaled), scale
 
