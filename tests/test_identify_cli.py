@@ -32,6 +32,13 @@ def test_json_summary_of_a_synthetic_step(synth_file):
         (0, True, []), (1, True, []), (2, False, ["double_hit"])]
 
 
+def test_whole_record_option_gives_the_same_answer(synth_file):
+    trimmed = labctl_json("identify", str(synth_file))
+    whole = labctl_json("identify", str(synth_file), "--whole-record")
+    assert whole["bounce_hz"] != trimmed["bounce_hz"]  # other spectra, ...
+    assert whole["bounce_hz"] == pytest.approx(trimmed["bounce_hz"], abs=trimmed["bounce_hz_std"])
+
+
 def test_text_output_and_roller_only_stiffness(synth_file):
     proc = labctl("identify", str(synth_file), "--roller-type", "1", "--load-n", "440")
     assert proc.returncode == 0, proc.stderr

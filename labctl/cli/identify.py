@@ -24,6 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force-range-n", type=float, metavar="F", help="force channel full scale, N")
     p.add_argument("--exp-window-end", type=float, default=0.01, metavar="E",
                    help="exponential window's value at the record end (default 0.01; 1 = no window)")
+    p.add_argument("--whole-record", action="store_true",
+                   help="analyse the whole record (default: up to twice the responses' ring-down, docs/processing.md)")
     p.add_argument("--min-coherence", type=float,
                    help="coherence at the bounce below which an impact is rejected (default: the checks' default)")
     roll = p.add_argument_group("roller-only stiffness (rails' Tripp compliance removed)")
@@ -70,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
         data = load_impacts_uff(args.file)
     else:
         data = load_impacts_npz(args.file)
-    window = WindowConfig(exponential_end=None if args.exp_window_end == 1 else args.exp_window_end)
+    window = WindowConfig(exponential_end=None if args.exp_window_end == 1 else args.exp_window_end,
+                          trim_to_decay=not args.whole_record)
     checks = CheckConfig() if args.min_coherence is None else CheckConfig(min_coherence=args.min_coherence)
     config = IdentifyConfig(checks=checks, window=window)
     result = identify(data.force_n, data.accel_m_per_s2, data.fs_hz, data.channels, rig,
