@@ -16,7 +16,7 @@ RESULT = "result"
 CURVE = "curve"
 COMPLETE = "complete"
 FRF_MAX_HZ = 2000.0  # the stored FRF covers the paper's range of interest (the report plots up to here)
-FRF_SPACING_HZ = 0.625  # the stored (display) FRF keeps every line at about this spacing: 40 per bounce bandwidth
+FRF_SPACING_HZ = 0.625  # the stored (display) FRF is thinned to about this spacing (40 lines per bounce bandwidth)
 TRACE_CHUNK = 2048  # samples per chunk of a stored trace (the scale-offset filter packs each chunk)
 
 
