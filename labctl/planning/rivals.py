@@ -130,10 +130,28 @@ def held_at_fit(rival: Rival) -> Rival:
                  rival.upper[free], rival.prior_sd[free], rival.bic)
 
 
-def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
-    """The rival held at each of ``KINK_GRID`` values of its kink parameter (bin centres across its range), its
-    other parameters refitted by the workflow's whitened least squares, each with its BIC (same n, same count of
-    parameters as the rival: the kink's value is fitted, by this grid)."""
+@dataclass(frozen=True)
+class KinkSlice:
+    """The rival held at one value of its kink parameter, its other parameters refitted."""
+
+    value: float
+    """The kink parameter's value (fitted coordinate)."""
+    rival: Rival
+    chi2: float
+    """Sum of the whitened residuals' squares at the refit."""
+
+
+def kink_grid(rival: Rival) -> np.ndarray:
+    """The ``KINK_GRID`` values of the rival's kink parameter (bin centres across its bounded range)."""
+    j = rival.kink
+    assert j is not None
+    return rival.lower[j] + (rival.upper[j] - rival.lower[j]) * (np.arange(KINK_GRID) + 0.5) / KINK_GRID
+
+
+def kink_slices(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[KinkSlice]:
+    """The rival held at each value of ``kink_grid``, its other parameters refitted by the workflow's whitened
+    least squares, each with its BIC (same n, same count of parameters as the rival: the kink's value is fitted,
+    by this grid) and χ²; none for a rival without a kink."""
     j = rival.kink
     if j is None:
         return []
@@ -143,7 +161,7 @@ def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], n
     measured = data.ln_stiffness
     n = measured.size
     out = []
-    for u in rival.lower[j] + (rival.upper[j] - rival.lower[j]) * (np.arange(KINK_GRID) + 0.5) / KINK_GRID:
+    for u in kink_grid(rival):
         predict = _held(rival.predict, j, float(u))
 
         def residuals(x: np.ndarray, predict: Predictor = predict) -> np.ndarray:
@@ -152,9 +170,62 @@ def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], n
 
         sol = least_squares(residuals, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7,
                             max_nfev=200)
-        bic = n * math.log(max(float(np.mean(sol.fun**2)), 1e-300)) + rival.theta.size * math.log(n)
-        out.append(Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic))
+        chi2 = float(np.sum(sol.fun**2))
+        bic = n * math.log(max(chi2 / n, 1e-300)) + rival.theta.size * math.log(n)
+        out.append(KinkSlice(float(u), Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic), chi2))
     return out
+
+
+def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
+    """The rival held at each of ``KINK_GRID`` values of its kink parameter, refitted (``kink_slices``)."""
+    return [s.rival for s in kink_slices(rival, data, whiten)]
+
+
+@dataclass(frozen=True)
+class KinkPosterior:
+    """Mean and standard deviation of one parameter of a kinked model, and of its kink parameter, over the kink
+    grid (fitted coordinates)."""
+
+    mean: float
+    sd: float
+    kink_mean: float
+    kink_sd: float
+
+
+def kink_posterior(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray],
+                   misfit_scaled: bool = False) -> KinkPosterior:
+    """Parameter ``row`` of a kinked rival, never linearised across the kink: the rival held at each value of its
+    kink grid (``kink_slices``), each slice weighted by its likelihood exp(−χ²/2) (the whitened residuals, a
+    uniform prior over the grid) and carrying its Laplace covariance (with the rivals' weak prior); the result is
+    the mixture's mean and SD, Var = Σ w_j (SE_j² + (x_j − x̄)²). For ``row`` the kink parameter itself, its
+    spread over the grid.
+
+    ``misfit_scaled``: the noise model scaled by the best slice's misfit when that exceeds it (σ × s,
+    s² = max(1, χ²_min/(n − p)), p the rival's parameters with the kink): for a model that misses the points by
+    more than their noise, both the weights and the slices' covariances widen accordingly."""
+    j = rival.kink
+    assert j is not None
+    slices = kink_slices(rival, data, whiten)
+    chi2 = np.array([s.chi2 for s in slices])
+    dof = data.n_points - rival.theta.size
+    scale2 = max(1.0, float(chi2.min()) / dof) if misfit_scaled and dof > 0 else 1.0
+    w = np.exp(-0.5 * (chi2 - chi2.min()) / scale2)
+    w /= w.sum()
+    u = np.array([s.value for s in slices])
+    kink_mean = float(w @ u)
+    kink_sd = float(np.sqrt(w @ (u - kink_mean) ** 2))
+    if row == j:
+        return KinkPosterior(kink_mean, kink_sd, kink_mean, kink_sd)
+    i = row - int(row > j)
+    keep = w > 1e-12 * w.max()
+    x = np.array([s.rival.theta[i] for s in slices])
+    var = np.zeros(x.size)
+    for k in np.flatnonzero(keep):
+        cov = slices[k].rival.with_covariance(data, lambda a: whiten(a) / math.sqrt(scale2)).covariance
+        assert cov is not None
+        var[k] = cov[i, i]
+    mean = float(w @ x)
+    return KinkPosterior(mean, float(np.sqrt(w @ (var + (x - mean) ** 2))), kink_mean, kink_sd)
 
 
 def spread_kinks(models: Sequence[Rival], weights: np.ndarray, data: Dataset,
