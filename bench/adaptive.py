@@ -14,8 +14,13 @@ stiffness points are fitted with the discrepancy workflow's model fit using the 
 hidden effect, noise model re-estimated from the data); the table gives, per seed, the standard error of the
 hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound span) and the ratio, once with
 each campaign's own noise model and once with one noise model estimated from both campaigns' points. A further
-line gives both SEs with the shared noise model linearised at the world's true parameters instead of at each fit
-(for a kinked term, such as a late hardness onset, a fit's kink can sit where the linearisation is misleading).
+line gives both SEs with the shared noise model at the world's true parameters instead of at each fit.
+
+For a kinked effect (``KINK``: the hardness threshold) the SE is never linearised across the kink: it is the SD
+of the effect's parameter over the planner's kink grid (``kink_posterior``: the threshold held at each grid
+value, the rest refitted, each slice weighted by exp(−χ²/2) and carrying its Laplace SE). "At the true
+parameters" it is that SD for noise-free data from the world's law at the campaign's points, and one more line
+gives it with the shared noise model scaled by the best slice's misfit (σ × s, s² = max(1, χ²/(n − p))).
 
 ``--rig-noise N`` adds a third SE per campaign and ratio, with the rig's noise measured apart from both designs:
 one campaign (seed 0, independent of the compared seeds) at every knob step with N repetitions, whose noise
