@@ -14,8 +14,13 @@ stiffness points are fitted with the discrepancy workflow's model fit using the 
 hidden effect, noise model re-estimated from the data); the table gives, per seed, the standard error of the
 hidden effect's parameter (Laplace, in its fitted coordinate scaled by the bound span) and the ratio, once with
 each campaign's own noise model and once with one noise model estimated from both campaigns' points. A further
-line gives both SEs with the shared noise model linearised at the world's true parameters instead of at each fit
-(for a kinked term, such as a late hardness onset, a fit's kink can sit where the linearisation is misleading).
+line gives both SEs with the shared noise model at the world's true parameters instead of at each fit.
+
+For a kinked effect (``KINK``: the hardness threshold) the SE is never linearised across the kink: it is the SD
+of the effect's parameter over the planner's kink grid (``kink_posterior``: the threshold held at each grid
+value, the rest refitted, each slice weighted by exp(−χ²/2) and carrying its Laplace SE). "At the true
+parameters" it is that SD for noise-free data from the world's law at the campaign's points, and one more line
+gives it with the shared noise model scaled by the best slice's misfit (σ × s, s² = max(1, χ²/(n − p))).
 
 ``--rig-noise N`` adds a third SE per campaign and ratio, with the rig's noise measured apart from both designs:
 one campaign (seed 0, independent of the compared seeds) at every knob step with N repetitions, whose noise
@@ -47,7 +52,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's labctl and tests/
 
 from labctl.campaign import run_campaign
-from labctl.discrepancy.data import build_dataset
+from labctl.discrepancy.data import Dataset, build_dataset
 from labctl.discrepancy.model import ModelSpec, fit_model
 from labctl.discrepancy.noise import NoiseFloor, estimate_noise
 from labctl.physics.effects import EFFECTS
@@ -55,7 +60,7 @@ from labctl.physics.law import ContactLaw
 from labctl.physics.rig_config import load_rig
 from labctl.physics.world import World, load_world
 from labctl.planning.adaptive import knob_loads
-from labctl.planning.rivals import Rival, from_fit
+from labctl.planning.rivals import Rival, from_fit, kink_posterior
 from labctl.protocol import load_protocol
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.table import campaign_stiffness_points
@@ -76,6 +81,10 @@ class EffectFit:
     """Bounded range of the parameter (the fitted coordinate is scaled by it)."""
     parameters: tuple[tuple[str, float], ...] = ()
     """Every fitted parameter of the effect (SI)."""
+    posterior: tuple[float, float] | None = None
+    """For a kinked effect: the parameter's and the kink parameter's means over the kink grid (SI)."""
+    se_scaled: float | None = None
+    """For a kinked effect: the SE over the kink grid with the noise scaled by the misfit (``kink_posterior``)."""
 
 
 def fit_effect(points: list[StiffnessPoint], effect: str, baseline: str, noise: NoiseFloor | None = None
@@ -96,7 +105,7 @@ def fit_effect(points: list[StiffnessPoint], effect: str, baseline: str, noise: 
     lo, hi = slots[i][2:]
     params = tuple((k, float(v)) for k, v in fit.effect_parameters()[effect].items())
     out = EffectFit(params[0][1], 0.0, from_fit(fit), noise, int(spec.fits_depth) + i, hi - lo, params)
-    return replace(out, se=design_se(out, points))
+    return effect_se(out, points)
 
 
 def design_se(fit: EffectFit, points: Sequence[StiffnessPoint]) -> float:
@@ -118,6 +127,43 @@ def at_truth(fit: EffectFit, world: World) -> EffectFit | None:
     spec = ModelSpec(law.baseline, (effect.name,))
     theta = spec.encode(law.depth_m, {effect.name: effect.parameters()})
     return replace(fit, rival=replace(fit.rival, theta=theta))
+
+
+def kinked_se(fit: EffectFit, data: Dataset, misfit_scaled: bool = False) -> tuple[float, float, float]:
+    """For a kinked effect: the effect's parameter's mean and SD over the kink grid (``kink_posterior``: slices
+    weighted by exp(−χ²/2), each with its Laplace SE; with ``misfit_scaled`` the noise scaled by the misfit) and
+    the kink parameter's mean, all SI."""
+    sigma = fit.noise.sigma_at(data)
+    post = kink_posterior(fit.rival, fit.row, data, lambda a: fit.noise.whiten(data, a, sigma), misfit_scaled)
+    term = EFFECTS[fit.rival.terms[0]]
+    (g0, g1), (t0, t1) = term.BOUNDS[fit.parameters[0][0]], term.BOUNDS[term.KINK]
+    return g0 + post.mean * (g1 - g0), post.sd * (g1 - g0), t0 + post.kink_mean * (t1 - t0)
+
+
+def effect_se(fit: EffectFit, points: Sequence[StiffnessPoint]) -> EffectFit:
+    """The fit with the SE of the effect's parameter for its points: Laplace at the fit, or for a kinked effect
+    over the kink grid (never linearised across the kink)."""
+    if fit.rival.kink is None:
+        return replace(fit, se=design_se(fit, points))
+    data = build_dataset(list(points))
+    mean, se, kink = kinked_se(fit, data)
+    return replace(fit, se=se, posterior=(mean, kink), se_scaled=kinked_se(fit, data, True)[1])
+
+
+def truth_se(fit: EffectFit, world: World, points: Sequence[StiffnessPoint]) -> float | None:
+    """SE of the effect's parameter at the world's true parameters (None for a world law without them): Laplace
+    linearised there, or for a kinked effect the kink-grid SD for noise-free data from the true law at these
+    points (a design's SE that does not depend on where a fit of a kinked term happened to land)."""
+    true = at_truth(fit, world)
+    if true is None:
+        return None
+    if fit.rival.kink is None:
+        return design_se(true, points)
+    data = build_dataset(list(points))
+    mu = true.rival.predict(data, true.rival.theta)
+    exact = Dataset(tuple(replace(c, ln_stiffness=mu[s]) for c, s in zip(data.cases, data.case_slices(),
+                                                                           strict=True)))
+    return kinked_se(true, exact)[1]
 
 
 def design_points(template: StiffnessPoint, loads_per_rep: Sequence[Sequence[float]]) -> list[StiffnessPoint]:
@@ -207,6 +253,7 @@ def main() -> None:
     shared: list[float] = []
     rig: list[float] = []
     truth: list[float] = []
+    scaled: list[float] = []
     bounds: list[tuple[float, ...]] = []
     rig_bounds: list[tuple[float, ...]] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -240,15 +287,24 @@ def main() -> None:
             shared.append(sa2 / sf2)
             print(f"{seed:>4} {nf:>5}/{na:<6} {ff.value:>10.4g} {ff.se:>10.3g} {fa.value:>10.4g} {fa.se:>10.3g} "
                   f"{fa.se / ff.se:>6.2f} {sf2:>10.3g} {sa2:>10.3g} {sa2 / sf2:>6.2f} {time.perf_counter() - t0:>7.1f}")
-            true_fixed, true_adaptive = at_truth(shared_fixed, world), at_truth(shared_adaptive, world)
-            if true_fixed is not None and true_adaptive is not None:
-                st_f, st_a = design_se(true_fixed, points["fixed"]), design_se(true_adaptive, points["adaptive"])
+            st_f = truth_se(shared_fixed, world, points["fixed"])
+            st_a = truth_se(shared_adaptive, world, points["adaptive"])
+            if st_f is not None and st_a is not None:
                 truth.append(st_a / st_f)
                 print(f"     at the true parameters (shared noise): SE fixed {st_f:.3g}, SE adaptive {st_a:.3g}, "
                       f"ratio {st_a / st_f:.2f}")
+            if shared_fixed.se_scaled is not None and shared_adaptive.se_scaled is not None:
+                sf4, sa4 = shared_fixed.se_scaled, shared_adaptive.se_scaled
+                scaled.append(sa4 / sf4)
+                print(f"     shared noise scaled by the misfit: SE fixed {sf4:.3g}, SE adaptive {sa4:.3g}, "
+                      f"ratio {sa4 / sf4:.2f}")
             if args.verbose:
                 words = [", ".join(f"{k} {v:.4g}" for k, v in f.parameters) for f in (shared_fixed, shared_adaptive)]
                 print(f"     shared noise model fits: fixed {words[0]}; adaptive {words[1]}")
+                if shared_fixed.posterior is not None and shared_adaptive.posterior is not None:
+                    words = [f"{f.posterior[0]:.4g} ({f.posterior[1]:.4g})" for f in (shared_fixed, shared_adaptive)]
+                    name = f"{shared_fixed.parameters[0][0]} ({EFFECTS[effect].KINK})"
+                    print(f"     means over the kink grid, {name}: fixed {words[0]}; adaptive {words[1]}")
             if measured is not None:
                 sf3, sa3 = (fit_effect(points[m], effect, baseline, measured).se for m in ("fixed", "adaptive"))
                 rig.append(sa3 / sf3)
@@ -269,6 +325,7 @@ def main() -> None:
                                                                    "all loads free"), designs, strict=True))
                     print(f"     best ratio possible ({label}): {words}")
     for label, values in (("own noise model", ratios), ("shared noise model", shared), ("rig noise", rig),
+                          ("shared noise model scaled by the misfit", scaled),
                           ("shared noise model, at the true parameters", truth)):
         if not values:
             continue

@@ -248,3 +248,54 @@ def test_a_reason_gives_one_line_load_when_every_planned_load_is_the_same():
     assert "(21.1 N/mm)" in same and "–" not in same, same
     spread = _load_words(np.array([37.9, 382.0]), spec, data)
     assert "(21.1–213 N/mm)" in spread, spread
+
+
+def test_a_kinked_parameter_is_spread_over_the_kink_positions_the_data_allow(tmp_path):
+    """Hardness onset at 310 N (type 1, gain 0.3, threshold 0.30): with four levels above the onset the kink
+    grid's mixture gives the gain the linearised SE (the kink lies between loads, the grid is refined around it);
+    with one level above it the gain and the onset trade off and the mixture's SD is many times larger."""
+    from labctl.discrepancy.data import build_dataset
+    from labctl.discrepancy.model import ModelSpec, fit_model
+    from labctl.discrepancy.noise import estimate_noise
+    from labctl.physics import MaterialHardness
+    from labctl.planning.rivals import from_fit, kink_posterior
+    from labctl.stiffness_table import StiffnessPoint
+    from tests.engine_util import stepped_protocol_text
+
+    proto = tmp_path / "onset.toml"
+    proto.write_text(stepped_protocol_text("onset", roller_type=1, max_load=400.0, max_steps=3, reps=2))
+    spec = load_protocol(proto).specimens[0]
+    case = spec.case()
+    law = ContactLaw("tripp", 1.5e-3, (MaterialHardness(0.3, 0.30),))
+    model = ModelSpec("tripp", ("material_hardness",))
+
+    def gain(loads):
+        rng = np.random.default_rng(1)
+        points = []
+        for rep in (1, 2):
+            seat = 1e-3 * rng.standard_normal()
+            for f in loads:
+                k = float(law.stiffness_n_per_m(case, f)) * np.exp(seat + 3e-4 * rng.standard_normal())
+                points.append(StiffnessPoint(case.roller.diameter_m, case.roller.contact_length_m, spec.rail_ra_m,
+                                             f, k, roller_type=1, repetition=rep))
+        data = build_dataset(points)
+        noise = estimate_noise(data)
+        sigma = noise.sigma_at(data)
+        fit = min((fit_model(data, model, sigma=sigma, seating_sigma=noise.seating_sigma, guess=g)
+                   for g in (None, {"material_hardness": {"gain": 0.15, "threshold": 0.3}})),
+                  key=lambda f: float(np.sum(f.z**2)))
+
+        def whiten(a):
+            return noise.whiten(data, a, sigma)
+
+        rival = from_fit(fit)
+        assert rival.kink == 2
+        laplace = float(np.sqrt(rival.with_covariance(data, whiten).covariance[1, 1]))
+        return kink_posterior(rival, 1, data, whiten), laplace
+
+    dense, laplace = gain([37.9, 159.4, 280.9, 321.0, 341.6, 361.9, 382.2])
+    assert dense.sd == pytest.approx(laplace, rel=0.3)
+    assert abs(2.0 * dense.mean - 0.3) < 3 * 2.0 * dense.sd  # gain's range is 0–2
+    assert abs(0.05 + 0.95 * dense.kink_mean - 0.30) < 0.002
+    bracketed, _ = gain([37.9, 159.4, 280.9, 382.2])
+    assert bracketed.sd > 20 * dense.sd

@@ -130,31 +130,124 @@ def held_at_fit(rival: Rival) -> Rival:
                  rival.upper[free], rival.prior_sd[free], rival.bic)
 
 
-def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
-    """The rival held at each of ``KINK_GRID`` values of its kink parameter (bin centres across its range), its
-    other parameters refitted by the workflow's whitened least squares, each with its BIC (same n, same count of
-    parameters as the rival: the kink's value is fitted, by this grid)."""
+@dataclass(frozen=True)
+class KinkSlice:
+    """The rival held at one value of its kink parameter, its other parameters refitted."""
+
+    value: float
+    """The kink parameter's value (fitted coordinate)."""
+    rival: Rival
+    chi2: float
+    """Sum of the whitened residuals' squares at the refit."""
+
+
+def kink_grid(rival: Rival) -> np.ndarray:
+    """The ``KINK_GRID`` values of the rival's kink parameter (bin centres across its bounded range)."""
     j = rival.kink
-    if j is None:
-        return []
+    assert j is not None
+    return rival.lower[j] + (rival.upper[j] - rival.lower[j]) * (np.arange(KINK_GRID) + 0.5) / KINK_GRID
+
+
+def _slice(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray], u: float) -> KinkSlice:
+    """The rival held at kink value ``u``, its other parameters refitted by the workflow's whitened least squares,
+    with its BIC (same n, same count of parameters as the rival: the kink's value is fitted, by the grid)."""
+    j = rival.kink
+    assert j is not None
     free = np.arange(rival.theta.size) != j
     lo, hi = rival.lower[free], rival.upper[free]
-    x0 = np.clip(rival.theta[free], lo, hi)
     measured = data.ln_stiffness
     n = measured.size
-    out = []
-    for u in rival.lower[j] + (rival.upper[j] - rival.lower[j]) * (np.arange(KINK_GRID) + 0.5) / KINK_GRID:
-        predict = _held(rival.predict, j, float(u))
+    predict = _held(rival.predict, j, u)
 
-        def residuals(x: np.ndarray, predict: Predictor = predict) -> np.ndarray:
-            r = predict(data, x) - measured
-            return whiten(np.where(np.isfinite(r), r, BAD_RESIDUAL))
+    def residuals(x: np.ndarray) -> np.ndarray:
+        r = predict(data, x) - measured
+        return whiten(np.where(np.isfinite(r), r, BAD_RESIDUAL))
 
-        sol = least_squares(residuals, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7,
-                            max_nfev=200)
-        bic = n * math.log(max(float(np.mean(sol.fun**2)), 1e-300)) + rival.theta.size * math.log(n)
-        out.append(Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic))
-    return out
+    sol = least_squares(residuals, np.clip(rival.theta[free], lo, hi), bounds=(lo, hi), x_scale=1.0, diff_step=1e-6,
+                        xtol=1e-7, ftol=1e-7, max_nfev=200)
+    chi2 = float(np.sum(sol.fun**2))
+    bic = n * math.log(max(chi2 / n, 1e-300)) + rival.theta.size * math.log(n)
+    return KinkSlice(u, Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic), chi2)
+
+
+def kink_slices(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[KinkSlice]:
+    """The rival held at each value of ``kink_grid``, its other parameters refitted, each with its BIC and χ²;
+    none for a rival without a kink."""
+    if rival.kink is None:
+        return []
+    return [_slice(rival, data, whiten, float(u)) for u in kink_grid(rival)]
+
+
+def kink_particles(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray]) -> list[Rival]:
+    """The rival held at each of ``KINK_GRID`` values of its kink parameter, refitted (``kink_slices``)."""
+    return [s.rival for s in kink_slices(rival, data, whiten)]
+
+
+@dataclass(frozen=True)
+class KinkPosterior:
+    """Mean and standard deviation of one parameter of a kinked model, and of its kink parameter, over the kink
+    grid (fitted coordinates)."""
+
+    mean: float
+    sd: float
+    kink_mean: float
+    kink_sd: float
+
+
+KINK_REFINE = 4
+"""Sub-cells a kink cell is split into when the posterior is too concentrated for the grid."""
+KINK_MAX_SHARE = 0.25
+"""Largest share of the posterior one cell may hold before the cells holding it are split."""
+
+
+def kink_posterior(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray],
+                   misfit_scaled: bool = False) -> KinkPosterior:
+    """Parameter ``row`` of a kinked rival, never linearised across the kink: the rival held at each value of its
+    kink grid (``kink_slices``), each slice weighted by its likelihood exp(−χ²/2) (the whitened residuals, a
+    uniform prior over the kink's range) and carrying its Laplace covariance (with the rivals' weak prior); the
+    result is the mixture's mean and SD, Var = Σ w_j (SE_j² + (x_j − x̄)²). While one cell of the grid holds more
+    than ``KINK_MAX_SHARE`` of the weight (data that place the kink more finely than the grid), the cells holding
+    any of it are split into ``KINK_REFINE`` (each slice's weight is its likelihood times its cell's width). For
+    ``row`` the kink parameter itself, its spread over the cells.
+
+    ``misfit_scaled``: the noise model scaled by the best slice's misfit when that exceeds it (σ × s,
+    s² = max(1, χ²_min/(n − p)), p the rival's parameters with the kink): for a model that misses the points by
+    more than their noise, both the weights and the slices' covariances widen accordingly."""
+    j = rival.kink
+    assert j is not None
+    slices = kink_slices(rival, data, whiten)
+    width = np.full(len(slices), (rival.upper[j] - rival.lower[j]) / KINK_GRID)
+    dof = data.n_points - rival.theta.size
+
+    def weights() -> tuple[np.ndarray, float]:
+        chi2 = np.array([s.chi2 for s in slices])
+        scale2 = max(1.0, float(chi2.min()) / dof) if misfit_scaled and dof > 0 else 1.0
+        w = width * np.exp(-0.5 * (chi2 - chi2.min()) / scale2)
+        return w / w.sum(), scale2
+
+    w, scale2 = weights()
+    while w.max() > KINK_MAX_SHARE and width[np.argmax(w)] > 1e-6:
+        split = np.flatnonzero(w > 1e-3 * w.max())
+        keep = np.setdiff1d(np.arange(len(slices)), split)
+        new = [(slices[k].value + width[k] * ((m + 0.5) / KINK_REFINE - 0.5), width[k] / KINK_REFINE)
+               for k in split for m in range(KINK_REFINE)]
+        slices = [slices[k] for k in keep] + [_slice(rival, data, whiten, float(u)) for u, _ in new]
+        width = np.concatenate([width[keep], [h for _, h in new]])
+        w, scale2 = weights()
+    u = np.array([s.value for s in slices])
+    kink_mean = float(w @ u)
+    kink_sd = float(np.sqrt(w @ (u - kink_mean) ** 2 + w @ width**2 / 12.0))
+    if row == j:
+        return KinkPosterior(kink_mean, kink_sd, kink_mean, kink_sd)
+    i = row - int(row > j)
+    x = np.array([s.rival.theta[i] for s in slices])
+    var = np.zeros(x.size)
+    for k in np.flatnonzero(w > 1e-12 * w.max()):
+        cov = slices[k].rival.with_covariance(data, lambda a: whiten(a) / math.sqrt(scale2)).covariance
+        assert cov is not None
+        var[k] = cov[i, i]
+    mean = float(w @ x)
+    return KinkPosterior(mean, float(np.sqrt(w @ (var + (x - mean) ** 2))), kink_mean, kink_sd)
 
 
 def spread_kinks(models: Sequence[Rival], weights: np.ndarray, data: Dataset,
