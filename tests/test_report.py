@@ -241,6 +241,22 @@ def test_rig_uncertainty_propagates_like_eq4():
     assert rig_relative_std(replace(rig, uncertainty=RigUncertainty(model_rel=0.003)), k) == pytest.approx(0.003)
 
 
+def test_report_states_the_rig_uncertainty_of_the_steps_own_budget():
+    """The report's rig share of a stiffness's uncertainty is the one `identify` and the stiffness table state
+    (the budget's disc mass, K_setup and model terms), not a second propagation of its own."""
+    import math
+
+    from labctl.physics.rig_config import load_rig
+    from labctl.processing.stiffness import stiffness_budget
+    from labctl.report.verdict import rig_relative_std
+
+    rig = load_rig()
+    for k in (2.2e7, 4.5e7, 9e7):
+        budget = stiffness_budget(rig, k, 0.002 * k)
+        rig_share = math.sqrt(budget.total_std_n_per_m**2 - budget.terms["modal_fit"] ** 2)
+        assert rig_relative_std(rig, k) * k == pytest.approx(rig_share, rel=1e-9)
+
+
 def test_simulated_figures_say_so_and_use_n_per_um(tmp_path):
     from labctl.physics.rig_config import load_rig
     from labctl.report.data import ImpactStats, ReportData

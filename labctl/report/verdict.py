@@ -12,11 +12,11 @@ rollers; a roller whose contact modulus differs from bearing steel's by more tha
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from labctl.physics import FITS, RigConfig, effective_modulus, material, roller_stiffness_from_bounce
+from labctl.physics import FITS, RigConfig, effective_modulus, material
 from labctl.physics.materials import BEARING_STEEL
 from labctl.physics.references import fit_for_rail, model_curve
 from labctl.physics.tripp import DEFAULT_DEPTH_M
@@ -60,30 +60,14 @@ def steel_fit_applies(series: SeriesData) -> tuple[bool, float]:
 
 
 def rig_relative_std(rig: RigConfig, stiffness_n_per_m: float) -> float:
-    """Relative 1-σ of a stiffness from the rig's parameters (disc mass, K_setup, model), by propagation
-    through the rig model: the bounce frequency that gives ``stiffness_n_per_m`` is held fixed."""
-    u = rig.uncertainty
+    """Relative 1-σ of a stiffness from the rig's parameters (disc mass, K_setup, their correlation, the rig
+    model): the stiffness budget's rig terms (``labctl.processing.stiffness.stiffness_budget``), the bounce
+    frequency that gives ``stiffness_n_per_m`` held fixed."""
     if not stiffness_n_per_m > 0:
         return math.nan
-    from labctl.physics import bounce_hz
+    from labctl.processing.stiffness import stiffness_budget
 
-    f = bounce_hz(rig, stiffness_n_per_m)
-
-    def k_with(mass_scale: float, setup_n_per_m: float) -> float:
-        r = replace(rig, upper=replace(rig.upper, mass_kg=rig.upper.mass_kg * mass_scale),
-                    lower=replace(rig.lower, mass_kg=rig.lower.mass_kg * mass_scale),
-                    setup_stiffness_n_per_m=setup_n_per_m)
-        return float(roller_stiffness_from_bounce(r, f))
-
-    mass = rig.upper.mass_kg
-    d_mass = d_setup = 0.0
-    if u.mass_std_kg > 0:
-        d_mass = (k_with(1 + u.mass_std_kg / mass, rig.setup_stiffness_n_per_m) - stiffness_n_per_m) / stiffness_n_per_m
-    if u.setup_stiffness_std_n_per_m > 0:
-        d_setup = (k_with(1.0, rig.setup_stiffness_n_per_m + u.setup_stiffness_std_n_per_m)
-                   - stiffness_n_per_m) / stiffness_n_per_m
-    var = d_mass**2 + d_setup**2 + 2 * u.mass_setup_correlation * d_mass * d_setup + u.model_rel**2
-    return math.sqrt(max(var, 0.0))
+    return stiffness_budget(rig, stiffness_n_per_m, 0.0).total_std_n_per_m / stiffness_n_per_m
 
 
 def _verdict(k: float, std: float, k_model: float, band: float) -> str:
