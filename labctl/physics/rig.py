@@ -112,10 +112,11 @@ def rig_matrices(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tupl
     return stiff, mass
 
 
-def _bounce_index(approach: np.ndarray) -> int:
-    """Column of ``approach`` (roller approaches per mode) whose approaches are most alike: the bounce."""
-    rms = np.sqrt(np.mean(approach**2, axis=0))
-    return int(np.argmax(np.abs(approach.mean(axis=0)) / np.where(rms > 0, rms, 1.0)))
+def _bounce_index(approach: np.ndarray) -> np.ndarray:
+    """Column of ``approach`` ((..., 3 rollers, modes): roller approaches per mode) whose approaches are most
+    alike: the bounce, per leading index."""
+    rms = np.sqrt(np.mean(approach**2, axis=-2))
+    return np.argmax(np.abs(approach.mean(axis=-2)) / np.where(rms > 0, rms, 1.0), axis=-1)
 
 
 def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigModes:
@@ -124,7 +125,7 @@ def rig_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> RigMode
     omega2, shapes = eigh(stiff, mass)
     freqs = np.sqrt(np.clip(omega2, 0.0, None)) / (2.0 * math.pi)
     contact_modes = [3, 4, 5]
-    bounce = contact_modes[_bounce_index(_contact_rows(config) @ shapes[:, contact_modes])]
+    bounce = contact_modes[int(_bounce_index(_contact_rows(config) @ shapes[:, contact_modes]))]
     tilt = tuple(m for m in contact_modes if m != bounce)
     damping = np.array([config.support_damping_ratio] * 3 + [config.modal_damping_ratio] * 3)
     return RigModes(freqs, shapes, damping, bounce, (tilt[0], tilt[1]), (0, 1, 2), config)
@@ -218,9 +219,7 @@ class ContactModeModel:
         omega2, v = np.linalg.eigh(stiff * self.outer)
         shapes = v[:, :, 3:] * self.scale[None, :, None]
         freqs = np.sqrt(np.clip(omega2[:, 3:], 0.0, None)) / (2.0 * math.pi)
-        approach = np.einsum("cj,njm->ncm", self.rows, shapes)  # roller approaches per mode
-        rms = np.sqrt(np.mean(approach**2, axis=1))
-        b = np.argmax(np.abs(approach.mean(axis=1)) / np.where(rms > 0, rms, 1.0), axis=1)  # as _bounce_index
+        b = _bounce_index(np.einsum("cj,njm->ncm", self.rows, shapes))
         others = np.array([[1, 2], [0, 2], [0, 1]])[b]
         rows = np.arange(len(k))
         swap = freqs[rows, others[:, 0]] > freqs[rows, others[:, 1]]
@@ -242,12 +241,11 @@ def contact_modes_hz(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> 
     return float(f[0]), float(f[1]), float(f[2])
 
 
-def equal_roller_stiffness(config: RigConfig, bounce_frequency_hz: float,
-                           model: ContactModeModel | None = None) -> tuple[float, float]:
+def equal_roller_stiffness(config: RigConfig, bounce_frequency_hz: float) -> tuple[float, float]:
     """(k, df/dk): the per-roller stiffness of three equal rollers that gives this bounce frequency, by Newton
     steps on ln k from Eq. 4 (the support's small share then included), and the slope there (Hz per N/m).
     Falls back to ``roller_stiffness_from_bounce`` (bracketing) when Newton does not settle."""
-    m = model or ContactModeModel.of(config)
+    m = ContactModeModel.of(config)
     mass = config.upper.mass_kg
     w2 = (2.0 * math.pi * bounce_frequency_hz) ** 2
     inv = 2.0 / (mass * w2) - 1.0 / config.setup_stiffness_n_per_m  # Eq. 4: 1/(3k) = 2/(m ω²) - 1/K_setup
