@@ -17,7 +17,7 @@ each campaign's own noise model and once with one noise model estimated from bot
 line gives both SEs with the shared noise model at the world's true parameters instead of at each fit.
 
 For a kinked effect (``KINK``: the hardness threshold) the SE is never linearised across the kink: it is the SD
-of the effect's parameter over the planner's kink grid (``kink_posterior``: the threshold held at each grid
+of the effect's parameter over the planner's kink grid (``kink_posteriors``: the threshold held at each grid
 value, the rest refitted, each slice weighted by exp(−χ²/2) and carrying its Laplace SE). "At the true
 parameters" it is that SD for noise-free data from the world's law at the campaign's points, and one more line
 gives it with the shared noise model scaled by the best slice's misfit (σ × s, s² = max(1, χ²/(n − p))).
@@ -60,7 +60,7 @@ from labctl.physics.law import ContactLaw
 from labctl.physics.rig_config import load_rig
 from labctl.physics.world import World, load_world
 from labctl.planning.adaptive import knob_loads
-from labctl.planning.rivals import Rival, from_fit, kink_posterior
+from labctl.planning.rivals import Rival, from_fit, kink_posteriors
 from labctl.protocol import load_protocol
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.table import campaign_stiffness_points
@@ -84,7 +84,7 @@ class EffectFit:
     posterior: tuple[float, float] | None = None
     """For a kinked effect: the parameter's and the kink parameter's means over the kink grid (SI)."""
     se_scaled: float | None = None
-    """For a kinked effect: the SE over the kink grid with the noise scaled by the misfit (``kink_posterior``)."""
+    """For a kinked effect: the SE over the kink grid with the noise scaled by the misfit (``kink_posteriors``)."""
 
 
 def fit_effect(points: list[StiffnessPoint], effect: str, baseline: str, noise: NoiseFloor | None = None
@@ -129,15 +129,16 @@ def at_truth(fit: EffectFit, world: World) -> EffectFit | None:
     return replace(fit, rival=replace(fit.rival, theta=theta))
 
 
-def kinked_se(fit: EffectFit, data: Dataset, misfit_scaled: bool = False) -> tuple[float, float, float]:
-    """For a kinked effect: the effect's parameter's mean and SD over the kink grid (``kink_posterior``: slices
-    weighted by exp(−χ²/2), each with its Laplace SE; with ``misfit_scaled`` the noise scaled by the misfit) and
-    the kink parameter's mean, all SI."""
+def kinked_se(fit: EffectFit, data: Dataset, misfit_scaled: Sequence[bool] = (False,)) -> list[tuple[float, float,
+                                                                                                       float]]:
+    """For a kinked effect, per setting of ``misfit_scaled``: the effect's parameter's mean and SD over the kink
+    grid (``kink_posteriors``: slices weighted by exp(−χ²/2), each with its Laplace SE; scaled: the noise scaled
+    by the misfit) and the kink parameter's mean, all SI."""
     sigma = fit.noise.sigma_at(data)
-    post = kink_posterior(fit.rival, fit.row, data, lambda a: fit.noise.whiten(data, a, sigma), misfit_scaled)
+    posts = kink_posteriors(fit.rival, fit.row, data, lambda a: fit.noise.whiten(data, a, sigma), misfit_scaled)
     term = EFFECTS[fit.rival.terms[0]]
     (g0, g1), (t0, t1) = term.BOUNDS[fit.parameters[0][0]], term.BOUNDS[term.KINK]
-    return g0 + post.mean * (g1 - g0), post.sd * (g1 - g0), t0 + post.kink_mean * (t1 - t0)
+    return [(g0 + p.mean * (g1 - g0), p.sd * (g1 - g0), t0 + p.kink_mean * (t1 - t0)) for p in posts]
 
 
 def effect_se(fit: EffectFit, points: Sequence[StiffnessPoint]) -> EffectFit:
@@ -145,9 +146,8 @@ def effect_se(fit: EffectFit, points: Sequence[StiffnessPoint]) -> EffectFit:
     over the kink grid (never linearised across the kink)."""
     if fit.rival.kink is None:
         return replace(fit, se=design_se(fit, points))
-    data = build_dataset(list(points))
-    mean, se, kink = kinked_se(fit, data)
-    return replace(fit, se=se, posterior=(mean, kink), se_scaled=kinked_se(fit, data, True)[1])
+    (mean, se, kink), (_, se_scaled, _) = kinked_se(fit, build_dataset(list(points)), (False, True))
+    return replace(fit, se=se, posterior=(mean, kink), se_scaled=se_scaled)
 
 
 def truth_se(fit: EffectFit, world: World, points: Sequence[StiffnessPoint]) -> float | None:
@@ -163,7 +163,7 @@ def truth_se(fit: EffectFit, world: World, points: Sequence[StiffnessPoint]) -> 
     mu = true.rival.predict(data, true.rival.theta)
     exact = Dataset(tuple(replace(c, ln_stiffness=mu[s]) for c, s in zip(data.cases, data.case_slices(),
                                                                            strict=True)))
-    return kinked_se(true, exact)[1]
+    return kinked_se(true, exact)[0][1]
 
 
 def design_points(template: StiffnessPoint, loads_per_rep: Sequence[Sequence[float]]) -> list[StiffnessPoint]:

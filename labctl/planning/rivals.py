@@ -213,9 +213,30 @@ def kink_posterior(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.n
     ``misfit_scaled``: the noise model scaled by the best slice's misfit when that exceeds it (σ × s,
     s² = max(1, χ²_min/(n − p)), p the rival's parameters with the kink): for a model that misses the points by
     more than their noise, both the weights and the slices' covariances widen accordingly."""
+    return kink_posteriors(rival, row, data, whiten, (misfit_scaled,))[0]
+
+
+def kink_posteriors(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray],
+                    misfit_scaled: Sequence[bool] = (False, True)) -> list[KinkPosterior]:
+    """``kink_posterior`` for each setting of ``misfit_scaled``, the refitted slices shared among them."""
     j = rival.kink
     assert j is not None
-    slices = kink_slices(rival, data, whiten)
+    refits: dict[float, KinkSlice] = {}
+
+    def at(u: float) -> KinkSlice:
+        if u not in refits:
+            refits[u] = _slice(rival, data, whiten, u)
+        return refits[u]
+
+    return [_kink_mixture(rival, row, data, whiten, at, scaled) for scaled in misfit_scaled]
+
+
+def _kink_mixture(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.ndarray], np.ndarray],
+                  at: Callable[[float], KinkSlice], misfit_scaled: bool) -> KinkPosterior:
+    """The mixture of ``kink_posterior`` over slices refitted by ``at`` (kink value → slice)."""
+    j = rival.kink
+    assert j is not None
+    slices = [at(float(u)) for u in kink_grid(rival)]
     width = np.full(len(slices), (rival.upper[j] - rival.lower[j]) / KINK_GRID)
     dof = data.n_points - rival.theta.size
 
@@ -231,7 +252,7 @@ def kink_posterior(rival: Rival, row: int, data: Dataset, whiten: Callable[[np.n
         keep = np.setdiff1d(np.arange(len(slices)), split)
         new = [(slices[k].value + width[k] * ((m + 0.5) / KINK_REFINE - 0.5), width[k] / KINK_REFINE)
                for k in split for m in range(KINK_REFINE)]
-        slices = [slices[k] for k in keep] + [_slice(rival, data, whiten, float(u)) for u, _ in new]
+        slices = [slices[k] for k in keep] + [at(float(u)) for u, _ in new]
         width = np.concatenate([width[keep], [h for _, h in new]])
         w, scale2 = weights()
     u = np.array([s.value for s in slices])
