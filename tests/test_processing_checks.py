@@ -114,6 +114,46 @@ def test_a_clipped_response_channel_other_than_the_first_is_caught():
         assert check.overloaded == ("A2Z",), (seed, check)
 
 
+def _lateral_response(equal_top: bool) -> np.ndarray:
+    """A small lateral channel on a 24-bit ±490 m/s² input: a 745 Hz ring-down of 0.26 m/s² from sample
+    300, in ADC steps (noise below one step). ``equal_top`` places its first crest midway between two
+    samples, so that both round to the same step."""
+    fs, lsb, w, a = 20480.0, 490.0 / 2**23, 2 * np.pi * 745.0, 40.0
+    crest_s = np.arctan(w / a) / w  # first maximum of exp(-a t) sin(w t)
+    start = 300 + (np.ceil(crest_s * fs) + 0.5 - crest_s * fs if equal_top else 0.3)
+    t = (np.arange(8192) - start) / fs
+    x = 0.26 / np.exp(-a * crest_s) * np.exp(-a * t) * np.sin(w * t) * (t > 0)
+    x += np.random.default_rng(3).normal(0.0, 0.2 * lsb, t.size)
+    return np.round(x / lsb) * lsb
+
+
+def _blow(n: int) -> np.ndarray:
+    t = (np.arange(n) - 294.5) / 20480.0
+    pulse = 250.0 * np.sin(np.pi * np.clip(t, 0, 2.5e-4) / 2.5e-4)
+    return pulse + np.random.default_rng(4).normal(0.0, 0.5, n)
+
+
+def test_a_natural_peak_sampled_twice_alike_is_not_an_overload():
+    """Two samples straddling a crest may round to one ADC step: ~1 in 200 blows of a small channel on a
+    24-bit input. Far above the step is not enough to call that a clip; the drop to the neighbours decides."""
+    x = _lateral_response(True)
+    at = np.flatnonzero(x == x.max())
+    assert len(at) == 2 and x.max() / (490.0 / 2**23) > 4096  # the case: two hits, thousands of steps up
+    force = _blow(x.size)
+    check = check_impact(force, x[None, :], 20480.0, channels=("A2Y",))
+    assert check.overloaded == (), check
+
+
+@pytest.mark.parametrize("samples", [3, 4])
+def test_a_flat_top_of_a_few_adc_steps_is_an_overload(samples):
+    """The same channel clipped (by an amplifier below the stated range) over its top few samples."""
+    x = _lateral_response(False)
+    x = np.minimum(x, np.sort(x)[-samples])
+    force = _blow(x.size)
+    check = check_impact(force, x[None, :], 20480.0, channels=("A2Y",))
+    assert check.overloaded == ("A2Y",), check
+
+
 def test_a_small_quantised_signal_repeating_its_peak_is_not_an_overload():
     s = one_channel(snr_db=60.0, seed=6)
     x = s.accel_m_per_s2[0, 0]

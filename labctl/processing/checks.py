@@ -24,6 +24,7 @@ LOW_COHERENCE = "low_coherence"
 REASONS = (DOUBLE_HIT, OVERLOAD, PULSE_WIDTH, LOW_FORCE, LOW_COHERENCE)
 PULSE_SEARCH_S = 5e-3  # the blow's extent is searched this far either side of its peak
 PLATEAU_SEARCH_S = 0.2  # a clipped response's plateaus lie within this long after the blow
+PLATEAU_FALSE_ALARM = 1e-4  # chance, per channel extreme, that a natural peak is taken for a clip
 FURTHER_PULSE_SIGMAS = 4.5  # a matched-filter peak this far above the force noise is a further pulse whose
 # force joins the force window (however small: its response is in the responses); ≥ double_hit_ratio rejects
 
@@ -214,26 +215,42 @@ def _ranges(ranges: float | Sequence[float] | None, n: int) -> np.ndarray | None
     return r
 
 
+def _resolution(x: np.ndarray) -> float:
+    """The data's step when they lie on an ADC's grid (the smallest change, every change a multiple of it);
+    0 when they do not (floating-point data, resolved to their own precision)."""
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > 0]
+    if len(steps) == 0:
+        return 0.0
+    lsb = float(steps.min())
+    ratio = steps / lsb
+    on_grid = np.abs(ratio - np.round(ratio)) < 0.01
+    return lsb if np.mean(on_grid) > 0.9 else 0.0
+
+
 def _plateau_clipped(x: np.ndarray) -> bool:
-    """Clipping without a known range: the record's extreme value reached more than once, where an analogue
-    signal's peaks (a decaying, noisy oscillation) would not repeat to the last digit. Quantised data repeat
-    values legitimately: there two hits suffice only far above the quantisation step (> 4096 steps); a
-    plateau (three hits, two in a row) needs > 256 steps. A flat (dead) channel is not an overload."""
+    """Clipping without a known range: the record's extreme value reached more than once. An analogue peak
+    repeats to the last digit only by chance: its top samples differ by up to the drop to their neighbours,
+    so ``n`` equal hits at an extreme happen naturally with probability ~ (resolution / drop)^(n-1), the
+    resolution being the ADC's step or, for floating-point data, single precision at the value. A repeat is
+    a clip when that chance is below ``PLATEAU_FALSE_ALARM``. A flat (dead) channel is not an overload."""
     top, bottom = x.max(), x.min()
     if top == bottom:
         return False
     quantum = -1.0
-    for value in (top, bottom):
+    for value, sign in ((top, 1.0), (bottom, -1.0)):
         at = np.flatnonzero(x == value)
         if len(at) < 2:
             continue
         if quantum < 0:
-            steps = np.abs(np.diff(x[: min(len(x), 4096)]))
-            quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-        steps_to_value = abs(value) / quantum if quantum > 0 else math.inf
-        if steps_to_value > 4096:
-            return True
-        if len(at) >= 3 and np.any(np.diff(at) == 1) and steps_to_value > 256:
+            quantum = _resolution(x[: min(len(x), 4096)])
+        resolution = quantum if quantum > 0 else float(np.spacing(np.float32(abs(value))))
+        neighbours = np.setdiff1d(np.concatenate([at - 1, at + 1]), at)
+        neighbours = neighbours[(neighbours >= 0) & (neighbours < len(x))]
+        if len(neighbours) == 0:
+            continue
+        drop = float(np.min(sign * (value - x[neighbours])))
+        if drop > 0 and (resolution / drop) ** (len(at) - 1) < PLATEAU_FALSE_ALARM:
             return True
     return False
 
