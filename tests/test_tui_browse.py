@@ -98,7 +98,7 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     cmd = "labctl tui protocols/quick_check.toml --backend sim --autostart"
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
     try:
-        pane, deadline = "", time.monotonic() + 60
+        pane, deadline = "", time.monotonic() + 120
         while time.monotonic() < deadline:
             pane = subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True,
                                   text=True).stdout
