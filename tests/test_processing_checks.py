@@ -144,6 +144,15 @@ def test_a_natural_peak_sampled_twice_alike_is_not_an_overload():
     assert check.overloaded == (), check
 
 
+def test_a_noise_free_force_resting_at_zero_is_not_an_overload():
+    """A synthetic or pre-windowed force: exactly 0 outside the pulse, its minimum reached thousands of times."""
+    x = _lateral_response(False)
+    force = np.clip(_blow(x.size), 0.0, None)
+    force[force < 2.0] = 0.0
+    check = check_impact(force, x[None, :], 20480.0, channels=("A2Y",))
+    assert check.overloaded == (), check
+
+
 @pytest.mark.parametrize("samples", [3, 4])
 def test_a_flat_top_of_a_few_adc_steps_is_an_overload(samples):
     """The same channel clipped (by an amplifier below the stated range) over its top few samples."""

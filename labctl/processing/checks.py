@@ -233,14 +233,19 @@ def _plateau_clipped(x: np.ndarray) -> bool:
     repeats to the last digit only by chance: its top samples differ by up to the drop to their neighbours,
     so ``n`` equal hits at an extreme happen naturally with probability ~ (resolution / drop)^(n-1), the
     resolution being the ADC's step or, for floating-point data, single precision at the value. A repeat is
-    a clip when that chance is below ``PLATEAU_FALSE_ALARM``. A flat (dead) channel is not an overload."""
+    a clip when that chance is below ``PLATEAU_FALSE_ALARM``. A flat (dead) channel, or one resting at its
+    extreme, is not an overload."""
     top, bottom = x.max(), x.min()
     if top == bottom:
         return False
-    quantum = -1.0
+    quantum, baseline = -1.0, None
     for value, sign in ((top, 1.0), (bottom, -1.0)):
         at = np.flatnonzero(x == value)
         if len(at) < 2:
+            continue
+        if baseline is None:
+            baseline = float(np.median(x))
+        if value == baseline:  # a noise-free record resting at its extreme (a force exactly 0 between blows)
             continue
         if quantum < 0:
             quantum = _resolution(x[: min(len(x), 4096)])
