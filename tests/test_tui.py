@@ -16,6 +16,7 @@ import pytest
 
 from labctl import events as ev
 from labctl.campaign import run_campaign
+from labctl.engine import StopRequested
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
@@ -178,6 +179,51 @@ def _hold_after_step_1() -> tuple[threading.Event, threading.Event, Callable[[ev
             release.wait(30)
 
     return hold, release, hold_after_step_1
+
+
+@pytest.mark.parametrize("answer", ["n", "y"])
+async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(tmp_path, answer):
+    """A prompt the engine asked just before the technician pressed abort may reach the screen after the
+    question: it must not cover it (the next key would answer the wrong dialog); it opens once the question
+    is answered, and on abort it is withdrawn unseen. The engine is held after step 1 and the late prompt is
+    asked from another thread through the operator, as the engine asks."""
+    from labctl.tui.dialogs import ConfirmDialog
+
+    hold, release, hold_after_step_1 = _hold_after_step_1()
+    app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
+    answers: list[object] = []
+
+    def ask() -> None:
+        try:
+            answers.append(app.operator.prompt("Turn each knob 180°", ("done",), "load"))
+        except StopRequested as exc:
+            answers.append(exc)
+
+    async with app.run_test(size=SIZE) as pilot:
+        await wait_for(pilot, lambda: hold.is_set() and not isinstance(app.screen, PromptDialog), what="step 1")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        app.auto_confirm = False
+        asker = threading.Thread(target=ask)
+        asker.start()
+        await wait_for(pilot, lambda: app.operator.pending, what="the late prompt")
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ConfirmDialog)
+        await pilot.press(answer)
+        if answer == "n":
+            prompt = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen,
+                                    what="the late prompt, once the question is answered")
+            assert prompt.request.message == "Turn each knob 180°"
+            await pilot.press("enter")
+        asker.join(10)
+        release.set()
+        if answer == "n":
+            await pilot.press("q")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    if answer == "n":
+        assert answers == ["done"] and app.outcome.status == "interrupted"
+    else:
+        assert isinstance(answers[0], StopRequested) and app.outcome.status == "aborted"
 
 
 async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_path):

@@ -96,6 +96,7 @@ class LabApp(App[Outcome | None]):
         self.error: str | None = None
         self.quit_when_done = False
         self.rejection = ""  # why the step's latest impact was rejected (titles the next strike prompt)
+        self.held_prompt: PromptRequest | None = None  # arrived while the technician answered a question
         self.monitor = MonitorScreen(settings.protocol)
         self.blows = StepBlows()  # the step's blows so far, for the gate's FRF (filled in the engine thread)
         self._plan_counters()
@@ -203,7 +204,13 @@ class LabApp(App[Outcome | None]):
 
     # --- prompts --------------------------------------------------------------------------------------------
     def show_prompt(self, request: PromptRequest) -> None:
-        """Open the dialog for an engine prompt (UI thread); a blow to judge opens the per-hit gate."""
+        """Open the dialog for an engine prompt (UI thread); a blow to judge opens the per-hit gate. While a
+        question (abort?) is open the prompt waits under it, so a key meant for the question never answers it."""
+        if isinstance(self.screen, ConfirmDialog):
+            self.held_prompt = request
+            return
+        if request.done.is_set():  # withdrawn while it waited
+            return
         if request.review is not None:
             frf = self.blows.frf_so_far(request.review, self.operator.verdicts(request.review))
             self.push_screen(ReviewDialog(request, self.auto_confirm_after_s, frf))
@@ -267,6 +274,9 @@ class LabApp(App[Outcome | None]):
                 self.control.resume()
                 self.monitor.set_status("running")
                 self.monitor.log_line("not aborted: resuming")
+            held, self.held_prompt = self.held_prompt, None
+            if held is not None:
+                self.show_prompt(held)
 
         self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition is paused. Abort: it stops here, the "
                                        "file keeps every impact so far and is marked aborted."), answered)
