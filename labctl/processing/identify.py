@@ -238,6 +238,10 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
     alone: Stiffness | None = roller_only(k, contact, load_n) if contact is not None and load_n is not None else None
     if coh[b] < cfg.checks.min_coherence:
         warnings.append(f"coherence at the bounce {coh[b]:.3f} is below {cfg.checks.min_coherence:g}")
+    if modes.stray_hz:
+        warnings.append(f"mode(s) at {', '.join(f'{f:.1f}' for f in modes.stray_hz)} Hz in the contact-mode range have "
+                        "neither the bounce's nor the tilt's shape (a rail, mount or support resonance?): not "
+                        "taken for contact modes")
     if not modes.pair_resolved:
         warnings.append("the tilt pair is not resolved by the data: reported as one (degenerate) frequency")
     if not cls.by_shape:

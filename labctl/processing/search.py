@@ -7,7 +7,9 @@ is not clearly resolved (a pole poorly determined, implausibly damped, too weak 
 its parameters, or the two tilt poles within their uncertainty), a two-mode fit is made and the pair is
 restarted from a few splits around its tilt; the best three-mode fit is kept only when a likelihood-ratio
 test at level 0.001 prefers it and its tilt poles are apart beyond their uncertainty (force noise
-included), otherwise the pair is reported as degenerate with the split it could hide.
+included), otherwise the pair is reported as degenerate with the split it could hide. A fitted mode whose shape is
+neither bounce nor tilt (a rail, mount or support resonance in the range) is never taken for a tilt: the range
+is cut short of it and the fit repeated, or, when it lies among the contact modes, the pair is left unresolved.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy.signal import find_peaks
@@ -35,6 +38,9 @@ FIRST_FIT_ITER = 4  # a three-mode fit from the LSCF poles still moving after th
 # degenerate valley (a pole turning into residue): the two-mode fit and the split starts take over
 TRIAL_ITER = 4  # the split starts are only ranked by their cost: the best one is refined to convergence
 RESOLUTION_LEVEL = 0.001  # level of the one-pole-or-two test on the tilt pair (and of each mode's presence)
+STRAY_SHARE = 0.5  # a non-bounce mode with less of its shape in the tilt subspace (and as little bounce) is no
+# contact mode: a rail, mount or support resonance inside the range (rollers at ±50 % still give tilts ≥ 0.77)
+STRAY_GAP_WIDTHS = 4.0  # a stray mode is cut out of the range only this many half-power widths from the rest
 Widen = Callable[[ModalFit], ModalFit]  # adds what the residuals cannot show (the force noise) to a fit's stds
 
 
@@ -47,6 +53,7 @@ class ContactModes:
     pair_resolved: bool
     band: slice
     split_std_hz: float | None = None  # unresolved pair: 1-σ of the split a three-mode fit gave (what could hide)
+    stray_hz: tuple[float, ...] = ()  # modes in the range whose shape is neither bounce nor tilt (left out)
 
 
 def search_range_hz(rig: RigConfig, pred: PredictedShapes, f_top_hz: float) -> tuple[float, float]:
@@ -154,7 +161,61 @@ def _apart(fit: ModalFit, tilt: Sequence[int], widen: Widen | None = None) -> bo
     return bool(gap > -ndtri(RESOLUTION_LEVEL / 2) * math.hypot(fit.frequency_std_hz[a], fit.frequency_std_hz[b]))
 
 
-def fit_contact_modes(
+def fit_contact_modes(freqs_hz: np.ndarray, h: np.ndarray, pred: PredictedShapes, live: np.ndarray, *,
+                      search_hz: tuple[float, float], **kw: Any) -> ContactModes:
+    """The contact modes in ``search_hz`` (see ``_fit_in_range`` for the keywords). A fitted mode whose shape is
+    neither bounce nor tilt is cut out of the range when it lies apart beyond the contact modes and the fit
+    repeated; one among them leaves the tilt pair unresolved. Either way it is named in ``stray_hz``."""
+    modes = _fit_in_range(freqs_hz, h, pred, live, search_hz=search_hz, **kw)
+    strays: tuple[float, ...] = ()
+    for _ in range(2):
+        r = _stray(modes)
+        if r is None:
+            break
+        strays = (*strays, float(modes.fit.frequencies_hz[r]))
+        narrowed = _without(modes, r, search_hz)
+        if narrowed is None:
+            return _disowned(modes, r, strays)
+        try:
+            refit = _fit_in_range(freqs_hz, h, pred, live, search_hz=narrowed, **kw)
+        except ProcessingError:
+            return _disowned(modes, r, strays)
+        modes, search_hz = refit, narrowed
+    if strays and _stray(modes) is not None:
+        return _disowned(modes, _stray(modes), strays)
+    return replace(modes, stray_hz=strays)
+
+
+def _stray(modes: ContactModes) -> int | None:
+    """The least tilt-like of the fitted non-bounce modes when its shape is neither tilt nor bounce."""
+    cls = modes.classes
+    if not cls.by_shape:
+        return None
+    odd = [i for i in cls.tilt if cls.tilt_fraction[i] < STRAY_SHARE and cls.bounce_mac[i] < STRAY_SHARE]
+    return min(odd, key=lambda i: cls.tilt_fraction[i]) if odd else None
+
+
+def _without(modes: ContactModes, r: int, search_hz: tuple[float, float]) -> tuple[float, float] | None:
+    """The search range with stray mode ``r`` cut off at the geometric middle to its nearest contact mode, or
+    None when it lies among them or too close to cut."""
+    f, zeta = modes.fit.frequencies_hz, modes.fit.damping_ratios
+    rest = [i for i in range(len(f)) if i != r]
+    near = min(rest, key=lambda i: abs(f[i] - f[r]))
+    outside = f[r] < min(f[rest]) or f[r] > max(f[rest])
+    if not outside or abs(f[near] - f[r]) <= STRAY_GAP_WIDTHS * 2.0 * zeta[near] * f[near]:
+        return None
+    cut = math.sqrt(f[near] * f[r])
+    return (max(search_hz[0], cut), search_hz[1]) if f[r] < f[near] else (search_hz[0], min(search_hz[1], cut))
+
+
+def _disowned(modes: ContactModes, r: int, strays: tuple[float, ...]) -> ContactModes:
+    """The fit with stray mode ``r`` taken out of the tilt pair, which is then unresolved."""
+    cls = modes.classes
+    tilt = tuple(i for i in cls.tilt if i != r) or cls.tilt
+    return replace(modes, classes=replace(cls, tilt=tilt), pair_resolved=False, stray_hz=strays)
+
+
+def _fit_in_range(
     freqs_hz: np.ndarray,
     h: np.ndarray,
     pred: PredictedShapes,
