@@ -100,6 +100,22 @@ def test_a_channel_clipped_in_every_impact_is_dropped_and_the_step_goes_on(tmp_p
     assert "A2Z saturated in every impact: dropped" in text.stdout
 
 
+def test_a_channel_on_one_rail_is_dropped_though_a_softer_blow_touches_it_for_one_sample_only():
+    """One amplifier range for the step: the two harder blows clip A2Z over many samples, the softer one reaches
+    the same level at its single highest sample. That touch is the same clip, so the channel is saturated in
+    every impact: dropped, and all three blows kept (not two of them rejected for it)."""
+    g = generate(RIG, K, n_samples=N, seed=10, force_snr_db=60.0, peak_n=[150.0, 250.0, 250.0])
+    c = g.channels.index("A2Z")
+    level = float(np.abs(g.accel_m_per_s2[0, c]).max())
+    g.accel_m_per_s2[:, c] = np.clip(g.accel_m_per_s2[:, c], -level, level)
+    assert np.count_nonzero(np.abs(g.accel_m_per_s2[0, c]) == level) == 1
+    assert all(np.count_nonzero(np.abs(g.accel_m_per_s2[i, c]) == level) >= 2 for i in (1, 2))
+    r = run(g)
+    assert r.dropped_channels == ("A2Z",)
+    assert all(i.accepted for i in r.impacts), [i.reasons for i in r.impacts]
+    assert abs(r.bounce_hz - g.truth["bounce_hz"]) <= min(0.02, 2 * r.bounce_hz_std)
+
+
 def test_a_clip_of_two_samples_is_seen_without_a_stated_range():
     g = generate(RIG, K, n_samples=N, seed=9, force_snr_db=60.0, n_impacts=1)
     c = g.channels.index("A1Z")

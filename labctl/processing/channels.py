@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from labctl.processing.checks import LOW_COHERENCE, ImpactCheck
+from labctl.processing.checks import LOW_COHERENCE, OVERLOAD, ImpactCheck
 from labctl.processing.errors import ProcessingError
 from labctl.processing.frf import FrfEstimate
 
@@ -35,6 +35,26 @@ def saturated_channels(checks: Sequence[ImpactCheck], names: Sequence[str]) -> t
     for c in checks:
         every &= set(c.overloaded)
     return tuple(n for n in names if n in every)
+
+
+def rail_touches(checks: Sequence[ImpactCheck], accel: np.ndarray, names: Sequence[str]) -> list[ImpactCheck]:
+    """The checks with a channel's overload added to each impact whose extreme reaches, even for one sample, a
+    level at which that channel clipped (a repeated extreme) in another impact: the same rail, touched briefly,
+    is a clip that one impact alone cannot show."""
+    out = list(checks)
+    for c, name in enumerate(names):
+        clipped = [i for i, check in enumerate(checks) if name in check.overloaded]
+        if not clipped or len(clipped) == len(checks):
+            continue
+        tops = {float(v) for i in clipped for v in [accel[i, c].max()] if np.count_nonzero(accel[i, c] == v) > 1}
+        bottoms = {float(v) for i in clipped for v in [accel[i, c].min()] if np.count_nonzero(accel[i, c] == v) > 1}
+        for i, check in enumerate(checks):
+            if name in check.overloaded:
+                continue
+            if float(accel[i, c].max()) in tops or float(accel[i, c].min()) in bottoms:
+                note = f"near full scale: {name} reaches the level it clipped at in impact {clipped[0]}"
+                out[i] = replace(out[i].rejected_for(OVERLOAD, note), overloaded=(*out[i].overloaded, name))
+    return out
 
 
 def without_overload_of(check: ImpactCheck, dropped: tuple[str, ...]) -> ImpactCheck:

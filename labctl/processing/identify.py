@@ -16,7 +16,13 @@ import numpy as np
 
 from labctl.errors import InputError
 from labctl.physics import RigConfig, TrippContact
-from labctl.processing.channels import channel_noise, live_channels, saturated_channels, without_overload_of
+from labctl.processing.channels import (
+    channel_noise,
+    live_channels,
+    rail_touches,
+    saturated_channels,
+    without_overload_of,
+)
 from labctl.processing.checks import LOW_COHERENCE, CheckConfig, ImpactCheck, check_impact
 from labctl.processing.errors import ProcessingError
 from labctl.processing.force_noise import ForceNoiseWidener
@@ -137,6 +143,7 @@ def identify(
     checks = [check_impact(force[i], accel[i], fs_hz, index=i, accel_ranges=accel_ranges, force_range_n=force_range_n,
                            config=cfg.checks, channels=names, extremes=(top[i], bottom[i]))
               for i in range(force.shape[0])]
+    checks = rail_touches(checks, accel, names)
     dropped = saturated_channels(checks, names)
     if dropped:
         checks = [without_overload_of(c, dropped) for c in checks]
