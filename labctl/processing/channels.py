@@ -46,14 +46,13 @@ def rail_touches(checks: Sequence[ImpactCheck], accel: np.ndarray, names: Sequen
         clipped = [i for i, check in enumerate(checks) if name in check.overloaded]
         if not clipped or len(clipped) == len(checks):
             continue
-        tops = {float(v) for i in clipped for v in [accel[i, c].max()] if np.count_nonzero(accel[i, c] == v) > 1}
-        bottoms = {float(v) for i in clipped for v in [accel[i, c].min()] if np.count_nonzero(accel[i, c] == v) > 1}
-        for i, check in enumerate(checks):
-            if name in check.overloaded:
-                continue
-            if float(accel[i, c].max()) in tops or float(accel[i, c].min()) in bottoms:
-                note = f"near full scale: {name} reaches the level it clipped at in impact {clipped[0]}"
-                out[i] = replace(out[i].rejected_for(OVERLOAD, note), overloaded=(*out[i].overloaded, name))
+        for extreme in (np.max, np.min):
+            levels = [(float(extreme(accel[i, c])), accel[i, c]) for i in clipped]
+            rails = {v for v, x in levels if np.count_nonzero(x == v) > 1}
+            for i, check in enumerate(out):
+                if rails and name not in check.overloaded and float(extreme(accel[i, c])) in rails:
+                    note = f"near full scale: {name} reaches the level it clipped at in impact {clipped[0]}"
+                    out[i] = replace(check.rejected_for(OVERLOAD, note), overloaded=(*check.overloaded, name))
     return out
 
 

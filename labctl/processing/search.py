@@ -41,6 +41,7 @@ RESOLUTION_LEVEL = 0.001  # level of the one-pole-or-two test on the tilt pair (
 STRAY_SHARE = 0.5  # a non-bounce mode with less of its shape in the tilt subspace (and as little bounce) is no
 # contact mode: a rail, mount or support resonance inside the range (rollers at ±50 % still give tilts ≥ 0.77)
 STRAY_GAP_WIDTHS = 4.0  # a stray mode is cut out of the range only this many half-power widths from the rest
+MAX_STRAY_CUTS = 2  # a further stray mode leaves the pair unresolved
 Widen = Callable[[ModalFit], ModalFit]  # adds what the residuals cannot show (the force noise) to a fit's stds
 
 
@@ -168,21 +169,16 @@ def fit_contact_modes(freqs_hz: np.ndarray, h: np.ndarray, pred: PredictedShapes
     repeated; one among them leaves the tilt pair unresolved. Either way it is named in ``stray_hz``."""
     modes = _fit_in_range(freqs_hz, h, pred, live, search_hz=search_hz, **kw)
     strays: tuple[float, ...] = ()
-    for _ in range(2):
-        r = _stray(modes)
-        if r is None:
-            break
+    while (r := _stray(modes)) is not None:
         strays = (*strays, float(modes.fit.frequencies_hz[r]))
-        narrowed = _without(modes, r, search_hz)
+        narrowed = _without(modes, r, search_hz) if len(strays) <= MAX_STRAY_CUTS else None
         if narrowed is None:
             return _disowned(modes, r, strays)
         try:
-            refit = _fit_in_range(freqs_hz, h, pred, live, search_hz=narrowed, **kw)
+            modes = _fit_in_range(freqs_hz, h, pred, live, search_hz=narrowed, **kw)
         except ProcessingError:
             return _disowned(modes, r, strays)
-        modes, search_hz = refit, narrowed
-    if strays and _stray(modes) is not None:
-        return _disowned(modes, _stray(modes), strays)
+        search_hz = narrowed
     return replace(modes, stray_hz=strays)
 
 
