@@ -27,7 +27,7 @@ def wilson(k: int, n: int) -> tuple[float, float, float]:
     p = k / n
     c = (p + z * z / (2 * n)) / (1 + z * z / n)
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return p, c - h, c + h
+    return p, max(c - h, 0.0), min(c + h, 1.0)  # the bounds are 0 and 1 at k = 0 and n; no round-off past them
 
 
 def rms(v) -> float:

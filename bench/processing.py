@@ -2,7 +2,7 @@
 
 Run by hand, never in CI (the peers are bench-only installs, not labctl dependencies)::
 
-    pip install pyfrf sdypy-ema
+    pip install -e '.[bench]'      # pyFRF and sdypy-EMA
     python bench/processing.py [--seeds 100] [--quick] [--no-peers] [--peers-all]
 
 Every condition synthesises impact sets with known truth (tests/synth_impacts.py: modal superposition of
@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import importlib.util
 import io
 import math
 import os
@@ -341,6 +342,12 @@ def main(argv: list[str] | None = None) -> int:
               f"mean(error/σ) {r['mean_z']:+.2f}")
         return 0
     peers = not args.no_peers
+    if peers:
+        missing = [name for name in ("pyFRF", "sdypy.EMA") if importlib.util.find_spec(name.split(".")[0]) is None]
+        if missing:
+            print(f"bench/processing.py: peer(s) not installed: {', '.join(missing)}; "
+                  "pip install -e '.[bench]' (or run with --no-peers)", file=sys.stderr)
+            return 2
     cases = [(40.0, 12, 50.0)] if args.quick else (
         [(40.0, 12, 50.0)] + [(s, 12, 50.0) for s in (20.0, 30.0, 50.0, 60.0)]
         + [(40.0, c, 50.0) for c in (1, 3, 6, 24)] + [(40.0, 12, f) for f in (40.0, 60.0, 200.0)])
