@@ -92,7 +92,7 @@ def test_blow_below_the_trigger_level_is_not_recorded():
         rig.daq.acquire(1.0)
 
 
-def test_daq_refuses_bad_settings_and_can_coerce_the_rate():
+def test_daq_refuses_bad_settings_and_can_coerce_the_rate(tmp_path):
     rig = sim_rig()
     for fs, n in [(0.0, 1024), (1e6, 1024), (20_480, 4), (20_480, 1024.5)]:
         with pytest.raises(DeviceError, match="configure"):
@@ -100,18 +100,16 @@ def test_daq_refuses_bad_settings_and_can_coerce_the_rate():
     rig.daq.configure(20_480, 1024)
     with pytest.raises(DeviceError, match="pretrigger"):
         rig.daq.arm(TriggerSpec(pretrigger_samples=2000))
-    coerced = sim_rig(world=_world_file("base_clock_hz = 51200.0"))
+    coerced = sim_rig(world=_world_file(tmp_path, "base_clock_hz = 51200.0"))
     fs = coerced.daq.configure(20_480, 4096)
     assert fs != 20_480 and 51_200 / fs == pytest.approx(round(51_200 / fs))
     assert strike_records(coerced, 1, fs=20_480, samples=4096)[0].sample_rate_hz == fs
 
 
-def _world_file(instruments: str) -> str:
-    import tempfile
-
-    with tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False) as fh:
-        fh.write(f'[baseline]\nmodel = "tripp"\ndepth_mm = 1.5\n[instruments]\n{instruments}\n')
-        return fh.name
+def _world_file(folder, instruments: str) -> str:
+    path = folder / "world.toml"
+    path.write_text(f'[baseline]\nmodel = "tripp"\ndepth_mm = 1.5\n[instruments]\n{instruments}\n', encoding="utf-8")
+    return str(path)
 
 
 def test_load_cell_reads_total_force_settles_after_a_turn_and_tares():
