@@ -3,8 +3,8 @@
 The unit has no analog trigger: ``arm`` starts a continuous scan and a reader thread drains the bulk IN
 endpoint (so a slow operator prompt never overruns the 32 k-sample FIFO), converts codes to physical units
 with the factory calibration and the sensor sensitivities, and catches the force crossing in software,
-keeping the pretrigger samples. Up to 8 simultaneously sampled inputs; IEPE sensors need an external
-conditioner (the unit supplies no excitation current).
+keeping the pretrigger samples. Up to 8 simultaneously sampled single-ended inputs (referenced to AGND) at
+±10/±5/±2/±1 V; IEPE sensors need an external conditioner (the unit supplies no excitation current).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ class MccUsbDaq(Lifecycle):
         self.serial, self._backend = serial, backend
         self._dev: Any = None
         self._cal: mcc.Calibration | None = None
-        self._period = mcc.pacer_period(20480.0)
+        self._period = mcc.pacer_period(20480.0, len(inputs))
         self._n_samples = 65536
         self._reader: threading.Thread | None = None
         self._stop = threading.Event()
@@ -90,24 +90,30 @@ class MccUsbDaq(Lifecycle):
         """Set rate and record length; returns the rate the pacer divisor really gives."""
         if n_samples < 2:
             raise ValueError(f"{self.name}: n_samples = {n_samples!r}: expected at least 2")
-        self._period = mcc.pacer_period(sample_rate_hz)
+        self._period = mcc.pacer_period(sample_rate_hz, len(self._scan))
         self._n_samples = int(n_samples)
         return self.sample_rate_hz
 
     def open(self) -> None:
-        """Find and claim the unit, load its calibration, stop a scan a crashed program left running."""
+        """Find and claim the unit, stop a scan a crashed program left running, then load the calibration.
+
+        The scan is stopped first, as the maker's driver does, so the calibration is never read while the unit
+        is still streaming.
+        """
         if self._dev is not None:
             return
-        dev = self._find()
+        self._dev = self._find()
         try:
-            self._cal = mcc.Calibration.from_memory(self._read_cal(dev))
-        except ValueError as exc:
-            usb.util.dispose_resources(dev)
+            if self._status("open") & mcc.STATUS_SCAN_RUNNING:
+                self._halt_scan("open")
+                self.stale_scan_stopped = True
+            self._cal = mcc.Calibration.from_memory(self._read_cal(self._dev))
+        except (ValueError, DeviceError) as exc:
+            usb.util.dispose_resources(self._dev)
+            self._dev = None
+            if isinstance(exc, DeviceError):
+                raise
             raise DeviceError(self.name, "open", str(exc)) from None
-        self._dev = dev
-        if self._status("open") & mcc.STATUS_SCAN_RUNNING:
-            self._halt_scan("open")
-            self.stale_scan_stopped = True
 
     def close(self) -> None:
         self._stop_reader()
@@ -157,8 +163,13 @@ class MccUsbDaq(Lifecycle):
         self.open()
         serial = self._serial_number(self._dev)
         note = "; stopped a scan left running" if self.stale_scan_stopped else ""
-        return (f"USB-1608FS-Plus serial {serial}, {len(self._wiring)} inputs, "
+        return (f"USB-1608FS-Plus serial {serial}, {len(self._wiring)} single-ended inputs, "
                 f"calibration loaded{note}")
+
+    @property
+    def input_ranges_v(self) -> dict[str, float]:
+        """Each channel's input range (± volts) as sent to the unit."""
+        return {w.channel.name: mcc.RANGES_V[code] for w, code in zip(self._wiring, self._ranges, strict=True)}
 
     # ---- streaming ------------------------------------------------------------------------------------
     def _stream(self, detector: StreamTrigger) -> None:
