@@ -8,6 +8,7 @@ opens and probes each configured instrument and says plainly what works and what
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 from collections.abc import Callable, Iterator
@@ -157,28 +158,68 @@ def _load_cell(t: dict[str, Any], where: Where) -> DeviceSpec:
     return DeviceSpec("load_cell", kind, port, lambda _op: MtSicsLoadCell(port, **options))
 
 
+MCC_INPUTS = 8  # USB-1608FS-Plus: 8 single-ended inputs, no IEPE current (docs/hardware.md, device facts)
+NI_MODULE_INPUTS = {"NI 9234": 4}  # IEPE inputs per module (NI 9234: ai0-ai3, 2 mA IEPE, AC coupled)
+NI_IEPE_CURRENT_A = {"NI 9234": 0.002}
+NI_TERMINAL = re.compile(r"^([^/\s]+)/ai(\d+)$")
+CONDITIONER: dict[str, Spec] = {"model": Text(), "gain": Number(gt=0, default=1.0)}
+
+
+def too_many_for_one_mcc(n: int) -> str:
+    """What a lab must add when a devices file puts more channels on one USB-1608FS-Plus than it has inputs."""
+    modules = -(-n // NI_MODULE_INPUTS["NI 9234"])
+    return (f"{n} channels on one USB-1608FS-Plus, which has {MCC_INPUTS} single-ended inputs and supplies no IEPE "
+            f"current: for {n} IEPE channels use type = \"nidaqmx\" with {modules} × NI 9234 (4 IEPE inputs each), "
+            f"or wire at most {MCC_INPUTS} (the force and {MCC_INPUTS - 1} accelerometers) through an IEPE signal "
+            "conditioner declared in [daq.conditioner]; labctl does not run two units clocked through SYNC")
+
+
 def _daq(t: dict[str, Any], where: Where, usb_backend: Any, nidaqmx_module: Any) -> DeviceSpec:
     kind = value(t, "type", Text(("mcc_usb", "nidaqmx")), where)
-    extra: dict[str, Spec] = {"serial": Text(default="")} if kind == "mcc_usb" else \
-        {"iepe_current_ma": Number(gt=0, unit="ma", default=2.0)}
+    extra: dict[str, Spec] = {"serial": Text(default=""), "conditioner": Table(default=None)} if kind == "mcc_usb" \
+        else {"iepe_current_ma": Number(gt=0, unit="ma", default=2.0),
+              "module": Text(tuple(NI_MODULE_INPUTS), default="NI 9234")}
     options = read(t, {"type": Text(), "channels": Tables(), **extra}, where)
-    wiring = [_channel(row, where.at("channels").at(i), kind) for i, row in enumerate(options["channels"])]
-    try:
-        if kind == "mcc_usb":
-            serial = options["serial"] or None
+    rows = options["channels"]
+    if kind == "mcc_usb":
+        if len(rows) > MCC_INPUTS:
+            raise where.problem(too_many_for_one_mcc(len(rows)))
+        conditioner = read(options["conditioner"], CONDITIONER, where.at("conditioner")) \
+            if "conditioner" in options else None
+        gain = conditioner["gain"] if conditioner else 1.0
+        wiring = [_channel(row, where.at("channels").at(i), kind, gain) for i, row in enumerate(rows)]
+        label = f"{conditioner['model']} (gain ×{gain:g})" if conditioner else ""
+        serial = options["serial"] or None
+        try:
             MccUsbDaq(wiring, serial=serial)  # validate the wiring now, with the file named
-            return DeviceSpec("daq", kind, f"USB-1608FS-Plus {serial or '(first found)'}",
-                              lambda _op: MccUsbDaq(wiring, serial=serial, backend=usb_backend))
-        current_a = options["iepe_current_a"]
+        except ValueError as exc:
+            raise where.problem(str(exc)) from None
+        return DeviceSpec("daq", kind, f"USB-1608FS-Plus {serial or '(first found)'}",
+                          lambda _op: MccUsbDaq(wiring, serial=serial, backend=usb_backend, conditioner=label))
+    module, current_a = options["module"], options["iepe_current_a"]
+    supplied_ma = NI_IEPE_CURRENT_A[module] * 1e3
+    if not math.isclose(current_a * 1e3, supplied_ma, rel_tol=1e-6):
+        raise where.bad("iepe_current_ma", current_a * 1e3, f"{supplied_ma:g} (the {module} supplies {supplied_ma:g} "
+                        "mA only)")
+    wiring = [_channel(row, where.at("channels").at(i), kind) for i, row in enumerate(rows)]
+    for i, w in enumerate(wiring):
+        match = NI_TERMINAL.match(w.terminal)
+        if not match or int(match.group(2)) >= NI_MODULE_INPUTS[module]:
+            n = NI_MODULE_INPUTS[module]
+            raise where.at("channels").at(i).bad(
+                "input", w.terminal, f"'<module>/ai0' … '<module>/ai{n - 1}' (an {module} has {n} inputs: "
+                f"{len(wiring)} channels need {-(-len(wiring) // n)} modules)")
+    try:
         NiDaq(wiring, iepe_current_a=current_a)
     except ValueError as exc:
         raise where.problem(str(exc)) from None
     address = ", ".join(sorted({w.terminal.split("/")[0] for w in wiring}))
-    return DeviceSpec("daq", kind, address,
-                      lambda _op: NiDaq(wiring, iepe_current_a=current_a, nidaqmx_module=nidaqmx_module))
+    return DeviceSpec("daq", kind, address, lambda _op: NiDaq(wiring, iepe_current_a=current_a, module_type=module,
+                                                              nidaqmx_module=nidaqmx_module))
 
 
-def _channel(row: dict[str, Any], where: Where, daq_kind: str) -> InputWiring:
+def _channel(row: dict[str, Any], where: Where, daq_kind: str, conditioner_gain: float = 1.0) -> InputWiring:
+    """One input; the sensitivity at the DAQ input is the sensor's times the IEPE conditioner's gain (MCC)."""
     kind = value(row, "kind", Text(("force", "acceleration")), where)
     force = kind == "force"
     sens_key, range_key = ("sensitivity_mv_per_n", "range_n") if force else ("sensitivity_mv_per_g", "range_g")
@@ -190,7 +231,8 @@ def _channel(row: dict[str, Any], where: Where, daq_kind: str) -> InputWiring:
     if "adc_range_v" in t and daq_kind != "mcc_usb":
         raise where.problem("adc_range_v: only for type = 'mcc_usb' (NI sets its range from range_*)")
     per_unit = 1.0 if force else STANDARD_GRAVITY_M_PER_S2  # mV/g -> V/(m/s²), g -> m/s²
-    channel = Channel(name, kind, "N" if force else "m/s^2", t[sens_key] * MV / per_unit, t[range_key] * per_unit)
+    sensitivity = t[sens_key] * MV / per_unit * conditioner_gain
+    channel = Channel(name, kind, "N" if force else "m/s^2", sensitivity, t[range_key] * per_unit)
     return InputWiring(channel, str(t["input"]), t.get("adc_range_v"))
 
 

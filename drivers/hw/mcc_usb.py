@@ -25,6 +25,7 @@ from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTi
 from drivers.hw import mcc_protocol as mcc
 from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record
 from drivers.hw.lifecycle import Lifecycle
+from drivers.hw.verify import NOT_VERIFIED, VERIFIED, Finding
 from drivers.interfaces import Channel, Record, TriggerSpec
 
 _CONTROL_TIMEOUT_MS = 1000
@@ -50,8 +51,9 @@ class MccUsbDaq(Lifecycle):
     """USB-1608FS-Plus: ``configure`` → actual pacer rate; ``arm`` starts the scan; ``acquire`` the record."""
 
     def __init__(self, wiring: Sequence[InputWiring], *, serial: str | None = None, backend: Any = None,
-                 name: str | None = None) -> None:
+                 name: str | None = None, conditioner: str = "") -> None:
         self.name = name or "daq@usb-1608fs-plus" + (f":{serial}" if serial else "")
+        self.conditioner = conditioner  # the IEPE conditioner in front of the inputs, as the devices file names it
         self._force_row, _ = check_wiring(self.name, wiring)
         inputs = [self._input_number(w) for w in wiring]
         self._scan = tuple(sorted(inputs))  # the device returns channels in ascending order
@@ -165,6 +167,32 @@ class MccUsbDaq(Lifecycle):
         note = "; stopped a scan left running" if self.stale_scan_stopped else ""
         return (f"USB-1608FS-Plus serial {serial}, {len(self._wiring)} single-ended inputs, "
                 f"calibration loaded{note}")
+
+    def read_ranges(self) -> dict[str, float | None]:
+        """Each channel's input range (± volts) as the unit reports it (AIN_CONFIG read back); None if unknown."""
+        self.open()
+        try:
+            raw = bytes(self._dev.ctrl_transfer(mcc.REQ_IN, mcc.AIN_CONFIG, 0, 0, mcc.N_CHANNELS, _CONTROL_TIMEOUT_MS))
+        except usb.core.USBError as exc:
+            raise usb_error(self.name, "check", exc) from exc
+        return {w.channel.name: mcc.RANGES_V.get(raw[self._input_number(w)]) for w in self._wiring}
+
+    def settings_report(self) -> list[Finding]:
+        """What the unit confirms after a record (ranges read back) and what it cannot (rate, IEPE, coupling)."""
+        rows = [Finding("daq", "sample rate", f"{self.sample_rate_hz:.6g} Hz", NOT_VERIFIED,
+                        f"40 MHz / ({self._period} + 1) from the pacer divisor; the unit does not report its rate")]
+        asked = self.input_ranges_v
+        for name, volts in self.read_ranges().items():
+            ok = volts == asked[name]
+            rows.append(Finding(name, "input range", f"±{volts:g} V" if volts else "unknown code",
+                                VERIFIED if ok else "FAILED", "read back from the unit" if ok else
+                                f"asked ±{asked[name]:g} V"))
+        stage = self.conditioner or "none declared in the devices file"
+        rows += [Finding("daq", "coupling", "DC, single-ended to AGND", NOT_VERIFIED,
+                         "the unit has no AC coupling; the IEPE conditioner AC couples"),
+                 Finding("daq", "IEPE current", f"from the conditioner: {stage}", NOT_VERIFIED,
+                         "the unit supplies none; the response rows show which sensors are powered")]
+        return rows
 
     @property
     def input_ranges_v(self) -> dict[str, float]:

@@ -24,6 +24,7 @@ import numpy as np
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 from drivers.hw.acquisition import InputWiring, check_wiring, make_record
 from drivers.hw.lifecycle import Lifecycle
+from drivers.hw.verify import FAILED, NOT_VERIFIED, VERIFIED, Finding
 from drivers.interfaces import Channel, Record, TriggerSpec
 
 STANDARD_GRAVITY_M_PER_S2 = 9.80665
@@ -198,6 +199,32 @@ class NiDaq(Lifecycle):
                 w.terminal, units=k.AccelUnits.METERS_PER_SECOND_SQUARED, sensitivity=mv_per_g,
                 sensitivity_units=k.AccelSensitivityUnits.MILLIVOLTS_PER_G, **common)
         chan.ai_coupling = k.Coupling.AC
+
+    def settings_report(self) -> list[Finding]:
+        """The task's settings as DAQmx reads them back: sample clock, and per channel range, coupling, IEPE."""
+        if self._task is None:
+            return [Finding("daq", "settings", "no task", FAILED, "configure() first")]
+        rows: list[Finding] = []
+        with self._errors("check"):
+            rate = float(self._task.timing.samp_clk_rate)
+            rows.append(Finding("daq", "sample rate", f"{rate:.6g} Hz", VERIFIED,
+                                f"read back from DAQmx; asked {self.requested_rate_hz:g} Hz"))
+            for ch in self._task.ai_channels:
+                try:
+                    low, high = float(ch.ai_min), float(ch.ai_max)
+                    coupling, current = ch.ai_coupling.name, float(ch.ai_excit_val)
+                    source = ch.ai_excit_src.name
+                except AttributeError as exc:
+                    rows.append(Finding(ch.name, "settings", "not readable", NOT_VERIFIED, str(exc)))
+                    continue
+                rows.append(Finding(ch.name, "input range", f"{low:g} … {high:g}", VERIFIED, "read back"))
+                rows.append(Finding(ch.name, "coupling", coupling, VERIFIED if coupling == "AC" else FAILED,
+                                    "read back" if coupling == "AC" else "IEPE current needs AC coupling"))
+                powered = source == "INTERNAL" and current > 0
+                rows.append(Finding(ch.name, "IEPE current", f"{current * 1e3:g} mA ({source.lower()})",
+                                    VERIFIED if powered else FAILED, "set and read back; the sensor's draw is "
+                                    "shown by its response row" if powered else "no excitation"))
+        return rows
 
     def coupling(self) -> dict[str, str]:
         """Each channel's coupling as the task reports it (``AC``/``DC``), for ``devices check --acquire``."""

@@ -124,6 +124,22 @@ class _Chan:
     ai_coupling: Coupling = Coupling.DC
 
     @property
+    def ai_min(self) -> float:
+        return self.min_val
+
+    @property
+    def ai_max(self) -> float:
+        return self.max_val
+
+    @property
+    def ai_excit_val(self) -> float:
+        return float(self.settings.get("current_excit_val", 0.0))
+
+    @property
+    def ai_excit_src(self) -> Any:
+        return self.settings.get("current_excit_source", ExcitationSource.NONE)
+
+    @property
     def powered(self) -> bool:
         """The IEPE sensor gets its current: internal excitation and AC coupling (none in DC-coupled mode)."""
         return (self.settings.get("current_excit_source") is ExcitationSource.INTERNAL
