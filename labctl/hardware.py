@@ -2,7 +2,8 @@
 
 The devices file is TOML with units at its edge (mV/N, mV/g, N, g, s); see ``labctl/data/devices.example.toml``.
 ``make_hw_rig`` builds a ``drivers.Rig`` (``labctl.backends`` calls it for ``--backend hw``); ``check_devices``
-opens and probes each configured instrument and says plainly what works and what does not.
+opens and probes each configured instrument and says plainly what works and what does not; ``tap_check_devices``
+takes one triggered record of a light tap and tabulates what it verified.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 
 from drivers.errors import DeviceError
 from drivers.hw import InputWiring, ManualActuator, ManualHammer, MccUsbDaq, MtSicsLoadCell, NiDaq, SerialHammer
+from drivers.hw.verify import FAILED, NOT_VERIFIED, Finding, TapSettings, tap_check
 from drivers.interfaces import Channel, Operator, Rig
 from labctl.data import data_path, read_toml
 from labctl.data.schema import Integer, Number, Spec, Table, Tables, Text, Where, check_keys, read, value
@@ -136,6 +138,27 @@ def check_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
                     instrument.close()
         results.append(DeviceCheck(role, spec.kind, spec.address, ok, detail))
     return results
+
+
+def tap_check_devices(devices: str | Path | None, operator: Operator, settings: TapSettings | None = None, *,
+                      usb_backend: Any = None, nidaqmx_module: Any = None) -> list[Finding]:
+    """The first-day check: open the DAQ, hammer and load cell, take one triggered record of a light tap and
+    read the load cell; the table of what was verified and what was not. A device failure is a FAILED row."""
+    settings = settings or TapSettings()
+    rig = make_hw_rig(devices, operator, usb_backend=usb_backend, nidaqmx_module=nidaqmx_module)
+    unverifiable = []
+    if isinstance(rig.daq, MccUsbDaq) and rig.daq.conditioner:
+        unverifiable.append(Finding("daq", "conditioner gain", rig.daq.conditioner, NOT_VERIFIED,
+                                    "part of every sensitivity: check it against the conditioner's front panel"))
+    try:
+        with contextlib.ExitStack() as stack:
+            for instrument in (rig.daq, rig.hammer, rig.load_cell):
+                stack.enter_context(instrument)
+            operator.notify("First-day check: when asked to strike, tap the upper disc LIGHTLY with the hammer "
+                            f"(above {settings.trigger_level_n:g} N, well below the channels' ranges)")
+            return tap_check(rig.daq, rig.hammer, rig.load_cell, settings, unverifiable=unverifiable)
+    except (DeviceError, ValueError) as exc:
+        return [Finding("daq", "test record", "none", FAILED, str(exc))]
 
 
 # ---- sections ----------------------------------------------------------------------------------------------

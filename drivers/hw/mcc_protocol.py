@@ -74,7 +74,7 @@ def range_code(adc_range_v: float | None, full_scale_v: float) -> int:
                 return code
         raise ValueError(f"adc_range_v = {adc_range_v!r}: the USB-1608FS-Plus ranges are ±"
                          + ", ±".join(f"{v:g}" for v in RANGES_V.values()) + " V")
-    fitting = [code for code, volts in RANGES_V.items() if volts >= full_scale_v]
+    fitting = [code for code, volts in RANGES_V.items() if volts >= full_scale_v * (1 - 1e-9)]  # 5 V fits ±5 V
     return min(fitting, key=RANGES_V.__getitem__) if fitting else 0
 
 

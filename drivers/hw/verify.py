@@ -22,6 +22,7 @@ from drivers.interfaces import Channel, Daq, Hammer, LoadCell, Record, TriggerSp
 
 VERIFIED, NOT_VERIFIED, FAILED = "verified", "not verified", "FAILED"
 RESPONSE_RATIO = 10.0  # a channel "responds" when its peak after the tap exceeds 10 × its pretrigger RMS
+RESPONSE_OF_RANGE = 1e-3  # … and 0.1 % of its range (a quiet 16-bit input's pretrigger RMS can be 0)
 
 
 @dataclass(frozen=True)
@@ -108,15 +109,17 @@ def _record_findings(record: Record, channels: Sequence[Channel], trigger: Trigg
     for name, data in rows_by_name.items():
         c = by_name[name]
         pre, post = data[: record.trigger_index], data[record.trigger_index:]
-        noise = float(np.sqrt(np.mean((pre - pre.mean()) ** 2))) if pre.size > 1 else 0.0
-        extreme = float(np.max(np.abs(post))) if post.size else 0.0
-        responds = extreme > RESPONSE_RATIO * noise and extreme > 0
+        level = float(pre.mean()) if pre.size else 0.0
+        noise = float(np.sqrt(np.mean((pre - level) ** 2))) if pre.size > 1 else 0.0
+        extreme = float(np.max(np.abs(post - level))) if post.size else 0.0
+        responds = extreme > RESPONSE_RATIO * noise and extreme > RESPONSE_OF_RANGE * c.range_units
         rows.append(Finding(name, "response to the tap", f"peak {extreme:.3g} {c.unit}, pretrigger RMS {noise:.2g}",
                             VERIFIED if responds else FAILED,
                             "" if responds else "no signal: check the cable, the IEPE current (coupling, conditioner)"
                             " and that the sensor is mounted"))
         clipped = name in record.clipped
-        headroom_db = 20 * math.log10(c.range_units / extreme) if extreme > 0 else math.inf
+        peak_abs = float(np.max(np.abs(data))) if data.size else 0.0
+        headroom_db = 20 * math.log10(c.range_units / peak_abs) if peak_abs > 0 else math.inf
         rows.append(Finding(name, "clipping headroom", f"{headroom_db:.1f} dB below ±{c.range_units:.4g} {c.unit}",
                             FAILED if clipped else VERIFIED,
                             "clipped: a larger input range, or a smaller sensitivity" if clipped else ""))
