@@ -19,6 +19,7 @@ from typing import Any
 
 from drivers.errors import DeviceError
 from drivers.hw import InputWiring, ManualActuator, ManualHammer, MccUsbDaq, MtSicsLoadCell, NiDaq, SerialHammer
+from drivers.hw.serial_line import HANDSHAKES, parse_serial_format
 from drivers.hw.verify import FAILED, NOT_VERIFIED, Finding, TapSettings, tap_check
 from drivers.interfaces import Channel, Operator, Rig
 from labctl.data import data_path, read_toml
@@ -164,6 +165,7 @@ def tap_check_devices(devices: str | Path | None, operator: Operator, settings: 
 # ---- sections ----------------------------------------------------------------------------------------------
 LOAD_CELL: dict[str, Spec] = {
     "type": Text(("mtsics",)), "port": Text(), "baudrate": Integer(ge=1, default=9600),
+    "serial_format": Text(default="8N1"), "handshake": Text(HANDSHAKES, default="none"),
     "timeout_s": Number(gt=0, default=2.0), "busy_retries": Integer(ge=0, default=3),
     "stable_timeout_s": Number(gt=0, default=10.0), "gravity_m_per_s2": Number(gt=0, default=STANDARD_GRAVITY_M_PER_S2),
 }
@@ -177,6 +179,11 @@ ACTUATOR: dict[str, Spec] = {"type": Text(("manual",)), "knobs": Integer(ge=1, d
 
 def _load_cell(t: dict[str, Any], where: Where) -> DeviceSpec:
     options = read(t, LOAD_CELL, where)
+    try:
+        parse_serial_format(options["serial_format"])
+    except ValueError:
+        raise where.bad("serial_format", options["serial_format"], "data bits 5-8, parity N/E/O/M/S, stop bits "
+                        "1/1.5/2, e.g. '8N1' or '7E1'") from None
     kind, port = options.pop("type"), options.pop("port")
     return DeviceSpec("load_cell", kind, port, lambda _op: MtSicsLoadCell(port, **options))
 

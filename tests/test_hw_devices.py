@@ -267,3 +267,17 @@ def test_the_iepe_conditioner_is_a_stage_of_the_sensitivity_chain(tmp_path: Path
     bad = devices_file(tmp_path, daq=daq_section("mcc_usb", ["F", "A1Z"], "[daq.conditioner]\ngain = 0\n"))
     with pytest.raises(InputError, match=r"daq.conditioner: missing key 'model'|daq.conditioner.gain = 0"):
         load_devices(bad)
+
+
+def test_the_load_cells_serial_format_and_handshake(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, edit=("baudrate = 9600",
+                                        'baudrate = 9600\nserial_format = "7E1"\nhandshake = "xonxoff"'))
+    line = make_hw_rig(path, operator=ScriptedOperator()).load_cell._line
+    assert (line.bytesize, line.parity, line.stopbits, line.handshake) == (7, "E", 1.0, "xonxoff")
+    for edit, message in ((('baudrate = 9600', 'baudrate = 9600\nserial_format = "7X1"'),
+                           "load_cell.serial_format = '7X1': expected data bits 5-8"),
+                          (('baudrate = 9600', 'baudrate = 9600\nhandshake = "dtr"'),
+                           "load_cell.handshake = 'dtr': expected one of none, xonxoff, rtscts")):
+        with pytest.raises(InputError) as err:
+            load_devices(devices_file(tmp_path, edit=edit))
+        assert message in str(err.value)
