@@ -127,3 +127,17 @@ def test_no_tap_is_a_failed_row_not_a_traceback(tmp_path: Path) -> None:
         rows = tap_check_devices(path, ScriptedOperator(), TapSettings(record_s=0.2, timeout_s=0.2),
                                  usb_backend=FakeUsbBackend(FakeMcc1608()))
     assert len(rows) == 1 and rows[0].status == FAILED and "no force above the trigger level" in rows[0].note
+
+
+if __name__ == "__main__":  # print the table of docs/hardware.md: PYTHONPATH=. python -m tests.test_hw_tap_check
+    import sys
+    import tempfile
+
+    from labctl.cli import main
+
+    with tempfile.TemporaryDirectory() as folder, PtySerialEmulator(MtSicsDevice(lambda: 114.2)) as cell:
+        file, overrides = mcc_rig(Path(folder), cell.port)
+        devices_cli.instrument_overrides = lambda: overrides  # type: ignore[assignment]
+        code = main(["devices", "check", "--devices", str(file), "--acquire",
+                     "--seconds", "0.4", "--timeout", "5"])
+    sys.exit(code)
