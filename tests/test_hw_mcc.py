@@ -44,6 +44,13 @@ def test_calibration_table_and_code_conversion() -> None:
         mcc.Calibration.from_memory(b"\xff" * mcc.CAL_TABLE_BYTES)
 
 
+def test_the_record_keeps_its_duration_at_the_pacers_rate() -> None:
+    """20 480 Hz × 65 536 samples asked = 3.2 s: 65 540 samples at the 20 481.3 Hz the pacer runs at."""
+    daq = MccUsbDaq(wiring())
+    assert daq.configure(20480.0, 65536) == pytest.approx(20481.34, abs=0.01)
+    assert daq.n_samples == 65540 and daq.n_samples / daq.sample_rate_hz == pytest.approx(3.2, abs=1e-4)
+
+
 def test_input_ranges_are_the_makers_four() -> None:
     """User's Guide p. 11 and uldaq mapRangeCode: ±10/±5/±2/±1 V as codes 0/1/3/5 — not the USB-1608FS's eight."""
     assert mcc.RANGES_V == MAKER_RANGES_V

@@ -68,7 +68,7 @@ def test_acquire_on_the_emulated_mcc_rig_prints_the_verification_table(tmp_path:
     rows = by_item(out["verification"])
     assert rows[("daq", "sample rate")]["value"] == "20481.3 Hz"
     assert rows[("daq", "sample rate")]["status"] == NOT_VERIFIED  # the unit cannot report it
-    assert rows[("daq", "record length")]["value"] == "8192 samples = 0.4 s"
+    assert rows[("daq", "record length")]["value"] == "8193 samples = 0.4 s"  # 0.4 s at 20 481.3 Hz
     assert rows[("F", "input range")] == {"instrument": "F", "item": "input range", "value": "±1 V",
                                           "status": VERIFIED, "note": "read back from the unit"}
     assert rows[("A1Z", "input range")]["value"] == "±5 V"

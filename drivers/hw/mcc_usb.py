@@ -23,7 +23,7 @@ import usb.util
 
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 from drivers.hw import mcc_protocol as mcc
-from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record
+from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record, samples_at_rate
 from drivers.hw.lifecycle import Lifecycle
 from drivers.hw.verify import NOT_VERIFIED, VERIFIED, Finding
 from drivers.interfaces import Channel, Record, TriggerSpec
@@ -66,6 +66,7 @@ class MccUsbDaq(Lifecycle):
         self._cal: mcc.Calibration | None = None
         self._period = mcc.pacer_period(20480.0, len(inputs))
         self._n_samples = 65536
+        self.requested_rate_hz = 20480.0
         self._reader: threading.Thread | None = None
         self._stop = threading.Event()
         self._triggered = threading.Event()
@@ -88,12 +89,22 @@ class MccUsbDaq(Lifecycle):
     def sample_rate_hz(self) -> float:
         return mcc.actual_rate_hz(self._period)
 
+    @property
+    def n_samples(self) -> int:
+        """Samples per record at the pacer's rate."""
+        return self._n_samples
+
     def configure(self, sample_rate_hz: float, n_samples: int) -> float:
-        """Set rate and record length; returns the rate the pacer divisor really gives."""
+        """Set rate and record length; returns the rate the pacer divisor really gives.
+
+        The record keeps the duration ``n_samples / sample_rate_hz`` at that rate (65 536 samples at 20 480 Hz
+        asked = 3.2 s = 65 540 samples at 20 481.3 Hz); the pretrigger likewise at ``arm``.
+        """
         if n_samples < 2:
             raise ValueError(f"{self.name}: n_samples = {n_samples!r}: expected at least 2")
         self._period = mcc.pacer_period(sample_rate_hz, len(self._scan))
-        self._n_samples = int(n_samples)
+        self.requested_rate_hz = float(sample_rate_hz)
+        self._n_samples = samples_at_rate(n_samples, sample_rate_hz, self.sample_rate_hz)
         return self.sample_rate_hz
 
     def open(self) -> None:
@@ -130,7 +141,10 @@ class MccUsbDaq(Lifecycle):
         """Start a continuous scan and watch it for the force crossing ``trigger.level_n``."""
         self.open()
         self._stop_reader()
-        detector = StreamTrigger(len(self._wiring) * 2, self._n_samples, self._force_row, trigger)
+        pre = samples_at_rate(trigger.pretrigger_samples, self.requested_rate_hz, self.sample_rate_hz) \
+            if trigger.pretrigger_samples else 0
+        detector = StreamTrigger(len(self._wiring) * 2, self._n_samples, self._force_row,
+                                 replace(trigger, pretrigger_samples=pre))
         ranges = bytearray(mcc.N_CHANNELS)
         for w, code in zip(self._wiring, self._ranges, strict=True):
             ranges[self._input_number(w)] = code

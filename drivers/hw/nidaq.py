@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
-from drivers.hw.acquisition import InputWiring, check_wiring, make_record
+from drivers.hw.acquisition import InputWiring, check_wiring, make_record, samples_at_rate
 from drivers.hw.lifecycle import Lifecycle
 from drivers.hw.verify import FAILED, NOT_VERIFIED, VERIFIED, Finding
 from drivers.interfaces import Channel, Record, TriggerSpec
@@ -116,7 +116,7 @@ class NiDaq(Lifecycle):
                 self._add_channel(ni, w)
             self._task.timing.cfg_samp_clk_timing(sample_rate_hz, sample_mode=finite, samps_per_chan=int(n_samples))
             self._rate_hz = float(self._task.timing.samp_clk_rate)
-            self._n_samples = max(2, round(self.record_s * self._rate_hz))
+            self._n_samples = samples_at_rate(n_samples, self.requested_rate_hz, self._rate_hz)
             if self._n_samples != n_samples:
                 self._task.timing.cfg_samp_clk_timing(sample_rate_hz, sample_mode=finite,
                                                       samps_per_chan=self._n_samples)
@@ -125,7 +125,8 @@ class NiDaq(Lifecycle):
 
     def pretrigger_at_rate(self, pretrigger_samples: int) -> int:
         """The pretrigger asked for at the requested rate, as samples at the device's rate (same duration)."""
-        return round(pretrigger_samples * self._rate_hz / self.requested_rate_hz)
+        return samples_at_rate(pretrigger_samples, self.requested_rate_hz, self._rate_hz) if pretrigger_samples \
+            else 0
 
     def arm(self, trigger: TriggerSpec) -> None:
         """Reference trigger on the force channel rising through ``level_n``, keeping the pretrigger's duration.
