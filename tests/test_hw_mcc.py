@@ -47,7 +47,7 @@ def test_calibration_table_and_code_conversion() -> None:
 def test_the_record_keeps_its_duration_at_the_pacers_rate() -> None:
     """20 480 Hz × 65 536 samples asked = 3.2 s: 65 540 samples at the 20 481.3 Hz the pacer runs at."""
     daq = MccUsbDaq(wiring())
-    assert daq.configure(20480.0, 65536) == pytest.approx(20481.34, abs=0.01)
+    assert daq.configure(20480.0, 65536) == pytest.approx(40e6 / 1953)
     assert daq.n_samples == 65540 and daq.n_samples / daq.sample_rate_hz == pytest.approx(3.2, abs=1e-4)
 
 
