@@ -240,6 +240,25 @@ def test_ni_start_trigger_digital_edge_and_a_trigger_that_never_comes():
             assert err.value.error_code == -200284
 
 
+def test_ni_stream_reader_fills_a_channels_by_samples_array():
+    import numpy as np
+
+    with ni.installed(_chassis()):
+        import nidaqmx
+        from nidaqmx.stream_readers import AnalogMultiChannelReader
+
+        with nidaqmx.Task() as task:
+            task.ai_channels.add_ai_voltage_chan("cDAQ1Mod1/ai1")
+            task.ai_channels.add_ai_accel_chan("cDAQ1Mod1/ai0", sensitivity=100.0, min_val=-40.0, max_val=40.0,
+                                               current_excit_val=0.002)
+            task.timing.cfg_samp_clk_timing(12800.0, samps_per_chan=1280)
+            task.start()
+            data = np.zeros((2, 1280))
+            assert AnalogMultiChannelReader(task.in_stream).read_many_sample(data, 1280) == 1280
+        assert data[0, 0] == 0.0 and data[0, -1] == 0.5  # ai1 steps at 20 ms
+        assert np.max(data[1, 640:]) == pytest.approx(1.0, rel=0.01)  # ai0: 1 g
+
+
 def test_ni_unknown_physical_channel_is_error_200170():
     with ni.installed(_chassis()):
         import nidaqmx

@@ -370,6 +370,7 @@ class Task:
         self.ai_channels = AIChannelCollection(self)
         self.timing = Timing(self)
         self.triggers = Triggers()
+        self.in_stream = InStream(self)
         self._running = False
         self._closed = False
 
@@ -515,12 +516,49 @@ class Task:
         return [d[0] for d in data] if number_of_samples_per_channel is _UNSET else data
 
 
+class InStream:
+    """``task.in_stream``: what the stream readers read through."""
+
+    def __init__(self, task: Task) -> None:
+        self._task = task
+
+    @property
+    def avail_samp_per_chan(self) -> int:
+        total = self._task._finite_total()
+        return (total - self._task._read_pos) if total is not None else int(self._task._rate * 0.1)
+
+
+class AnalogMultiChannelReader:
+    """nidaqmx.stream_readers.AnalogMultiChannelReader: fills a (channels, samples) float64 array."""
+
+    def __init__(self, task_in_stream: InStream) -> None:
+        self._in_stream = task_in_stream
+
+    def read_many_sample(self, data, number_of_samples_per_channel=READ_ALL_AVAILABLE, timeout=10.0) -> int:
+        task = self._in_stream._task
+        n = number_of_samples_per_channel
+        if n == READ_ALL_AVAILABLE:
+            n = data.shape[-1]
+        values = task.read(n, timeout)
+        rows = [values] if task.number_of_channels == 1 else values
+        for i, row in enumerate(rows):
+            data.reshape(len(rows), -1)[i, :n] = row
+        return n
+
+
+class AnalogSingleChannelReader(AnalogMultiChannelReader):
+    """nidaqmx.stream_readers.AnalogSingleChannelReader: fills a 1-D float64 array."""
+
+
 # -- installing the fake package --------------------------------------------------------------------------------------
 def _modules() -> dict[str, types.ModuleType]:
     pkg = types.ModuleType("nidaqmx")
     constants = types.ModuleType("nidaqmx.constants")
     errors = types.ModuleType("nidaqmx.errors")
     error_codes = types.ModuleType("nidaqmx.error_codes")
+    readers = types.ModuleType("nidaqmx.stream_readers")
+    readers.AnalogMultiChannelReader, readers.AnalogSingleChannelReader = (AnalogMultiChannelReader,
+                                                                           AnalogSingleChannelReader)
     for enum_cls in (AcquisitionType, AccelUnits, AccelSensitivityUnits, Coupling, Edge, Slope, ExcitationSource,
                      TerminalConfiguration, TriggerType, VoltageUnits):
         setattr(constants, enum_cls.__name__, enum_cls)
@@ -528,18 +566,18 @@ def _modules() -> dict[str, types.ModuleType]:
     errors.Error, errors.DaqError, errors.DaqReadError = Error, DaqError, DaqReadError
     error_codes.DAQmxErrors = DAQmxErrors
     pkg.Task, pkg.constants, pkg.errors, pkg.error_codes = Task, constants, errors, error_codes
+    pkg.stream_readers = readers
     pkg.DaqError = DaqError
     pkg.__path__ = []  # a package, so ``import nidaqmx.constants`` resolves through sys.modules
     return {"nidaqmx": pkg, "nidaqmx.constants": constants, "nidaqmx.errors": errors,
-            "nidaqmx.error_codes": error_codes}
+            "nidaqmx.error_codes": error_codes, "nidaqmx.stream_readers": readers}
 
 
 @contextlib.contextmanager
 def installed(chassis: Chassis) -> Iterator[types.ModuleType]:
     """Make ``import nidaqmx`` give this emulator wired to ``chassis`` for the duration of the block."""
-    saved = {name: sys.modules.get(name) for name in ("nidaqmx", "nidaqmx.constants", "nidaqmx.errors",
-                                                      "nidaqmx.error_codes")}
     modules = _modules()
+    saved = {name: sys.modules.get(name) for name in modules}
     sys.modules.update(modules)
     _ACTIVE.append(chassis)
     try:
