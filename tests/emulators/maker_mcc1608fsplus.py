@@ -142,6 +142,8 @@ class Usb1608FsPlus:
                 raise _pipe_error()
             return struct.pack("<H", self.raw_code(value, index, 0.0))
         if request == AIN_CONFIG:
+            if running:  # "reads or writes … will result in a bus stall if an AIn scan is currently running"
+                raise _pipe_error()
             return bytes(self.ranges)
         if request == STATUS:
             return struct.pack("<H", self.status)
