@@ -235,11 +235,13 @@ class NiDaq(Lifecycle):
             return {ch.name: ch.ai_coupling.name for ch in self._task.ai_channels}
 
     def _overloaded(self) -> list[str]:
+        """Channels the device reports overloaded; none when it cannot say (values at the channel's range are
+        still flagged by ``make_record``)."""
         stream = self._task.in_stream
         try:
             return list(stream.overloaded_chans) if stream.overloaded_chans_exist else []
-        except self._module().errors.Error:
-            return []  # the device cannot report overloads
+        except (self._module().errors.Error, AttributeError):  # a device (or stand-in) without overload status
+            return []
 
     def _module(self) -> Any:
         if self._ni is None:
