@@ -129,6 +129,38 @@ def test_no_tap_is_a_failed_row_not_a_traceback(tmp_path: Path) -> None:
     assert len(rows) == 1 and rows[0].status == FAILED and "no force above the trigger level" in rows[0].note
 
 
+def test_acquire_on_the_makers_emulated_units(tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same check on the blind emulators written from the makers' documents: MCC unit and MT-SICS balance."""
+    import math
+
+    from tests.emulators import maker_mcc1608fsplus as maker_mcc
+    from tests.emulators import maker_mtsics
+
+    def volts(channel: int, t: float) -> float:  # a 150 N tap at 50 ms; input k rings at its own frequency
+        dt = t - 0.05
+        if dt < 0:
+            return 0.0
+        if channel == 0:
+            return 150.0 * 0.23e-3 * math.sin(math.pi * dt / 0.3e-3) if dt < 0.3e-3 else 0.0
+        return 2.0 * math.exp(-30 * dt) * math.sin(2 * math.pi * (500 + 37 * channel) * dt) * 0.1
+
+    unit = maker_mcc.Usb1608FsPlus(volts)
+    with maker_mtsics.MtSicsBalance(capacity_g=20000.0) as cell:
+        cell.load_g = 11645.0
+        path = devices_file(tmp_path, load_port=cell.port)
+        over = {"usb_backend": maker_mcc.Usb1608FsPlusBackend(unit), "operator": ScriptedOperator()}
+        monkeypatch.setattr(devices_cli, "instrument_overrides", lambda: over)
+        out = labctl_here_json(capsys, "devices", "check", "--devices", str(path), "--acquire", "--seconds", "0.2",
+                               "--timeout", "5")
+    rows = by_item(out["verification"])
+    assert out["ok"] is True, [r for r in out["verification"] if r["status"] == FAILED]
+    assert rows[("F", "input range")]["value"] == "±1 V" and rows[("F", "input range")]["status"] == VERIFIED
+    peak = float(rows[("daq", "trigger level reached")]["value"].split()[1])
+    assert 140.0 < peak <= 150.1  # the 150 N half-sine as 20.5 kS/s samples it
+    assert all(rows[(name, "response to the tap")]["status"] == VERIFIED for name in EXAMPLE_INPUTS)
+    assert rows[("load_cell", "reading")]["value"] == f"{11.645 * G:.2f} N"
+
+
 if __name__ == "__main__":  # print the table of docs/hardware.md: PYTHONPATH=. python -m tests.test_hw_tap_check
     import sys
     import tempfile
