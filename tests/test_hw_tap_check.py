@@ -14,7 +14,7 @@ from drivers.hw.verify import FAILED, NOT_VERIFIED, VERIFIED, TapSettings
 from drivers.operators import ScriptedOperator
 from labctl.cli import devices as devices_cli
 from labctl.hardware import tap_check_devices
-from tests.cli_util import labctl_here, labctl_here_json
+from tests.cli_util import assert_one_line_error, labctl_here, labctl_here_json
 from tests.emulators.fake_nidaqmx import FakeNiHardware
 from tests.emulators.fake_usb import FakeMcc1608, FakeUsbBackend, PlaybackSource
 from tests.emulators.instruments import MtSicsDevice
@@ -159,6 +159,14 @@ def test_acquire_on_the_makers_emulated_units(tmp_path: Path, capsys: Any, monke
     assert 140.0 < peak <= 150.1  # the 150 N half-sine as 20.5 kS/s samples it
     assert all(rows[(name, "response to the tap")]["status"] == VERIFIED for name in EXAMPLE_INPUTS)
     assert rows[("load_cell", "reading")]["value"] == f"{11.645 * G:.2f} N"
+
+
+@pytest.mark.parametrize(("option", "value"), [("--rate", "0"), ("--seconds", "nan"), ("--trigger-n", "-5"),
+                                               ("--timeout", "inf")])
+def test_bad_acquire_options_are_one_line_errors(capsys: Any, option: str, value: str) -> None:
+    proc = labctl_here(capsys, "devices", "check", "--devices", "labctl/data/devices.example.toml", "--acquire",
+                       option, value)
+    assert_one_line_error(proc, f"{option} {float(value):g}: expected a finite positive number")
 
 
 if __name__ == "__main__":  # print the table of docs/hardware.md: PYTHONPATH=. python -m tests.test_hw_tap_check

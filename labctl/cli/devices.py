@@ -4,6 +4,7 @@ record of a light tap, printing what it verified); print the example file."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
@@ -45,6 +46,10 @@ def run_check(args: argparse.Namespace) -> int:
 
     settings = None
     if args.acquire:
+        for option, value in (("--rate", args.rate), ("--seconds", args.seconds), ("--trigger-n", args.trigger_n),
+                              ("--timeout", args.timeout)):
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"{option} {value:g}: expected a finite positive number")
         try:
             settings = TapSettings(args.rate, args.seconds, args.trigger_n, timeout_s=args.timeout)
         except ValueError as exc:
