@@ -2,12 +2,14 @@
 
 The devices file is TOML with units at its edge (mV/N, mV/g, N, g, s); see ``labctl/data/devices.example.toml``.
 ``make_hw_rig`` builds a ``drivers.Rig`` (``labctl.backends`` calls it for ``--backend hw``); ``check_devices``
-opens and probes each configured instrument and says plainly what works and what does not.
+opens and probes each configured instrument and says plainly what works and what does not; ``tap_check_devices``
+takes one triggered record of a light tap and tabulates what it verified.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 from collections.abc import Callable, Iterator
@@ -17,6 +19,8 @@ from typing import Any
 
 from drivers.errors import DeviceError
 from drivers.hw import InputWiring, ManualActuator, ManualHammer, MccUsbDaq, MtSicsLoadCell, NiDaq, SerialHammer
+from drivers.hw.serial_line import HANDSHAKES, parse_serial_format
+from drivers.hw.verify import FAILED, NOT_VERIFIED, Finding, TapSettings, tap_check
 from drivers.interfaces import Channel, Operator, Rig
 from labctl.data import data_path, read_toml
 from labctl.data.schema import Integer, Number, Spec, Table, Tables, Text, Where, check_keys, read, value
@@ -137,9 +141,31 @@ def check_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
     return results
 
 
+def tap_check_devices(devices: str | Path | None, operator: Operator, settings: TapSettings | None = None, *,
+                      usb_backend: Any = None, nidaqmx_module: Any = None) -> list[Finding]:
+    """The first-day check: open the DAQ, hammer and load cell, take one triggered record of a light tap and
+    read the load cell; the table of what was verified and what was not. A device failure is a FAILED row."""
+    settings = settings or TapSettings()
+    rig = make_hw_rig(devices, operator, usb_backend=usb_backend, nidaqmx_module=nidaqmx_module)
+    unverifiable = []
+    if isinstance(rig.daq, MccUsbDaq) and rig.daq.conditioner:
+        unverifiable.append(Finding("daq", "conditioner gain", rig.daq.conditioner, NOT_VERIFIED,
+                                    "part of every sensitivity: check it against the conditioner's front panel"))
+    try:
+        with contextlib.ExitStack() as stack:
+            for instrument in (rig.daq, rig.hammer, rig.load_cell):
+                stack.enter_context(instrument)
+            operator.notify("First-day check: when asked to strike, tap the upper disc LIGHTLY with the hammer "
+                            f"(above {settings.trigger_level_n:g} N, well below the channels' ranges)")
+            return tap_check(rig.daq, rig.hammer, rig.load_cell, settings, unverifiable=unverifiable)
+    except (DeviceError, ValueError) as exc:
+        return [Finding("daq", "test record", "none", FAILED, str(exc))]
+
+
 # ---- sections ----------------------------------------------------------------------------------------------
 LOAD_CELL: dict[str, Spec] = {
     "type": Text(("mtsics",)), "port": Text(), "baudrate": Integer(ge=1, default=9600),
+    "serial_format": Text(default="8N1"), "handshake": Text(HANDSHAKES, default="none"),
     "timeout_s": Number(gt=0, default=2.0), "busy_retries": Integer(ge=0, default=3),
     "stable_timeout_s": Number(gt=0, default=10.0), "gravity_m_per_s2": Number(gt=0, default=STANDARD_GRAVITY_M_PER_S2),
 }
@@ -153,32 +179,77 @@ ACTUATOR: dict[str, Spec] = {"type": Text(("manual",)), "knobs": Integer(ge=1, d
 
 def _load_cell(t: dict[str, Any], where: Where) -> DeviceSpec:
     options = read(t, LOAD_CELL, where)
+    try:
+        parse_serial_format(options["serial_format"])
+    except ValueError:
+        raise where.bad("serial_format", options["serial_format"], "data bits 5-8, parity N/E/O/M/S, stop bits "
+                        "1/1.5/2, e.g. '8N1' or '7E1'") from None
     kind, port = options.pop("type"), options.pop("port")
     return DeviceSpec("load_cell", kind, port, lambda _op: MtSicsLoadCell(port, **options))
 
 
+MCC_INPUTS = 8  # USB-1608FS-Plus: 8 single-ended inputs, no IEPE current (docs/hardware.md, device facts)
+NI_MODULE_INPUTS = {"NI 9234": 4}  # IEPE inputs per module (NI 9234: ai0-ai3, 2 mA IEPE, AC coupled)
+NI_IEPE_CURRENT_A = {"NI 9234": 0.002}
+NI_TERMINAL = re.compile(r"^([^/\s]+)/ai(\d+)$")
+CONDITIONER: dict[str, Spec] = {"model": Text(), "gain": Number(gt=0, default=1.0)}
+
+
+def too_many_for_one_mcc(n: int) -> str:
+    """What a lab must add when a devices file puts more channels on one USB-1608FS-Plus than it has inputs."""
+    modules = -(-n // NI_MODULE_INPUTS["NI 9234"])
+    return (f"{n} channels on one USB-1608FS-Plus, which has {MCC_INPUTS} single-ended inputs and supplies no IEPE "
+            f"current: for {n} IEPE channels use type = \"nidaqmx\" with {modules} × NI 9234 (4 IEPE inputs each), "
+            f"or wire at most {MCC_INPUTS} (the force and {MCC_INPUTS - 1} accelerometers) through an IEPE signal "
+            "conditioner declared in [daq.conditioner]; labctl does not run two units clocked through SYNC")
+
+
 def _daq(t: dict[str, Any], where: Where, usb_backend: Any, nidaqmx_module: Any) -> DeviceSpec:
     kind = value(t, "type", Text(("mcc_usb", "nidaqmx")), where)
-    extra: dict[str, Spec] = {"serial": Text(default="")} if kind == "mcc_usb" else \
-        {"iepe_current_ma": Number(gt=0, unit="ma", default=2.0)}
+    extra: dict[str, Spec] = {"serial": Text(default=""), "conditioner": Table(default=None)} if kind == "mcc_usb" \
+        else {"iepe_current_ma": Number(gt=0, unit="ma", default=2.0),
+              "module": Text(tuple(NI_MODULE_INPUTS), default="NI 9234")}
     options = read(t, {"type": Text(), "channels": Tables(), **extra}, where)
-    wiring = [_channel(row, where.at("channels").at(i), kind) for i, row in enumerate(options["channels"])]
-    try:
-        if kind == "mcc_usb":
-            serial = options["serial"] or None
+    rows = options["channels"]
+    if kind == "mcc_usb":
+        if len(rows) > MCC_INPUTS:
+            raise where.problem(too_many_for_one_mcc(len(rows)))
+        conditioner = read(options["conditioner"], CONDITIONER, where.at("conditioner")) \
+            if "conditioner" in options else None
+        gain = conditioner["gain"] if conditioner else 1.0
+        wiring = [_channel(row, where.at("channels").at(i), kind, gain) for i, row in enumerate(rows)]
+        label = f"{conditioner['model']} (gain ×{gain:g})" if conditioner else ""
+        serial = options["serial"] or None
+        try:
             MccUsbDaq(wiring, serial=serial)  # validate the wiring now, with the file named
-            return DeviceSpec("daq", kind, f"USB-1608FS-Plus {serial or '(first found)'}",
-                              lambda _op: MccUsbDaq(wiring, serial=serial, backend=usb_backend))
-        current_a = options["iepe_current_a"]
+        except ValueError as exc:
+            raise where.problem(str(exc)) from None
+        return DeviceSpec("daq", kind, f"USB-1608FS-Plus {serial or '(first found)'}",
+                          lambda _op: MccUsbDaq(wiring, serial=serial, backend=usb_backend, conditioner=label))
+    module, current_a = options["module"], options["iepe_current_a"]
+    supplied_ma = NI_IEPE_CURRENT_A[module] * 1e3
+    if not math.isclose(current_a * 1e3, supplied_ma, rel_tol=1e-6):
+        raise where.bad("iepe_current_ma", current_a * 1e3, f"{supplied_ma:g} (the {module} supplies {supplied_ma:g} "
+                        "mA only)")
+    wiring = [_channel(row, where.at("channels").at(i), kind) for i, row in enumerate(rows)]
+    for i, w in enumerate(wiring):
+        match = NI_TERMINAL.match(w.terminal)
+        if not match or int(match.group(2)) >= NI_MODULE_INPUTS[module]:
+            n = NI_MODULE_INPUTS[module]
+            raise where.at("channels").at(i).bad(
+                "input", w.terminal, f"'<module>/ai0' … '<module>/ai{n - 1}' (an {module} has {n} inputs: "
+                f"{len(wiring)} channels need {-(-len(wiring) // n)} modules)")
+    try:
         NiDaq(wiring, iepe_current_a=current_a)
     except ValueError as exc:
         raise where.problem(str(exc)) from None
     address = ", ".join(sorted({w.terminal.split("/")[0] for w in wiring}))
-    return DeviceSpec("daq", kind, address,
-                      lambda _op: NiDaq(wiring, iepe_current_a=current_a, nidaqmx_module=nidaqmx_module))
+    return DeviceSpec("daq", kind, address, lambda _op: NiDaq(wiring, iepe_current_a=current_a, module_type=module,
+                                                              nidaqmx_module=nidaqmx_module))
 
 
-def _channel(row: dict[str, Any], where: Where, daq_kind: str) -> InputWiring:
+def _channel(row: dict[str, Any], where: Where, daq_kind: str, conditioner_gain: float = 1.0) -> InputWiring:
+    """One input; the sensitivity at the DAQ input is the sensor's times the IEPE conditioner's gain (MCC)."""
     kind = value(row, "kind", Text(("force", "acceleration")), where)
     force = kind == "force"
     sens_key, range_key = ("sensitivity_mv_per_n", "range_n") if force else ("sensitivity_mv_per_g", "range_g")
@@ -190,7 +261,8 @@ def _channel(row: dict[str, Any], where: Where, daq_kind: str) -> InputWiring:
     if "adc_range_v" in t and daq_kind != "mcc_usb":
         raise where.problem("adc_range_v: only for type = 'mcc_usb' (NI sets its range from range_*)")
     per_unit = 1.0 if force else STANDARD_GRAVITY_M_PER_S2  # mV/g -> V/(m/s²), g -> m/s²
-    channel = Channel(name, kind, "N" if force else "m/s^2", t[sens_key] * MV / per_unit, t[range_key] * per_unit)
+    sensitivity = t[sens_key] * MV / per_unit * conditioner_gain
+    channel = Channel(name, kind, "N" if force else "m/s^2", sensitivity, t[range_key] * per_unit)
     return InputWiring(channel, str(t["input"]), t.get("adc_range_v"))
 
 

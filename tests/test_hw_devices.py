@@ -200,3 +200,84 @@ def test_a_bad_devices_file_is_refused_before_a_campaign_file_exists(tmp_path: P
     proc = labctl("run", "protocols/quick_check.toml", "--backend", "hw", "--devices", str(path), "--out", str(out))
     assert_one_line_error(proc, str(path), "daq.channels[0].sensitivity_mv_per_n = nan")
     assert not out.exists()
+
+
+PAPER_CHANNELS = ["F", *(f"A{i}{axis}" for i in range(1, 5) for axis in "XYZ")]  # the hammer + 4 tri-axial PCB 356A16
+
+
+def daq_section(kind: str, names: list[str], extra: str = "") -> str:
+    """A [daq] with ``names`` wired in order: MCC inputs 0, 1, …; NI four per module, cDAQ1Mod1/ai0 first."""
+    rows = []
+    for i, name in enumerate(names):
+        where = str(i) if kind == "mcc_usb" else f'"cDAQ1Mod{i // 4 + 1}/ai{i % 4}"'
+        sens = "sensitivity_mv_per_n = 0.23\nrange_n = 2200.0" if name == "F" else \
+            "sensitivity_mv_per_g = 10.0\nrange_g = 50.0"
+        rows.append(f'[[daq.channels]]\nname = "{name}"\nkind = "{"force" if name == "F" else "acceleration"}"\n'
+                    f"input = {where}\n{sens}\n")
+    return f'[daq]\ntype = "{kind}"\n{extra}\n' + "\n".join(rows)
+
+
+def test_thirteen_channels_on_one_mcc_unit_are_refused_saying_what_to_add(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, daq=daq_section("mcc_usb", PAPER_CHANNELS))
+    with pytest.raises(InputError) as err:
+        load_devices(path)
+    text = str(err.value)
+    assert text.startswith(f"{path}: daq: 13 channels on one USB-1608FS-Plus, which has 8 single-ended inputs")
+    for fragment in ("no IEPE current", 'type = "nidaqmx" with 4 × NI 9234', "[daq.conditioner]", "SYNC"):
+        assert fragment in text
+    assert "\n" not in text
+
+
+def test_the_paper_rig_on_four_ni_9234_modules(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, daq=daq_section("nidaqmx", PAPER_CHANNELS))
+    rig = make_hw_rig(path, operator=ScriptedOperator(), nidaqmx_module=FakeNiHardware().module())
+    assert isinstance(rig.daq, NiDaq) and [c.name for c in rig.daq.channels] == PAPER_CHANNELS
+    assert rig.description["daq"] == "nidaqmx cDAQ1Mod1, cDAQ1Mod2, cDAQ1Mod3, cDAQ1Mod4"
+    assert rig.daq.module_type == "NI 9234"
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ('"cDAQ1Mod2/ai3"', '"cDAQ1Mod2/ai4"', "daq.channels[1].input = 'cDAQ1Mod2/ai4': expected '<module>/ai0' … "
+     "'<module>/ai3' (an NI 9234 has 4 inputs: 2 channels need 1 modules)"),
+    ('"cDAQ1Mod2/ai3"', '"cDAQ1Mod2"', "daq.channels[1].input = 'cDAQ1Mod2': expected '<module>/ai0'"),
+    ("iepe_current_ma = 2.0", "iepe_current_ma = 4.0",
+     "daq.iepe_current_ma = 4.0: expected 2 (the NI 9234 supplies 2 mA only)"),
+    ("iepe_current_ma = 2.0", 'module = "NI 9239"', "daq.module = 'NI 9239': expected one of NI 9234"),
+])
+def test_ni_channels_must_fit_the_modules(tmp_path: Path, old: str, new: str, message: str) -> None:
+    path = devices_file(tmp_path, daq=NI_DAQ.replace(old, new))
+    with pytest.raises(InputError) as err:
+        load_devices(path, nidaqmx_module=FakeNiHardware().module())
+    assert str(err.value).startswith(f"{path}: {message}"), str(err.value)
+
+
+def test_the_iepe_conditioner_is_a_stage_of_the_sensitivity_chain(tmp_path: Path) -> None:
+    """10 mV/g sensors behind a ×8 conditioner reach the DAQ at 80 mV/g: ±5 V holds the 50 g range (4 V)."""
+    plain = devices_file(tmp_path, daq=daq_section("mcc_usb", PAPER_CHANNELS[:8]))
+    daq = make_hw_rig(plain, operator=ScriptedOperator()).daq
+    assert daq.input_ranges_v["A1X"] == 1.0 and daq.conditioner == ""  # 0.5 V full scale on ±1 V
+    staged = devices_file(tmp_path, daq=daq_section("mcc_usb", PAPER_CHANNELS[:8],
+                                                    '[daq.conditioner]\nmodel = "PCB 482C15"\ngain = 8.0\n'))
+    daq = make_hw_rig(staged, operator=ScriptedOperator()).daq
+    channels = {c.name: c for c in daq.channels}
+    assert channels["A1X"].sensitivity_v_per_unit == pytest.approx(0.08 / G)  # 10 mV/g × 8
+    assert channels["F"].sensitivity_v_per_unit == pytest.approx(0.23e-3 * 8)
+    assert daq.input_ranges_v["A1X"] == 5.0 and daq.input_ranges_v["F"] == 5.0  # 4.05 V full scale on ±5 V
+    assert daq.conditioner == "PCB 482C15 (gain ×8)"
+    bad = devices_file(tmp_path, daq=daq_section("mcc_usb", ["F", "A1Z"], "[daq.conditioner]\ngain = 0\n"))
+    with pytest.raises(InputError, match=r"daq.conditioner: missing key 'model'|daq.conditioner.gain = 0"):
+        load_devices(bad)
+
+
+def test_the_load_cells_serial_format_and_handshake(tmp_path: Path) -> None:
+    path = devices_file(tmp_path, edit=("baudrate = 9600",
+                                        'baudrate = 9600\nserial_format = "7E1"\nhandshake = "xonxoff"'))
+    line = make_hw_rig(path, operator=ScriptedOperator()).load_cell._line
+    assert (line.bytesize, line.parity, line.stopbits, line.handshake) == (7, "E", 1.0, "xonxoff")
+    for edit, message in ((('baudrate = 9600', 'baudrate = 9600\nserial_format = "7X1"'),
+                           "load_cell.serial_format = '7X1': expected data bits 5-8"),
+                          (('baudrate = 9600', 'baudrate = 9600\nhandshake = "dtr"'),
+                           "load_cell.handshake = 'dtr': expected one of none, xonxoff, rtscts")):
+        with pytest.raises(InputError) as err:
+            load_devices(devices_file(tmp_path, edit=edit))
+        assert message in str(err.value)

@@ -195,3 +195,38 @@ def test_reply_parsing_and_units() -> None:
     assert to_newton(2.0, "lb") == pytest.approx(2 * 0.45359237 * 9.80665)
     with pytest.raises(ValueError, match="furlong"):
         to_newton(1.0, "furlong")
+
+
+@pytest.mark.parametrize(("fmt", "handshake", "bits", "parity", "flow"), [
+    ("7E1", "xonxoff", "CS7", "even", "IXON"),
+    ("8N1", "none", "CS8", "none", ""),
+    ("8O2", "rtscts", "CS8", "odd", "CRTSCTS"),
+])
+def test_serial_format_and_handshake_reach_the_port(fmt: str, handshake: str, bits: str, parity: str,
+                                                    flow: str) -> None:
+    """Weighing terminals are often set to 7E1 or XON/XOFF: the line is opened as configured. A Linux pty keeps
+    the flow-control flags (read back with termios) but forces CS8 without parity, so the character format is
+    checked on the opened port instead."""
+    import termios
+
+    with PtySerialEmulator(MtSicsDevice(lambda: 12.5)) as emulator, \
+            MtSicsLoadCell(emulator.port, serial_format=fmt, handshake=handshake, timeout_s=1.0) as cell:
+        assert cell.read().force_n == 12.5
+        iflag, _, cflag, *_ = termios.tcgetattr(emulator._slave)
+        port = cell._line._serial
+        assert port is not None
+        assert (port.bytesize, port.parity, port.stopbits) == (int(bits[2]), parity[0].upper(), int(fmt[2]))
+    assert bool(iflag & termios.IXON) == (flow == "IXON")
+    assert bool(cflag & termios.CRTSCTS) == (flow == "CRTSCTS")
+
+
+@pytest.mark.parametrize(("fmt", "handshake", "fragment"), [("9N1", "none", "serial format '9N1'"),
+                                                            ("8N1", "dtr", "handshake 'dtr'")])
+def test_a_bad_serial_format_is_refused(fmt: str, handshake: str, fragment: str) -> None:
+    with pytest.raises(ValueError, match=fragment):
+        MtSicsLoadCell("/dev/null", serial_format=fmt, handshake=handshake)
+
+
+def test_tare_on_a_level_0_device_says_tare_is_level_1() -> None:
+    with exchange([("T", "ES")]) as cell, pytest.raises(DeviceError, match="'T' not understood.*level 1"):
+        cell.tare()

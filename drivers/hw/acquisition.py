@@ -49,6 +49,11 @@ def check_wiring(device: str, wiring: Sequence[InputWiring]) -> tuple[int, tuple
     return force[0], accel
 
 
+def samples_at_rate(n_samples: int, requested_hz: float, actual_hz: float) -> int:
+    """The sample count that keeps the duration ``n_samples / requested_hz`` at the rate a DAQ really runs at."""
+    return max(2, round(n_samples / requested_hz * actual_hz))
+
+
 def make_record(wiring: Sequence[InputWiring], data: np.ndarray, sample_rate_hz: float, trigger_index: int,
                 timestamp_s: float, clipped: Sequence[str] = ()) -> Record:
     """Split physical-unit rows (in ``wiring`` order) into force and accelerations; flag channels at range."""

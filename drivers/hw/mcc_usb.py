@@ -3,8 +3,8 @@
 The unit has no analog trigger: ``arm`` starts a continuous scan and a reader thread drains the bulk IN
 endpoint (so a slow operator prompt never overruns the 32 k-sample FIFO), converts codes to physical units
 with the factory calibration and the sensor sensitivities, and catches the force crossing in software,
-keeping the pretrigger samples. Up to 8 simultaneously sampled inputs; IEPE sensors need an external
-conditioner (the unit supplies no excitation current).
+keeping the pretrigger samples. Up to 8 simultaneously sampled single-ended inputs (referenced to AGND) at
+±10/±5/±2/±1 V; IEPE sensors need an external conditioner (the unit supplies no excitation current).
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ import usb.util
 
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 from drivers.hw import mcc_protocol as mcc
-from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record
+from drivers.hw.acquisition import InputWiring, StreamTrigger, check_wiring, make_record, samples_at_rate
 from drivers.hw.lifecycle import Lifecycle
+from drivers.hw.verify import NOT_VERIFIED, VERIFIED, Finding
 from drivers.interfaces import Channel, Record, TriggerSpec
 
 _CONTROL_TIMEOUT_MS = 1000
@@ -50,8 +51,9 @@ class MccUsbDaq(Lifecycle):
     """USB-1608FS-Plus: ``configure`` → actual pacer rate; ``arm`` starts the scan; ``acquire`` the record."""
 
     def __init__(self, wiring: Sequence[InputWiring], *, serial: str | None = None, backend: Any = None,
-                 name: str | None = None) -> None:
+                 name: str | None = None, conditioner: str = "") -> None:
         self.name = name or "daq@usb-1608fs-plus" + (f":{serial}" if serial else "")
+        self.conditioner = conditioner  # the IEPE conditioner in front of the inputs, as the devices file names it
         self._force_row, _ = check_wiring(self.name, wiring)
         inputs = [self._input_number(w) for w in wiring]
         self._scan = tuple(sorted(inputs))  # the device returns channels in ascending order
@@ -62,8 +64,9 @@ class MccUsbDaq(Lifecycle):
         self.serial, self._backend = serial, backend
         self._dev: Any = None
         self._cal: mcc.Calibration | None = None
-        self._period = mcc.pacer_period(20480.0)
+        self._period = mcc.pacer_period(20480.0, len(inputs))
         self._n_samples = 65536
+        self.requested_rate_hz = 20480.0
         self._reader: threading.Thread | None = None
         self._stop = threading.Event()
         self._triggered = threading.Event()
@@ -86,28 +89,44 @@ class MccUsbDaq(Lifecycle):
     def sample_rate_hz(self) -> float:
         return mcc.actual_rate_hz(self._period)
 
+    @property
+    def n_samples(self) -> int:
+        """Samples per record at the pacer's rate."""
+        return self._n_samples
+
     def configure(self, sample_rate_hz: float, n_samples: int) -> float:
-        """Set rate and record length; returns the rate the pacer divisor really gives."""
+        """Set rate and record length; returns the rate the pacer divisor really gives.
+
+        The record keeps the duration ``n_samples / sample_rate_hz`` at that rate (65 536 samples at 20 480 Hz
+        asked = 3.2 s = 65 540 samples at 20 481.3 Hz); the pretrigger likewise at ``arm``.
+        """
         if n_samples < 2:
             raise ValueError(f"{self.name}: n_samples = {n_samples!r}: expected at least 2")
-        self._period = mcc.pacer_period(sample_rate_hz)
-        self._n_samples = int(n_samples)
+        self._period = mcc.pacer_period(sample_rate_hz, len(self._scan))
+        self.requested_rate_hz = float(sample_rate_hz)
+        self._n_samples = samples_at_rate(n_samples, sample_rate_hz, self.sample_rate_hz)
         return self.sample_rate_hz
 
     def open(self) -> None:
-        """Find and claim the unit, load its calibration, stop a scan a crashed program left running."""
+        """Find and claim the unit, stop a scan a crashed program left running, then load the calibration.
+
+        The scan is stopped first, as the maker's driver does, so the calibration is never read while the unit
+        is still streaming.
+        """
         if self._dev is not None:
             return
-        dev = self._find()
+        self._dev = self._find()
         try:
-            self._cal = mcc.Calibration.from_memory(self._read_cal(dev))
-        except ValueError as exc:
-            usb.util.dispose_resources(dev)
+            if self._status("open") & mcc.STATUS_SCAN_RUNNING:
+                self._halt_scan("open")
+                self.stale_scan_stopped = True
+            self._cal = mcc.Calibration.from_memory(self._read_cal(self._dev))
+        except (ValueError, DeviceError) as exc:
+            usb.util.dispose_resources(self._dev)
+            self._dev = None
+            if isinstance(exc, DeviceError):
+                raise
             raise DeviceError(self.name, "open", str(exc)) from None
-        self._dev = dev
-        if self._status("open") & mcc.STATUS_SCAN_RUNNING:
-            self._halt_scan("open")
-            self.stale_scan_stopped = True
 
     def close(self) -> None:
         self._stop_reader()
@@ -122,7 +141,10 @@ class MccUsbDaq(Lifecycle):
         """Start a continuous scan and watch it for the force crossing ``trigger.level_n``."""
         self.open()
         self._stop_reader()
-        detector = StreamTrigger(len(self._wiring) * 2, self._n_samples, self._force_row, trigger)
+        pre = samples_at_rate(trigger.pretrigger_samples, self.requested_rate_hz, self.sample_rate_hz) \
+            if trigger.pretrigger_samples else 0
+        detector = StreamTrigger(len(self._wiring) * 2, self._n_samples, self._force_row,
+                                 replace(trigger, pretrigger_samples=pre))
         ranges = bytearray(mcc.N_CHANNELS)
         for w, code in zip(self._wiring, self._ranges, strict=True):
             ranges[self._input_number(w)] = code
@@ -157,8 +179,39 @@ class MccUsbDaq(Lifecycle):
         self.open()
         serial = self._serial_number(self._dev)
         note = "; stopped a scan left running" if self.stale_scan_stopped else ""
-        return (f"USB-1608FS-Plus serial {serial}, {len(self._wiring)} inputs, "
+        return (f"USB-1608FS-Plus serial {serial}, {len(self._wiring)} single-ended inputs, "
                 f"calibration loaded{note}")
+
+    def read_ranges(self) -> dict[str, float | None]:
+        """Each channel's input range (± volts) as the unit reports it (AIN_CONFIG read back); None if unknown."""
+        self.open()
+        try:
+            raw = bytes(self._dev.ctrl_transfer(mcc.REQ_IN, mcc.AIN_CONFIG, 0, 0, mcc.N_CHANNELS, _CONTROL_TIMEOUT_MS))
+        except usb.core.USBError as exc:
+            raise usb_error(self.name, "check", exc) from exc
+        return {w.channel.name: mcc.RANGES_V.get(raw[self._input_number(w)]) for w in self._wiring}
+
+    def settings_report(self) -> list[Finding]:
+        """What the unit confirms after a record (ranges read back) and what it cannot (rate, IEPE, coupling)."""
+        rows = [Finding("daq", "sample rate", f"{self.sample_rate_hz:.6g} Hz", NOT_VERIFIED,
+                        f"40 MHz / ({self._period} + 1) from the pacer divisor; the unit does not report its rate")]
+        asked = self.input_ranges_v
+        for name, volts in self.read_ranges().items():
+            ok = volts == asked[name]
+            rows.append(Finding(name, "input range", f"±{volts:g} V" if volts else "unknown code",
+                                VERIFIED if ok else "FAILED", "read back from the unit" if ok else
+                                f"asked ±{asked[name]:g} V"))
+        stage = self.conditioner or "none declared in the devices file"
+        rows += [Finding("daq", "coupling", "DC, single-ended to AGND", NOT_VERIFIED,
+                         "the unit has no AC coupling; the IEPE conditioner AC couples"),
+                 Finding("daq", "IEPE current", f"from the conditioner: {stage}", NOT_VERIFIED,
+                         "the unit supplies none; the response rows show which sensors are powered")]
+        return rows
+
+    @property
+    def input_ranges_v(self) -> dict[str, float]:
+        """Each channel's input range (± volts) as sent to the unit."""
+        return {w.channel.name: mcc.RANGES_V[code] for w, code in zip(self._wiring, self._ranges, strict=True)}
 
     # ---- streaming ------------------------------------------------------------------------------------
     def _stream(self, detector: StreamTrigger) -> None:

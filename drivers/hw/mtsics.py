@@ -1,7 +1,9 @@
-"""Load cell (or weighing terminal) speaking Mettler Toledo MT-SICS level 0 over a serial port.
+"""Load cell (or weighing terminal) speaking Mettler Toledo MT-SICS over a serial port.
 
-Commands used: ``S`` (stable value), ``SI`` (value now, stable or dynamic), ``Z`` (zero), ``T`` (tare),
-``TAC`` (clear tare), ``I4`` (serial number), ``@`` (reset). A reply is ``<command> <status> [value unit]``,
+Commands used: level 0 ``S`` (stable value), ``SI`` (value now, stable or dynamic), ``Z`` (zero), ``I4`` (serial
+number), ``@`` (reset); level 1 ``T`` (tare) and ``TAC`` (clear tare), used only by ``tare``/``clear_tare`` (a
+level-0-only device answers them ``ES``). The serial format (``8N1``, ``7E1``, …) and handshake (none, XON/XOFF,
+RTS/CTS) must match the terminal's interface settings. A reply is ``<command> <status> [value unit]``,
 the value right-justified, so fields are split on whitespace; status ``S`` stable, ``D`` dynamic, ``A`` done,
 ``I`` busy (retried, then :class:`DeviceBusy`), ``+``/``-`` above/below range. ``ES``/``ET``/``EL`` are the
 syntax, transmission and logical errors. Values are converted to newtons; mass units use ``gravity_m_per_s2``.
@@ -21,6 +23,7 @@ STANDARD_GRAVITY_M_PER_S2 = 9.80665
 FORCE_UNITS_N = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "daN": 10.0, "lbf": 4.4482216152605}
 MASS_UNITS_KG = {"kg": 1.0, "g": 1e-3, "mg": 1e-6, "t": 1e3, "lb": 0.45359237, "oz": 0.028349523125}
 REPLY_HEAD = {"S": "S", "SI": "S", "Z": "Z", "T": "T", "TAC": "TAC", "I4": "I4", "@": "I4"}
+LEVEL_1 = ("T", "TAC")  # MT-SICS level 1: not every level-0 device has them
 ERRORS = {
     "ES": "not understood (ES: syntax error)",
     "ET": "garbled on the way (ET: transmission error)",
@@ -64,12 +67,14 @@ class MtSicsLoadCell(Lifecycle):
 
     def __init__(self, port: str, *, baudrate: int = 9600, timeout_s: float = 2.0, busy_retries: int = 3,
                  retry_delay_s: float = 0.2, stable_timeout_s: float = 10.0,
-                 gravity_m_per_s2: float = STANDARD_GRAVITY_M_PER_S2, name: str | None = None) -> None:
+                 gravity_m_per_s2: float = STANDARD_GRAVITY_M_PER_S2, name: str | None = None,
+                 serial_format: str = "8N1", handshake: str = "none") -> None:
         self.name = name or f"loadcell@{port}"
         self.port = port
         self.busy_retries, self.retry_delay_s = busy_retries, retry_delay_s
         self.stable_timeout_s, self.gravity_m_per_s2 = stable_timeout_s, gravity_m_per_s2
-        self._line = LineTransport(self.name, port, baudrate=baudrate, timeout_s=timeout_s)
+        self._line = LineTransport(self.name, port, baudrate=baudrate, timeout_s=timeout_s,
+                                   serial_format=serial_format, handshake=handshake)
 
     def open(self) -> None:
         self._line.open()
@@ -87,10 +92,11 @@ class MtSicsLoadCell(Lifecycle):
         return self._reading("S", "read stable", self.stable_timeout_s)
 
     def tare(self) -> None:
-        """Tare (``T``): later readings are net of the present force."""
+        """Tare (``T``, MT-SICS level 1): later readings are net of the present force."""
         self._command("T", "tare", ("S",), self.stable_timeout_s)
 
     def clear_tare(self) -> None:
+        """Clear the tare (``TAC``, MT-SICS level 1)."""
         self._command("TAC", "clear tare", ("A",))
 
     def zero(self) -> None:
@@ -135,7 +141,9 @@ class MtSicsLoadCell(Lifecycle):
             if reply.head == "ET" and attempt == 0:
                 continue  # a garbled command is worth sending once more
             if reply.head in ERRORS:
-                raise DeviceError(self.name, action, f"command '{command}' {ERRORS[reply.head]}")
+                level = " — an MT-SICS level 1 command; this device may offer level 0 only" \
+                    if reply.head == "ES" and command in LEVEL_1 else ""
+                raise DeviceError(self.name, action, f"command '{command}' {ERRORS[reply.head]}{level}")
             if reply.status in ok:
                 return reply
             if reply.status == "I":

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import re
 import time
 from collections.abc import Callable
 
@@ -22,6 +23,18 @@ except ImportError:  # not a POSIX system
 from drivers.errors import DeviceBusy, DeviceDisconnected, DeviceError, DeviceTimeout
 
 _POLL_S = 0.02  # granularity of the reply deadline
+SERIAL_FORMAT = re.compile(r"^([5-8])([NEOMS])(1|1\.5|2)$")  # data bits, parity, stop bits: "8N1", "7E1"
+HANDSHAKES = ("none", "xonxoff", "rtscts")
+
+
+def parse_serial_format(text: str) -> tuple[int, str, float]:
+    """``"7E1"`` → (7, "E", 1.0): data bits, parity letter (pyserial's), stop bits; ValueError naming the text."""
+    match = SERIAL_FORMAT.match(text)
+    if not match:
+        raise ValueError(f"serial format {text!r}: expected data bits 5-8, parity N/E/O/M/S and stop bits 1/1.5/2, "
+                         "e.g. '8N1' or '7E1'")
+    stop = float(match.group(3))
+    return int(match.group(1)), match.group(2), stop
 PORT_ERRORS = (serial.SerialException, OSError, _TermiosError)  # how a vanished port shows up
 
 
@@ -50,9 +63,13 @@ class LineTransport:
     """One serial port speaking in CR LF terminated ASCII lines; every failure names ``device``."""
 
     def __init__(self, device: str, port: str, *, baudrate: int = 9600, timeout_s: float = 2.0,
-                 eol: bytes = b"\r\n") -> None:
+                 eol: bytes = b"\r\n", serial_format: str = "8N1", handshake: str = "none") -> None:
         if not timeout_s > 0:
             raise ValueError(f"{device}: timeout_s = {timeout_s!r}: expected a positive number of seconds")
+        if handshake not in HANDSHAKES:
+            raise ValueError(f"{device}: handshake {handshake!r}: expected one of {', '.join(HANDSHAKES)}")
+        self.bytesize, self.parity, self.stopbits = parse_serial_format(serial_format)
+        self.serial_format, self.handshake = serial_format, handshake
         self.device, self.port, self.baudrate, self.timeout_s, self.eol = device, port, baudrate, timeout_s, eol
         self._serial: serial.SerialBase | None = None
         self._pending = bytearray()
@@ -66,8 +83,11 @@ class LineTransport:
         if self.is_open:
             return
         try:
-            self._serial = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=_POLL_S,
-                                                 write_timeout=self.timeout_s, exclusive=True)
+            self._serial = serial.serial_for_url(
+                self.port, baudrate=self.baudrate, bytesize=self.bytesize, parity=self.parity,
+                stopbits=int(self.stopbits) if self.stopbits.is_integer() else self.stopbits,
+                xonxoff=self.handshake == "xonxoff", rtscts=self.handshake == "rtscts", timeout=_POLL_S,
+                write_timeout=self.timeout_s, exclusive=True)
         except (serial.SerialException, OSError, ValueError) as exc:
             self._serial = None
             raise open_error(self.device, self.port, exc) from exc

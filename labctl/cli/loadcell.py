@@ -18,6 +18,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         c = ss.add_parser(name, help=help_text)
         c.add_argument("--port", required=True, help="serial port (/dev/ttyUSB0, COM3) or pyserial URL")
         c.add_argument("--baudrate", type=int, default=9600, help="default 9600")
+        c.add_argument("--format", dest="serial_format", default="8N1", metavar="8N1",
+                       help="data bits, parity, stop bits as the terminal's interface is set (default 8N1; e.g. 7E1)")
+        c.add_argument("--handshake", choices=("none", "xonxoff", "rtscts"), default="none",
+                       help="flow control as the terminal's interface is set (default none)")
         c.add_argument("--timeout", type=float, default=2.0, metavar="S", help="seconds per command (default 2)")
         c.add_argument("--retries", type=int, default=3, help="busy (S I) answers retried (default 3)")
         if name == "read":
@@ -34,8 +38,12 @@ def run(args: argparse.Namespace) -> int:
     from drivers.hw import MtSicsLoadCell
     from labctl.hardware import hardware_errors
 
-    cell = MtSicsLoadCell(args.port, baudrate=args.baudrate, timeout_s=args.timeout, busy_retries=args.retries,
-                          stable_timeout_s=max(args.timeout, 10.0))
+    try:
+        cell = MtSicsLoadCell(args.port, baudrate=args.baudrate, timeout_s=args.timeout, busy_retries=args.retries,
+                              stable_timeout_s=max(args.timeout, 10.0), serial_format=args.serial_format,
+                              handshake=args.handshake)
+    except ValueError as exc:
+        raise InputError(f"--format {args.serial_format}: {exc}") from None
     with hardware_errors(), cell:
         if args.loadcell_command == "read":
             reading = cell.read_stable() if args.stable else cell.read()

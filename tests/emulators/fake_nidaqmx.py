@@ -3,6 +3,13 @@ with the real package when it is installed), behaving like an NI 9234 in a cDAQ 
 
 ``FakeNiHardware`` is the chassis: which devices are present, the supported sample clock (51.2 kS/s ÷ n),
 and the blows to deliver (physical waveforms per channel) the next time a task waits for its trigger.
+
+Maker's facts it enforces (NI USB-9234 User Guide and Specifications: "NI USB-9234 Circuitry", p. 13, and
+"Understanding NI USB-9234 Data Rates", p. 15): IEPE current flows only in AC-coupled mode, so a channel left
+DC coupled reads no sensor signal (the fake's default coupling is DC, so a missing ``ai_coupling`` is seen);
+rates are 13.1072 MHz / 256 / n, n = 1…31 (``rate_rule`` "up" or "nearest" picks how a request is coerced).
+The reference trigger's source must be a virtual channel of the task (nidaqmx ``cfg_anlg_edge_ref_trig``:
+"the name of a virtual channel or terminal").
 """
 
 from __future__ import annotations
@@ -48,6 +55,10 @@ class ForceIEPESensorSensitivityUnits(enum.Enum):
     MILLIVOLTS_PER_NEWTON, MILLIVOLTS_PER_POUND = 15891, 15892
 
 
+class Coupling(enum.Enum):
+    AC, DC, GND = 10045, 10050, 10066
+
+
 class Edge(enum.Enum):
     RISING, FALLING = 10280, 10171
 
@@ -67,7 +78,9 @@ class FakeNiHardware:
     """The chassis and what happens at the rig; ``blow(waveforms)`` queues one impact (name -> values)."""
 
     devices: tuple[str, ...] = ("cDAQ1Mod1", "cDAQ1Mod2", "cDAQ1Mod3", "cDAQ1Mod4")
-    base_rate_hz: float = 51200.0
+    base_rate_hz: float = 13.1072e6 / 256
+    rate_rule: str = "up"  # how a requested rate is coerced to 51.2 kS/s ÷ n: "up" or "nearest"
+    product_type: str = "NI 9234"
     reserved: bool = False
     removed: bool = False
     blows: list[dict[str, np.ndarray]] = field(default_factory=list)
@@ -75,6 +88,8 @@ class FakeNiHardware:
 
     def coerce_rate(self, rate: float) -> float:
         supported = [self.base_rate_hz / n for n in range(1, 32)]
+        if self.rate_rule == "nearest":
+            return min(supported, key=lambda r: abs(r - rate))
         return min((r for r in supported if r >= rate * (1 - 1e-9)), default=self.base_rate_hz)
 
     def blow(self, waveforms: dict[str, np.ndarray]) -> None:
@@ -91,8 +106,9 @@ class FakeNiHardware:
 
         constants = SimpleNamespace(**{c.__name__: c for c in (
             AcquisitionType, Slope, TerminalConfiguration, ExcitationSource, AccelUnits, AccelSensitivityUnits,
-            ForceUnits, ForceIEPESensorSensitivityUnits, Edge)}, READ_ALL_AVAILABLE=-1)
-        local = SimpleNamespace(devices=[SimpleNamespace(name=d) for d in hardware.devices])
+            ForceUnits, ForceIEPESensorSensitivityUnits, Edge, Coupling)}, READ_ALL_AVAILABLE=-1)
+        local = SimpleNamespace(devices=[SimpleNamespace(name=d, product_type=hardware.product_type)
+                                         for d in hardware.devices])
         return SimpleNamespace(Task=task, constants=constants, errors=SimpleNamespace(Error=Error, DaqError=DaqError),
                                system=SimpleNamespace(System=SimpleNamespace(local=lambda: local)))
 
@@ -105,6 +121,29 @@ class _Chan:
     min_val: float
     max_val: float
     settings: dict[str, Any]
+    ai_coupling: Coupling = Coupling.DC
+
+    @property
+    def ai_min(self) -> float:
+        return self.min_val
+
+    @property
+    def ai_max(self) -> float:
+        return self.max_val
+
+    @property
+    def ai_excit_val(self) -> float:
+        return float(self.settings.get("current_excit_val", 0.0))
+
+    @property
+    def ai_excit_src(self) -> Any:
+        return self.settings.get("current_excit_source", ExcitationSource.NONE)
+
+    @property
+    def powered(self) -> bool:
+        """The IEPE sensor gets its current: internal excitation and AC coupling (none in DC-coupled mode)."""
+        return (self.settings.get("current_excit_source") is ExcitationSource.INTERNAL
+                and self.ai_coupling is Coupling.AC)
 
 
 class _AIChannels:
@@ -112,13 +151,16 @@ class _AIChannels:
         self.task = task
         self.added: list[_Chan] = []
 
+    def __iter__(self) -> Any:
+        return iter(self.added)
+
     def add_ai_accel_chan(self, physical_channel: str, name_to_assign_to_channel: str = "",
                           terminal_config: Any = TerminalConfiguration.DEFAULT, min_val: float = -5.0,
                           max_val: float = 5.0, units: Any = AccelUnits.G, sensitivity: float = 1000.0,
                           sensitivity_units: Any = AccelSensitivityUnits.MILLIVOLTS_PER_G,
                           current_excit_source: Any = ExcitationSource.INTERNAL, current_excit_val: float = 0.004,
-                          custom_scale_name: str = "") -> None:
-        self._add(physical_channel, name_to_assign_to_channel, "accel", min_val, max_val, units=units,
+                          custom_scale_name: str = "") -> _Chan:
+        return self._add(physical_channel, name_to_assign_to_channel, "accel", min_val, max_val, units=units,
                   sensitivity=sensitivity, sensitivity_units=sensitivity_units,
                   current_excit_source=current_excit_source, current_excit_val=current_excit_val)
 
@@ -127,15 +169,17 @@ class _AIChannels:
                                max_val: float = 2000.0, units: Any = ForceUnits.NEWTONS, sensitivity: float = 2.25,
                                sensitivity_units: Any = ForceIEPESensorSensitivityUnits.MILLIVOLTS_PER_NEWTON,
                                current_excit_source: Any = ExcitationSource.INTERNAL,
-                               current_excit_val: float = 0.004, custom_scale_name: str = "") -> None:
-        self._add(physical_channel, name_to_assign_to_channel, "force", min_val, max_val, units=units,
+                               current_excit_val: float = 0.004, custom_scale_name: str = "") -> _Chan:
+        return self._add(physical_channel, name_to_assign_to_channel, "force", min_val, max_val, units=units,
                   sensitivity=sensitivity, sensitivity_units=sensitivity_units,
                   current_excit_source=current_excit_source, current_excit_val=current_excit_val)
 
-    def _add(self, physical: str, name: str, kind: str, low: float, high: float, **settings: Any) -> None:
+    def _add(self, physical: str, name: str, kind: str, low: float, high: float, **settings: Any) -> _Chan:
         if physical.split("/")[0] not in self.task.hardware.devices:
             raise DaqError(f"Device identifier is invalid: {physical}", -200220)
-        self.added.append(_Chan(physical, name or physical, kind, low, high, settings))
+        chan = _Chan(physical, name or physical, kind, low, high, settings)
+        self.added.append(chan)
+        return chan
 
 
 class _Timing:
@@ -196,8 +240,8 @@ class FakeTask:
         if self.hardware.reserved:
             raise DaqError("The specified resource is reserved.", -50103, self.name)
         trig = self.triggers.reference_trigger
-        if trig.source not in {c.physical for c in self.ai_channels.added}:
-            raise DaqError(f"Trigger source {trig.source!r} is not a channel of the task", -200265, self.name)
+        if trig.source not in {c.name for c in self.ai_channels.added}:
+            raise DaqError(f"Trigger source {trig.source!r} is not a virtual channel of the task", -200265, self.name)
         self.running, self._data = True, None
         self.starts += 1
 
@@ -224,10 +268,12 @@ class FakeTask:
     def _triggered(self, blow: dict[str, np.ndarray]) -> np.ndarray:
         """Place the blow so the first sample at or above the level is the first post-trigger sample."""
         n, trig = self.timing.samps_per_chan, self.triggers.reference_trigger
-        source = next(c for c in self.ai_channels.added if c.physical == trig.source)
+        source = next(c for c in self.ai_channels.added if c.name == trig.source)
         onset = int(np.argmax(np.asarray(blow[source.name]) >= trig.level))
         data = np.zeros((len(self.ai_channels.added), n))
         for row, chan in enumerate(self.ai_channels.added):
+            if not chan.powered:
+                continue  # an unpowered IEPE sensor gives no signal
             wave = np.asarray(blow.get(chan.name, np.zeros(n)), dtype=float)[max(0, onset - trig.pretrigger):]
             start = max(0, trig.pretrigger - onset)
             take = min(n - start, wave.size)

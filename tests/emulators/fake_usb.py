@@ -4,6 +4,12 @@ source produces, in 64-byte packets of raw codes with the unit's calibration app
 
 Failure injection: permission denied on open, busy interface, a scan left running, FIFO overrun (stall),
 unplug (ENODEV) after some scans, zero-length packets.
+
+The device's electrical facts are the maker's, written here independently of ``drivers.hw.mcc_protocol`` (so
+a wrong table in the driver is caught, not mirrored): ``MAKER_RANGES_V`` from the USB-1608FS-Plus User's
+Guide (Functional Details, "Analog input", p. 11: ±10, ±5, ±2, ±1 V) with the codes of MCC's uldaq
+``AiUsb1608fsPlus::mapRangeCode`` (0, 1, 3, 5); any other code in AIN_CONFIG is refused with a stall.
+Calibration slots other than 0, 1, 3, 5 are left erased (0xFF), as the maker's driver never reads them.
 """
 
 from __future__ import annotations
@@ -21,6 +27,10 @@ import usb.backend
 import usb.core
 
 from drivers.hw import mcc_protocol as mcc
+
+MAKER_RANGES_V = {0: 10.0, 1: 5.0, 3: 2.0, 5: 1.0}  # AIN_CONFIG code -> ± volts (see the module docstring)
+MAKER_MAX_AGGREGATE_HZ = 400e3  # DAQFlex hardware reference, USB-1608FS-Plus: 400 kS/s aggregate streaming
+MAKER_PACER_HZ = 40e6  # Linux usb-1608FS-Plus.c, AInScanStart: pacer_period = 40 MHz / rate - 1
 
 SignalSource = Callable[[int], np.ndarray]  # n scans -> volts (8, n), successive calls continue the stream
 
@@ -52,9 +62,12 @@ class PlaybackSource:
 
 
 def default_calibration() -> tuple[np.ndarray, np.ndarray]:
-    """Slopes and intercepts like a real unit's: close to 1 and 0, different per range and channel."""
+    """Slopes and intercepts like a real unit's: close to 1 and 0 in the range slots, erased (NaN) elsewhere."""
     grid = np.arange(8)[:, None] * 8 + np.arange(8)[None, :]
-    return 1.0 + 1e-3 * np.sin(grid), 3.0 * np.cos(grid)
+    slope, intercept = 1.0 + 1e-3 * np.sin(grid), 3.0 * np.cos(grid)
+    unused = [slot for slot in range(8) if slot not in MAKER_RANGES_V]
+    slope[unused] = intercept[unused] = np.nan  # 0xFFFFFFFF as float32
+    return slope, intercept
 
 
 class FakeMcc1608:
@@ -84,7 +97,7 @@ class FakeMcc1608:
 
     def leave_scan_running(self) -> None:
         """As after a crashed program: a scan running, its data waiting."""
-        self.running, self.mask, self.period = True, 0xFF, mcc.pacer_period(1000.0)
+        self.running, self.mask, self.period = True, 0xFF, round(MAKER_PACER_HZ / 1000.0) - 1
         self._out.extend(b"\x00\x80" * 512)
 
     # ---- USB requests ------------------------------------------------------------------------------------
@@ -105,6 +118,7 @@ class FakeMcc1608:
         if request == mcc.SERIAL:
             return self.serial.encode("ascii")[:8].ljust(8, b"\x00")
         if request == mcc.CAL_MEMORY:
+            self.log.append("CAL" + (" (scan running)" if self.running else ""))
             table = np.stack([self.slope, self.intercept], axis=-1).astype("<f4").tobytes()
             return (table + b"\xff" * 768)[value:value + length]
         if request == mcc.AIN_CONFIG:
@@ -125,6 +139,8 @@ class FakeMcc1608:
         elif request == mcc.AIN_CLR_FIFO:
             self._out.clear()
         elif request == mcc.AIN_CONFIG:
+            if self.running or any(code not in MAKER_RANGES_V for code in payload[:8]):
+                raise usb.core.USBError("Pipe error", -9, errno.EPIPE)  # a code the unit does not have: stall
             self.ranges = list(payload[:8])
 
     def bulk_in(self, size: int) -> bytes:
@@ -152,8 +168,12 @@ class FakeMcc1608:
         if self.overrun_after_scans is not None and self.scans_sent + scans > self.overrun_after_scans:
             self.running, self.overrun, self.stalled = False, True, True
             raise usb.core.USBError("Pipe error", -9, errno.EPIPE)
+        rate = MAKER_PACER_HZ / (self.period + 1)
+        if rate * len(channels) > MAKER_MAX_AGGREGATE_HZ:  # the host cannot drain it: the FIFO overruns
+            self.overrun_after_scans = self.scans_sent if self.overrun_after_scans is None else \
+                self.overrun_after_scans
         volts = self.source(scans)[channels]
-        ranges = np.array([mcc.RANGES_V[self.ranges[ch]] for ch in channels])[:, None]
+        ranges = np.array([MAKER_RANGES_V[self.ranges[ch]] for ch in channels])[:, None]
         ideal = volts / ranges * 32768.0 + 32768.0
         slope = np.array([self.slope[self.ranges[ch], ch] for ch in channels])[:, None]
         intercept = np.array([self.intercept[self.ranges[ch], ch] for ch in channels])[:, None]
