@@ -7,7 +7,6 @@ does not import the sequencer, and it keeps no counters: what was taken is what 
 
 from __future__ import annotations
 
-import time
 from collections.abc import Mapping, Sequence
 from typing import Protocol
 
@@ -82,14 +81,13 @@ class StepRunner:
 
     def read_load(self, pos: ev.Position) -> tuple[float, bool]:
         """Poll the load cell until it reports a stable value (or the settle time runs out)."""
-        lo = self.e.protocol.loading
-        deadline = time.monotonic() + lo.settle_timeout_s
+        lo, clock = self.e.protocol.loading, self.rig.clock
+        deadline = clock.now() + lo.settle_timeout_s
         while True:
             load, stable = self.read_load_once(pos)
-            if stable or time.monotonic() >= deadline:
+            if stable or clock.now() >= deadline:
                 return load, stable
-            if lo.settle_poll_s:
-                time.sleep(lo.settle_poll_s)
+            clock.sleep(lo.settle_poll_s)
 
     # --- safe points ------------------------------------------------------------------------------------
     def safe_point(self, where: Where, pos: ev.Position, load_n: float | None = None,
