@@ -28,7 +28,7 @@ from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 from labctl.storage.records import RepetitionCurve
-from labctl.storage.writer import CampaignWriter
+from labctl.storage.store import CampaignStore
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
 ADDED_ATTR = "added_steps"
@@ -59,9 +59,10 @@ def specimen_attrs(spec: SpecimenSpec) -> dict:
 
 
 class Engine:
-    """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``writer``'s file."""
+    """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``store`` (an HDF5 file
+    through ``CampaignWriter``, or memory)."""
 
-    def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, writer: CampaignWriter,
+    def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, store: CampaignStore,
                  bus: ev.EventBus | None = None, control: RunControl | None = None,
                  conditions: Sequence[Condition] = (), advisor: StepAdvisor | None = None,
                  budget_steps: int = 0) -> None:
@@ -70,20 +71,20 @@ class Engine:
         With an ``advisor`` (adaptive campaign), each repetition gets up to ``budget_steps`` extra load steps
         after its base steps, chosen by the advisor from everything measured so far in the file.
         """
-        self.protocol, self.rig_config, self.rig_factory, self.writer = protocol, rig_config, rig_factory, writer
+        self.protocol, self.rig_config, self.rig_factory, self.store = protocol, rig_config, rig_factory, store
         self.conditions: tuple[Condition, ...] = (*DEFAULT_CONDITIONS, *conditions)
         self.bus = bus or ev.EventBus()
         self.control = control or RunControl()
         self.t0 = time.monotonic()
         acq = protocol.acquisition
-        self.runlog = RunLog(writer, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
+        self.runlog = RunLog(store, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
         self.call = GuardedCaller(acq.timeout_s, acq.retries,
                                   on_retry=lambda m: self.notify("warning", m, kind="retry"))
         self.advisor, self.budget_steps = advisor, budget_steps if advisor is not None else 0
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
         steps = sum(p.steps_estimate + self.budget_steps for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
-        self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
+        self.eta = campaign_estimator(store.completed_steps(), steps * protocol.repetitions.count, acq.impacts_per_step,
                                       acq.samples / acq.sample_rate_hz)
         self.bus.subscribe(self.eta)
 
@@ -115,20 +116,20 @@ class Engine:
 
     @property
     def impacts_done(self) -> int:
-        """Accepted impacts in the file (the file is the only count)."""
-        return self.writer.accepted_count()
+        """Accepted impacts in the store (the store is the only count)."""
+        return self.store.accepted_count()
 
     # --- campaign -----------------------------------------------------------------------------------------
     def run(self) -> Outcome:
         """Run (or continue) the whole campaign; the file's status tells how it ended."""
-        resumed = self.writer.has_series()
-        self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.writer.path,
-                                     str(self.writer.attrs.get("backend", "")), len(self.protocol.specimens),
+        resumed = self.store.has_series()
+        self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.store.path,
+                                     str(self.store.attrs.get("backend", "")), len(self.protocol.specimens),
                                      self.protocol.repetitions.count, tuple(p.steps_estimate for p in self.plans),
                                      self.protocol.acquisition.impacts_per_step, resumed))
-        outcome = Outcome("complete", self.writer.path)
+        outcome = Outcome("complete", self.store.path)
         reps = self.protocol.repetitions.count
-        if resumed and all(len(self.writer.complete_runs(i)) >= reps
+        if resumed and all(len(self.store.complete_runs(i)) >= reps
                            for i in range(1, len(self.protocol.specimens) + 1)):
             outcome.message = NOTHING_LEFT
         try:
@@ -144,17 +145,17 @@ class Engine:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
         finally:
             self.call.close()
-            outcome.curves = self.writer.curves()
+            outcome.curves = self.store.curves()
             unstored = self.runlog.close()
             if unstored:
                 outcome.message = "; ".join(m for m in (outcome.message, unstored) if m)
-            self.writer.set_status(outcome.status, outcome.message)
-            self.emit(ev.CampaignFinished(self.now(), outcome.status, self.writer.path, outcome.message))
+            self.store.set_status(outcome.status, outcome.message)
+            self.emit(ev.CampaignFinished(self.now(), outcome.status, self.store.path, outcome.message))
         return outcome
 
     def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> None:
-        self.writer.series(index, specimen_attrs(spec))
-        runs_done = self.writer.complete_runs(index)
+        self.store.series(index, specimen_attrs(spec))
+        runs_done = self.store.complete_runs(index)
         if len(runs_done) >= self.protocol.repetitions.count:
             return
         with ExitStack() as stack:
@@ -168,22 +169,22 @@ class Engine:
             if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
                 self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)",
                             position=ev.Position(index, 0))
-            if not self.writer.is_mounted(index):
+            if not self.store.is_mounted(index):
                 self.prompt(rig, f"Mount {spec.label} between the rails (rail Ra {spec.rail_ra_m * 1e6:g} µm) and "
                             "set the knobs to the preload", "mount_specimen", position=ev.Position(index, 0))
-                self.writer.mark_mounted(index)
+                self.store.mark_mounted(index)
             for run in range(1, self.protocol.repetitions.count + 1):
                 if run in runs_done:
                     continue
                 pos = ev.Position(index, run)
                 self.checkpoint(pos)
-                started = self.writer.run_started(index, run)
+                started = self.store.run_started(index, run)
                 if run > 1 and not started:
                     self._unload(rig)
                     self.prompt(rig, f"Lift the upper disc and rotate the rollers about "
                                 f"±{self.protocol.repetitions.rotate_rollers_deg:g}°, then lower the disc",
                                 "rotate_rollers", position=pos)
-                self.writer.run(index, run)
+                self.store.run(index, run)
                 self.emit(ev.RunStarted(self.now(), pos, spec.label))
                 self._run(rig, index, run, spec, plan)
             self._unload(rig)
@@ -216,16 +217,16 @@ class Engine:
         """Ask the advisor once per repetition (the answer is stored in the file before the first added step,
         so a resumed campaign runs exactly the steps planned), then run them as ordinary steps."""
         assert self.advisor is not None
-        stored = self.writer.run_attrs(series, run).get(ADDED_ATTR)
+        stored = self.store.run_attrs(series, run).get(ADDED_ATTR)
         if stored is None:
             try:
-                added = self.advisor.extra_steps(self.writer.stiffness_points(), spec, self.budget_steps)
+                added = self.advisor.extra_steps(self.store.stiffness_points(), spec, self.budget_steps)
             except LabctlError as exc:
                 self.notify("warning", f"no steps added: the planner could not plan ({exc})",
                             position=ev.Position(series, run))
                 added = []
             added = added[: self.budget_steps]
-            self.writer.set_run_attrs(series, run, {ADDED_ATTR: json.dumps([asdict(a) for a in added]),
+            self.store.set_run_attrs(series, run, {ADDED_ATTR: json.dumps([asdict(a) for a in added]),
                                                     "base_steps": base_steps})
         else:
             added = [AddedStep(**a) for a in (json.loads(stored) if isinstance(stored, str) else stored)]
@@ -239,7 +240,7 @@ class Engine:
                                                       "plan_score": a.score, "plan_load_n": a.target_load_n})
 
     def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> RepetitionCurve:
-        curve = self.writer.store_curve(series, run)
+        curve = self.store.store_curve(series, run)
         refs = reference_curves(spec.case(), spec.kind, curve.load_n) if curve.load_n.size else {}
         self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(curve.load_n),
                                   tuple(curve.stiffness_n_per_m), {k: tuple(v) for k, v in refs.items()}))

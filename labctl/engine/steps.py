@@ -2,7 +2,7 @@
 verdicts), identify the step through the one step pipeline, store the result.
 
 The runner talks to the engine only through ``Services`` (a Protocol the engine satisfies), so this module
-does not import the sequencer, and it keeps no counters: what was taken is what the file holds.
+does not import the sequencer, and it keeps no counters: what was taken is what the store holds.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol as LabProtocol
 from labctl.recording import Delivered, check_record, process_step
 from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, Verdict
-from labctl.storage.writer import CampaignWriter
+from labctl.storage.store import CampaignStore
 
 
 class Interlock(LabctlError):
@@ -29,10 +29,10 @@ class Interlock(LabctlError):
 
 
 class Services(Protocol):
-    """What a step needs from the engine: configuration, the file, guarded calls, events and prompts."""
+    """What a step needs from the engine: configuration, the store, guarded calls, events and prompts."""
 
     protocol: LabProtocol
-    writer: CampaignWriter
+    store: CampaignStore
     control: RunControl
     conditions: Sequence[Condition]
     rig_config: RigConfig
@@ -70,7 +70,7 @@ class StepRunner:
 
     def completed_load(self, step: int) -> float | None:
         """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
-        return self.e.writer.step_load(self.series, self.run, step, complete_only=True)
+        return self.e.store.step_load(self.series, self.run, step, complete_only=True)
 
     def read_load_once(self, pos: ev.Position) -> tuple[float, bool]:
         """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable."""
@@ -131,26 +131,26 @@ class StepRunner:
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
         self.safe_point("before_step", pos, load_n=load)
-        if e.writer.step_load(self.series, self.run, step) is None:
-            e.writer.step(self.series, self.run, step, {
+        if e.store.step_load(self.series, self.run, step) is None:
+            e.store.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
                 "load_stable": stable, "expected_load_n": expected, **(attrs or {})})
-        step_load = e.writer.step_load(self.series, self.run, step)
+        step_load = e.store.step_load(self.series, self.run, step)
         assert step_load is not None
         self._take_impacts(step, step_load)
         load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
         trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)
         flags = {t.condition: True for t in trips}
-        e.writer.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
+        e.store.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
         self._identify(step, pos, step_load)
         return step_load
 
     def _take_impacts(self, step: int, step_load: float) -> None:
         e, acq = self.e, self.e.protocol.acquisition
-        infos = e.writer.impact_infos(self.series, self.run, step)
+        infos = e.store.impact_infos(self.series, self.run, step)
         attempt = infos[-1].attempt if infos else 0
         while True:
-            infos = e.writer.impact_infos(self.series, self.run, step)
+            infos = e.store.impact_infos(self.series, self.run, step)
             accepted = sum(i.accepted for i in infos)
             pos = ev.Position(self.series, self.run, step, accepted + 1)
             e.checkpoint(pos)  # a verdict given while paused applies here
@@ -179,11 +179,11 @@ class StepRunner:
             self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since",
                           kind="verdict")
             return False
-        infos = self.e.writer.impact_infos(self.series, self.run, step)
+        infos = self.e.store.impact_infos(self.series, self.run, step)
         latest = next((i for i in infos if i.attempt == attempt), None)
         if latest is None or latest.accepted == verdict:
             return False
-        self.e.writer.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
+        self.e.store.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
         self.e.notify("info", f"impact {attempt} of step {step} {'accepted' if verdict else 'rejected'} "
                       "by the operator", kind="verdict")
         return True
@@ -194,7 +194,7 @@ class StepRunner:
                                         tuple(record.channels), record.trigger_index, record.timestamp_s,
                                         tuple(record.clipped), calibration_of(self.rig, record.channels)),
                               attempt, self.checks)
-        self.e.writer.write_impact(self.series, self.run, step, impact)
+        self.e.store.write_impact(self.series, self.run, step, impact)
         info = impact.info
         cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
         self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
@@ -202,7 +202,7 @@ class StepRunner:
                         tuple(record.channels), range_use(self.rig, record)))
         verdict = self._review(step, impact, pos)
         if verdict is not None:
-            self.e.writer.set_verdict(self.series, self.run, step, attempt, verdict)
+            self.e.store.set_verdict(self.series, self.run, step, attempt, verdict)
             if verdict.accepted != impact.accepted:
                 verb = "accepted" if verdict.accepted else "rejected"
                 self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator ({verdict.reason})",
@@ -228,8 +228,8 @@ class StepRunner:
 
     def _identify(self, step: int, pos: ev.Position, load: float) -> None:
         e = self.e
-        result = process_step(e.writer.impacts(self.series, self.run, step), e.rig_config, self.checks)
-        e.writer.write_step_result(self.series, self.run, step, result)
+        result = process_step(e.store.impacts(self.series, self.run, step), e.rig_config, self.checks)
+        e.store.write_step_result(self.series, self.run, step, result)
         if not result.identified:
             e.emit(ev.StepFailed(e.now(), pos, result.error))
             return
