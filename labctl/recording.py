@@ -1,4 +1,4 @@
-"""The one step pipeline: check a delivered record → store it → identify the step from its stored impacts.
+"""The one step pipeline: check a delivered ``Record`` → store it → identify the step from its stored impacts.
 
 The engine (live), the UFF importer and ``labctl process`` (reprocessing) all call ``check_record`` and
 ``process_step``, so an impact's stored verdict means the same everywhere: an impact the operator accepted
@@ -8,11 +8,11 @@ is used even when a check flagged it; one the operator rejected is never used.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from datetime import UTC, datetime
 
 import numpy as np
 
+from drivers.interfaces import Record
 from labctl.physics.rig_config import RigConfig
 from labctl.processing import CheckConfig, ProcessingError, check_impact, identify
 from labctl.storage.reader import stack_impacts
@@ -29,24 +29,14 @@ from labctl.storage.records import (
     step_result,
 )
 
-
-@dataclass(frozen=True)
-class Delivered:
-    """What a DAQ (or an imported file) delivered for one blow, before any check."""
-
-    sample_rate_hz: float
-    force_n: np.ndarray
-    accel_m_per_s2: np.ndarray
-    channels: tuple[str, ...]
-    trigger_index: int = 0
-    timestamp_s: float | None = None
-    clipped: tuple[str, ...] = ()
-    calibration: Calibration = Calibration()
+UNCALIBRATED = Calibration()  # a source that gives no sensitivities or ranges (an imported file)
 
 
-def check_record(data: Delivered, attempt: int, checks: CheckConfig) -> ImpactRecord:
-    """The impact record of one delivered blow with the automatic checks' verdict (source "checks")."""
-    cal = data.calibration
+def check_record(data: Record, attempt: int, checks: CheckConfig, calibration: Calibration = UNCALIBRATED
+                 ) -> ImpactRecord:
+    """The impact record of one blow as the DAQ (or an imported file) delivered it, with the channels'
+    ``calibration`` and the automatic checks' verdict (source "checks"); the traces are kept as delivered."""
+    cal = calibration
     ranges = list(cal.accel_range_m_per_s2) if cal.accel_range_m_per_s2 is not None else None
     check = check_impact(np.asarray(data.force_n, dtype=float), np.asarray(data.accel_m_per_s2, dtype=float),
                          data.sample_rate_hz, index=attempt, accel_ranges=ranges, force_range_n=cal.force_range_n,

@@ -28,7 +28,7 @@ from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 from labctl.storage.records import RepetitionCurve
-from labctl.storage.store import CampaignStore
+from labctl.storage.store import CampaignStore, StepRow
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
 ADDED_ATTR = "added_steps"
@@ -87,6 +87,7 @@ class Engine:
         self.eta = campaign_estimator(store.completed_steps(), steps * protocol.repetitions.count, acq.impacts_per_step,
                                       acq.samples / acq.sample_rate_hz)
         self.bus.subscribe(self.eta)
+        self.curves: dict[tuple[int, int], RepetitionCurve] = {}  # the repetitions finished in this session
 
     # --- events -------------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -145,7 +146,8 @@ class Engine:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
         finally:
             self.call.close()
-            outcome.curves = self.store.curves()
+            resumed_runs = resumed and any(self.store.complete_runs(i) for i in range(1, len(self.plans) + 1))
+            outcome.curves = self.store.curves() if resumed_runs else [self.curves[k] for k in sorted(self.curves)]
             unstored = self.runlog.close()
             if unstored:
                 outcome.message = "; ".join(m for m in (outcome.message, unstored) if m)
@@ -210,12 +212,14 @@ class Engine:
                 break
             step += 1
         if self.advisor is not None:
-            self._added_steps(steps, series, run, spec, step)
-        return self._store_curve(series, run, spec)
+            step = self._added_steps(steps, series, run, spec, step)
+        held = [steps.rows.get(n) for n in range(1, step + 1)]
+        return self._store_curve(series, run, spec, None if None in held else held)  # type: ignore[arg-type]
 
-    def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> None:
+    def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> int:
         """Ask the advisor once per repetition (the answer is stored in the file before the first added step,
-        so a resumed campaign runs exactly the steps planned), then run them as ordinary steps."""
+        so a resumed campaign runs exactly the steps planned), then run them as ordinary steps; returns the
+        repetition's last step."""
         assert self.advisor is not None
         stored = self.store.run_attrs(series, run).get(ADDED_ATTR)
         if stored is None:
@@ -238,9 +242,14 @@ class Engine:
             self.checkpoint(ev.Position(series, run, step))
             steps.run_step(step, a.angle_deg, total, {"added_by": "plan", "plan_reason": a.reason,
                                                       "plan_score": a.score, "plan_load_n": a.target_load_n})
+        return total
 
-    def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> RepetitionCurve:
-        curve = self.store.store_curve(series, run)
+    def _store_curve(self, series: int, run: int, spec: SpecimenSpec, rows: list[StepRow] | None
+                     ) -> RepetitionCurve:
+        """Store the repetition's curve, built once from the step results this session holds (``rows``; None
+        when some steps were finished before a resume: the store builds it from its results)."""
+        curve = self.store.store_curve(series, run, rows)
+        self.curves[(series, run)] = curve
         refs = reference_curves(spec.case(), spec.kind, curve.load_n) if curve.load_n.size else {}
         self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(curve.load_n),
                                   tuple(curve.stiffness_n_per_m), {k: tuple(v) for k, v in refs.items()}))

@@ -8,6 +8,7 @@ does not import the sequencer, and it keeps no counters: what was taken is what 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Protocol
 
 import numpy as np
@@ -19,9 +20,9 @@ from labctl.engine.control import RunControl
 from labctl.errors import LabctlError
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol as LabProtocol
-from labctl.recording import Delivered, check_record, process_step
+from labctl.recording import check_record, process_step
 from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, Verdict
-from labctl.storage.store import CampaignStore
+from labctl.storage.store import CampaignStore, StepRow
 
 
 class Interlock(LabctlError):
@@ -67,6 +68,8 @@ class StepRunner:
     def __init__(self, services: Services, rig: Rig, series: int, run: int, cap_n: float) -> None:
         self.e, self.rig, self.series, self.run, self.cap_n = services, rig, series, run, cap_n
         self.checks = services.protocol.checks
+        self.rows: dict[int, StepRow] = {}  # the steps identified in this session: what the curve is built from
+        self._held: dict[int, ImpactRecord] = {}  # the current step's impacts as stored, by attempt
 
     def completed_load(self, step: int) -> float | None:
         """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
@@ -142,11 +145,12 @@ class StepRunner:
         trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)
         flags = {t.condition: True for t in trips}
         e.store.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
-        self._identify(step, pos, step_load)
+        self._identify(step, pos, step_load, angle_deg)
         return step_load
 
     def _take_impacts(self, step: int, step_load: float) -> None:
         e, acq = self.e, self.e.protocol.acquisition
+        self._held = {}
         infos = e.store.impact_infos(self.series, self.run, step)
         attempt = infos[-1].attempt if infos else 0
         while True:
@@ -190,11 +194,8 @@ class StepRunner:
 
     def _store(self, step: int, attempt: int, record: Record, pos: ev.Position) -> None:
         """Check, store and (when the operator reviews) judge one blow; the next is armed only after that."""
-        impact = check_record(Delivered(record.sample_rate_hz, record.force_n, record.accel_m_per_s2,
-                                        tuple(record.channels), record.trigger_index, record.timestamp_s,
-                                        tuple(record.clipped), calibration_of(self.rig, record.channels)),
-                              attempt, self.checks)
-        self.e.store.write_impact(self.series, self.run, step, impact)
+        impact = check_record(record, attempt, self.checks, calibration_of(self.rig, record.channels))
+        self._held[attempt] = self.e.store.write_impact(self.series, self.run, step, impact)
         info = impact.info
         cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
         self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
@@ -226,10 +227,19 @@ class StepRunner:
             return None
         return Verdict(choice == "accept", OPERATOR, reason or "operator")
 
-    def _identify(self, step: int, pos: ev.Position, load: float) -> None:
+    def step_impacts(self, step: int) -> list[ImpactRecord]:
+        """The step's stored impacts with their current verdicts: the records held since they were written,
+        read back from the store only when some were taken before a resume."""
+        infos = self.e.store.impact_infos(self.series, self.run, step)
+        if all(i.attempt in self._held for i in infos):
+            return [replace(self._held[i.attempt], info=i) for i in infos]
+        return self.e.store.impacts(self.series, self.run, step)
+
+    def _identify(self, step: int, pos: ev.Position, load: float, angle_deg: float) -> None:
         e = self.e
-        result = process_step(e.store.impacts(self.series, self.run, step), e.rig_config, self.checks)
+        result = process_step(self.step_impacts(step), e.rig_config, self.checks)
         e.store.write_step_result(self.series, self.run, step, result)
+        self.rows[step] = (step, load, angle_deg, result)
         if not result.identified:
             e.emit(ev.StepFailed(e.now(), pos, result.error))
             return
