@@ -22,11 +22,12 @@ from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
 from labctl.engine.runlog import RunLog
-from labctl.engine.steps import Interlock, StepRunner
+from labctl.engine.steps import Interlock, StepProcessor, StepRunner
 from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
+from labctl.recording import process_step
 from labctl.storage.records import RepetitionCurve
 from labctl.storage.store import CampaignStore, StepRow
 
@@ -65,12 +66,15 @@ class Engine:
     def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, store: CampaignStore,
                  bus: ev.EventBus | None = None, control: RunControl | None = None,
                  conditions: Sequence[Condition] = (), advisor: StepAdvisor | None = None,
-                 budget_steps: int = 0) -> None:
+                 budget_steps: int = 0, identify_step: StepProcessor = process_step) -> None:
         """``conditions`` are checked at every safe point after the load interlock and the load-drift check.
 
         With an ``advisor`` (adaptive campaign), each repetition gets up to ``budget_steps`` extra load steps
         after its base steps, chosen by the advisor from everything measured so far in the file.
+        ``identify_step`` turns a step's stored impacts into its result: the one step pipeline, or a script
+        when only the engine's logic is under test.
         """
+        self.identify_step = identify_step
         self.protocol, self.rig_config, self.rig_factory, self.store = protocol, rig_config, rig_factory, store
         self.conditions: tuple[Condition, ...] = (*DEFAULT_CONDITIONS, *conditions)
         self.bus = bus or ev.EventBus()

@@ -19,14 +19,21 @@ from labctl.engine.conditions import Condition, SafePoint, Trip, Where
 from labctl.engine.control import RunControl
 from labctl.errors import LabctlError
 from labctl.physics.rig_config import RigConfig
+from labctl.processing import CheckConfig
 from labctl.protocol import Protocol as LabProtocol
-from labctl.recording import check_record, process_step
-from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, Verdict
+from labctl.recording import check_record
+from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, StepResult, Verdict
 from labctl.storage.store import CampaignStore, StepRow
 
 
 class Interlock(LabctlError):
     """A condition stopped the run (e.g. the load cell read more than the cap); the operator was asked to unload."""
+
+
+class StepProcessor(Protocol):
+    """Identifies one step from its stored impacts (``labctl.recording.process_step``)."""
+
+    def __call__(self, records: Sequence[ImpactRecord], rig: RigConfig, checks: CheckConfig) -> StepResult: ...
 
 
 class Services(Protocol):
@@ -37,6 +44,7 @@ class Services(Protocol):
     control: RunControl
     conditions: Sequence[Condition]
     rig_config: RigConfig
+    identify_step: StepProcessor
 
     def call(self, what: str, fn: object, *args: object, timeout_s: object = ..., retries: int | None = None
              ) -> object: ...
@@ -237,7 +245,7 @@ class StepRunner:
 
     def _identify(self, step: int, pos: ev.Position, load: float, angle_deg: float) -> None:
         e = self.e
-        result = process_step(self.step_impacts(step), e.rig_config, self.checks)
+        result = e.identify_step(self.step_impacts(step), e.rig_config, self.checks)
         e.store.write_step_result(self.series, self.run, step, result)
         self.rows[step] = (step, load, angle_deg, result)
         if not result.identified:
