@@ -81,8 +81,9 @@ class Recorder:
         return [e for e in self.events if isinstance(e, kind)]
 
 
-def run_engine(path, protocol, factory, rig_config=None):
-    """Run the engine directly (custom rig factory or rig model) into a new file; returns (outcome, recorder)."""
+def run_engine(path, protocol, factory, rig_config=None, **engine_kw):
+    """Run the engine directly (custom rig factory or rig model, ``Engine`` keywords) into a new file; returns
+    (outcome, recorder)."""
     from labctl.engine import Engine
     from labctl.physics import load_rig
     from labctl.storage import CampaignWriter
@@ -93,7 +94,7 @@ def run_engine(path, protocol, factory, rig_config=None):
     bus = ev.EventBus()
     bus.subscribe(rec)
     try:
-        outcome = Engine(protocol, rig_config or load_rig(), factory, writer, bus).run()
+        outcome = Engine(protocol, rig_config or load_rig(), factory, writer, bus, **engine_kw).run()
     finally:
         writer.close()
     return outcome, rec

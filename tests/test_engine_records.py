@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import labctl.engine.steps as steps_module
-from labctl.recording import check_record
+from labctl.recording import check_record, process_step
 from labctl.storage import CampaignReader, CampaignWriter, ImpactRecord
 from labctl.storage.records import Calibration, CheckSummary, ImpactInfo, Verdict
 from tests.engine_util import run_engine, short_protocol
@@ -25,18 +24,16 @@ def test_each_step_is_identified_from_the_held_records_which_equal_the_files(tmp
     from labctl.storage.reader import CampaignReader as Reader
 
     identified: dict[int, list[ImpactRecord]] = {}
-    real = steps_module.process_step
 
     def spy(records, rig, checks):  # noqa: ANN001, ANN202
         identified[len(identified) + 1] = list(records)
-        return real(records, rig, checks)
+        return process_step(records, rig, checks)
 
     reads: list[int] = []
-    monkeypatch.setattr(steps_module, "process_step", spy)
     monkeypatch.setattr(CampaignWriter, "impacts", lambda self, *a: reads.append(1) or [])
     proto = short_protocol(reps=1, samples=4096)
     out = tmp_path / "c.h5"
-    outcome, _ = run_engine(out, proto, lambda spec, i: make_rig("sim", case=spec.case(), seed=4))
+    outcome, _ = run_engine(out, proto, lambda spec, i: make_rig("sim", case=spec.case(), seed=4), identify_step=spy)
     assert outcome.status == "complete" and reads == []  # nothing was read back from the file
     with Reader(out) as r:
         steps = r.runs(1)[0].steps
