@@ -2,8 +2,7 @@
 
 Every reader and writer of campaign files speaks these types; nothing outside ``labctl.storage`` reads
 HDF5 attributes by name. ``StepResult`` is built from the processing's ``Identification`` in one place
-(``step_result``): a field whose name matches an ``Identification`` attribute is copied from it, so adding a
-result field is one line here.
+(``labctl.recording.result_of``), field by named field: a renamed attribute fails there, never silently.
 """
 
 from __future__ import annotations
@@ -230,24 +229,21 @@ class StepResult:
 STRUCTURED_FIELDS = frozenset({"modes", "impacts", "frf"})
 
 
-def step_result(ident: Any, attempts: Sequence[int]) -> StepResult:
-    """The StepResult of a processing ``Identification`` whose impact ``i`` is stored as ``attempts[i]``.
-
-    Plain fields are copied from the attribute of the same name when the identification has one.
-    """
-    plain = {f.name: _plain(getattr(ident, f.name), f.default) for f in fields(StepResult)
-             if f.name not in STRUCTURED_FIELDS and f.name != "error" and hasattr(ident, f.name)}
-    modes = tuple(ModeResult(m.kind, float(m.frequency_hz), float(m.frequency_std_hz), float(m.damping_ratio),
-                             float(m.damping_ratio_std), float(m.coherence), float(m.bounce_mac),
-                             float(m.tilt_fraction)) for m in ident.modes)
-    impacts = tuple(ImpactOutcome(int(attempts[c.index]), bool(c.accepted), tuple(c.reasons)) for c in ident.impacts)
-    frf = StepFrf(np.asarray(ident.frequencies_hz), np.asarray(ident.h1), np.asarray(ident.coherence))
-    return StepResult(**plain, modes=modes, impacts=impacts, frf=frf)
-
-
 def failed_step(reason: str, impacts: Sequence[ImpactOutcome] = ()) -> StepResult:
     """The result of a step that could not be identified."""
     return StepResult(error=reason, impacts=tuple(impacts))
+
+
+def plain(value: Any) -> Any:
+    """A numpy scalar or array as the Python value (float, list) it holds; anything else unchanged."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def plain_tuple(values: Any) -> tuple:
+    """A sequence (list, tuple or array) as a tuple of Python values."""
+    return tuple(plain(np.asarray(values)) if isinstance(values, np.ndarray) else values)
 
 
 def _plain(value: Any, default: Any) -> Any:
