@@ -249,3 +249,34 @@ def run_scripted(protocol, bench: ScriptedBench, store=None, control=None):  # n
     bus.subscribe(rec)
     engine = Engine(protocol, load_rig(), bench.rig_factory, store, bus, control, identify_step=scripted_identify)
     return engine.run(), rec, store
+
+
+def impact_event(position: ev.Position, attempt: int, reasons: tuple[str, ...] = (), force_n=None,  # noqa: ANN001
+                 accel_m_per_s2=None, channels: tuple[str, ...] = ("A1Z", "A2Z"), peak_force_n: float = 200.0,
+                 range_use: dict[str, float] | None = None, accepted: bool | None = None,
+                 fs_hz: float = 20480.0) -> ev.ImpactAcquired:
+    """An ImpactAcquired (ImpactRejected when not ``accepted``, by default when there are ``reasons``) carrying
+    a small stored record, for display tests."""
+    from labctl.storage.records import CheckSummary, ImpactInfo, ImpactRecord, Verdict
+
+    force = np.zeros(8) if force_n is None else np.asarray(force_n, dtype=float)
+    accel = np.zeros((len(channels), force.size)) if accel_m_per_s2 is None else np.asarray(accel_m_per_s2)
+    ok = not reasons if accepted is None else accepted
+    info = ImpactInfo(attempt, fs_hz, 0, "", CheckSummary(ok, reasons, peak_force_n, 4e-4), Verdict(ok), ())
+    cls = ev.ImpactAcquired if ok else ev.ImpactRejected
+    return cls(1.0, position, ImpactRecord(info, channels, force, accel), range_use or {})
+
+
+def step_event(position: ev.Position, load_n: float, bounce_hz: float, tilt_hz: tuple[float, float], k: float,
+               frequencies_hz, h1, coherence, channels: tuple[str, ...] = ("A1Z",),  # noqa: ANN001
+               k_std: float = float("nan"), used: tuple[int, ...] = (), rejected: dict[int, str] | None = None,
+               warnings: tuple[str, ...] = (), time_s: float = 1.0, coherence_at_bounce: float = 0.99
+               ) -> ev.StepProcessed:
+    """A StepProcessed carrying a step result with these values, for display tests."""
+    outcomes = tuple(ImpactOutcome(a, True) for a in used) + tuple(
+        ImpactOutcome(a, False, tuple(why.split(", "))) for a, why in (rejected or {}).items())
+    result = StepResult(bounce_hz=bounce_hz, tilt_hz=tilt_hz, roller_stiffness_n_per_m=k,
+                        roller_stiffness_std_n_per_m=k_std, coherence_at_bounce=coherence_at_bounce, channels=channels,
+                        impacts=outcomes, warnings=warnings,
+                        frf=StepFrf(np.asarray(frequencies_hz), np.asarray(h1, dtype=complex), np.asarray(coherence)))
+    return ev.StepProcessed(time_s, position, load_n, result)

@@ -204,11 +204,9 @@ class StepRunner:
         """Check, store and (when the operator reviews) judge one blow; the next is armed only after that."""
         impact = check_record(record, attempt, self.checks, calibration_of(self.rig, record.channels))
         self._held[attempt] = self.e.store.write_impact(self.series, self.run, step, impact)
-        info = impact.info
-        cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
-        self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
-                        info.checks.pulse_width_s, record.sample_rate_hz, impact.force_n, impact.accel_m_per_s2,
-                        tuple(record.channels), range_use(self.rig, record)))
+        stored = self._held[attempt]
+        cls = ev.ImpactAcquired if stored.accepted else ev.ImpactRejected
+        self.e.emit(cls(self.e.now(), pos, stored, range_use(self.rig, record)))
         verdict = self._review(step, impact, pos)
         if verdict is not None:
             self.e.store.set_verdict(self.series, self.run, step, attempt, verdict)
@@ -251,14 +249,7 @@ class StepRunner:
         if not result.identified:
             e.emit(ev.StepFailed(e.now(), pos, result.error))
             return
-        frf = result.frf
-        assert frf is not None
-        e.emit(ev.StepProcessed(e.now(), pos, load, result.bounce_hz, tuple(result.tilt_hz),
-                                result.roller_stiffness_n_per_m, result.coherence_at_bounce, frf.frequencies_hz,
-                                np.abs(frf.h1), frf.coherence, tuple(result.channels),
-                                result.roller_stiffness_std_n_per_m, result.used_attempts,
-                                {i.attempt: ", ".join(i.reasons) for i in result.impacts if not i.used},
-                                tuple(result.warnings)))
+        e.emit(ev.StepProcessed(e.now(), pos, load, result))
 
 
 def range_use(rig: Rig, record: Record) -> dict[str, float]:
