@@ -24,6 +24,7 @@ from labctl.engine.steps import calibration_of
 from labctl.protocol import load_protocol
 from labctl.recording import check_record
 from labctl.storage import CampaignWriter
+from labctl.storage.records import SpecimenRecord
 
 
 def records(n: int) -> tuple[list, object]:
@@ -75,7 +76,7 @@ def write_v2(path: Path, recs: list, rig: object, proto: object) -> list[tuple[f
     times = []
     with CampaignWriter.create(path, protocol_name="bench", backend="sim", seed=None, config_files={},
                                description={}) as w:
-        w.series(1, {"label": "bench"})
+        w.series(1, SpecimenRecord(label="bench"))
         w.run(1, 1)
         w.step(1, 1, 1, {"load_n": 0.0})
         for i, r in enumerate(recs, start=1):

@@ -8,7 +8,7 @@ import pytest
 
 from labctl.recording import check_record, process_step
 from labctl.storage import CampaignReader, CampaignWriter, ImpactRecord
-from labctl.storage.records import Calibration, CheckSummary, ImpactInfo, Verdict
+from labctl.storage.records import Calibration, CheckSummary, ImpactInfo, SpecimenRecord, Verdict
 from tests.engine_util import run_engine, short_protocol
 
 
@@ -68,7 +68,7 @@ def test_write_impact_returns_the_record_a_reader_gets_back(tmp_path, exact_adc)
     path = tmp_path / "w.h5"
     with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={},
                                description={}) as w:
-        w.series(1, {"label": "x"})
+        w.series(1, SpecimenRecord(label="x"))
         w.run(1, 1)
         w.step(1, 1, 1, {"load_n": 40.0, "knob_angle_deg": 0.0})
         written = w.write_impact(1, 1, 1, _record(1, force, accel, cal))

@@ -28,7 +28,7 @@ from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 from labctl.recording import process_step
-from labctl.storage.records import RepetitionCurve
+from labctl.storage.records import RepetitionCurve, SpecimenRecord
 from labctl.storage.store import CampaignStore, StepRow
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
@@ -47,16 +47,17 @@ class Outcome:
     curves: list[RepetitionCurve] = field(default_factory=list)
 
 
-def specimen_attrs(spec: SpecimenSpec) -> dict:
-    case = spec.case()
-    r = case.roller
-    return {"kind": spec.kind, "label": spec.label, "roller_type": spec.roller_type,
-            "ball_diameter_m": spec.ball_diameter_m, "diameter_m": r.diameter_m,
-            "contact_length_m": r.contact_length_m, "roller_length_m": r.total_length_m,
-            "material": r.material.name, "youngs_modulus_pa": r.material.youngs_modulus_pa,
-            "poisson_ratio": r.material.poisson_ratio, "hardness_hrc": r.material.hardness_hrc,
-            "rail_material": spec.rail_material, "rail_ra_m": spec.rail_ra_m, "max_load_n": spec.max_load_n,
-            "knob_step_deg": spec.knob_step_deg}
+def specimen_record(spec: SpecimenSpec) -> SpecimenRecord:
+    """What is stored of a protocol's specimen: its kind and label, the roller's geometry and material, the
+    rails and the protocol's limits for it."""
+    r = spec.case().roller
+    return SpecimenRecord(
+        kind=spec.kind, label=spec.label, roller_type=spec.roller_type, ball_diameter_m=spec.ball_diameter_m,
+        diameter_m=r.diameter_m, contact_length_m=r.contact_length_m, roller_length_m=r.total_length_m,
+        material=r.material.name, youngs_modulus_pa=r.material.youngs_modulus_pa,
+        poisson_ratio=r.material.poisson_ratio, hardness_hrc=r.material.hardness_hrc,
+        rail_material=spec.rail_material, rail_ra_m=spec.rail_ra_m, max_load_n=spec.max_load_n,
+        knob_step_deg=spec.knob_step_deg)
 
 
 class Engine:
@@ -160,7 +161,7 @@ class Engine:
         return outcome
 
     def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> None:
-        self.store.series(index, specimen_attrs(spec))
+        self.store.series(index, specimen_record(spec))
         runs_done = self.store.complete_runs(index)
         if len(runs_done) >= self.protocol.repetitions.count:
             return

@@ -12,10 +12,17 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage.records import ImpactInfo, ImpactRecord, RepetitionCurve, StepResult, Verdict, curve_from_steps
+from labctl.storage.records import (
+    ImpactInfo,
+    ImpactRecord,
+    RepetitionCurve,
+    SpecimenRecord,
+    StepResult,
+    Verdict,
+    curve_from_steps,
+)
 from labctl.storage.runlog import LogEntry
 from labctl.storage.store import StepRow, StepStamp, first_impact_s
-from labctl.storage.table import specimen_point
 
 
 @dataclass
@@ -38,7 +45,7 @@ class _Run:
 
 @dataclass
 class _Series:
-    specimen: dict[str, Any]
+    specimen: SpecimenRecord
     mounted: bool = False
     runs: dict[int, _Run] = field(default_factory=dict)
 
@@ -61,7 +68,7 @@ class MemoryStore:
         return bool(self._series)
 
     def series(self, series: int, specimen: Mapping[str, Any]) -> None:
-        self._series.setdefault(series, _Series(dict(specimen)))
+        self._series.setdefault(series, _Series(specimen))
 
     def is_mounted(self, series: int) -> bool:
         return series in self._series and self._series[series].mounted
@@ -80,14 +87,14 @@ class MemoryStore:
         self._series[series].runs.setdefault(run, _Run({"repetition": run}))
 
     def run_attrs(self, series: int, run: int) -> dict[str, Any]:
-        r = self._series.get(series, _Series({})).runs.get(run)
+        r = self._series[series].runs.get(run) if series in self._series else None
         return {} if r is None else dict(r.attrs)
 
     def set_run_attrs(self, series: int, run: int, attrs: Mapping[str, Any]) -> None:
         self._series[series].runs[run].attrs.update({k: v for k, v in attrs.items() if v is not None})
 
     def _step(self, series: int, run: int, step: int) -> _Step | None:
-        r = self._series.get(series, _Series({})).runs.get(run)
+        r = self._series[series].runs.get(run) if series in self._series else None
         return None if r is None else r.steps.get(step)
 
     def step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
@@ -144,13 +151,13 @@ class MemoryStore:
                  st.result) for n, st in sorted(r.steps.items()) if st.result is not None]
 
     def stiffness_points(self) -> list[StiffnessPoint]:
-        return [specimen_point(sg.specimen, run, load, result.roller_stiffness_n_per_m, result)
+        return [sg.specimen.point(run, load, result.roller_stiffness_n_per_m, result)
                 for sg_n, sg in sorted(self._series.items()) for run in sorted(sg.runs)
                 for _, load, _, result in self.step_results(sg_n, run) if result.identified]
 
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
         sg = self._series[series]
-        curve = curve_from_steps(series, run, str(sg.specimen.get("label", "")),
+        curve = curve_from_steps(series, run, sg.specimen.label,
                                  self.step_results(series, run) if steps is None else steps)
         sg.runs[run].curve = curve
         return curve

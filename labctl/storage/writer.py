@@ -26,13 +26,13 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
+    SpecimenRecord,
     StepResult,
     Verdict,
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
 from labctl.storage.store import StepRow, StepStamp, first_impact_s
-from labctl.storage.table import specimen_point
 
 
 def utc_now() -> str:
@@ -189,9 +189,9 @@ class CampaignWriter:
     def _step_group(self, series: int, run: int, step: int) -> h5py.Group | None:
         return self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}/{s.step_name(step)}")
 
-    def series(self, series: int, specimen: Mapping[str, Any]) -> None:
+    def series(self, series: int, specimen: SpecimenRecord) -> None:
         """The specimen's group; its attributes are set when it is first created."""
-        self._group(s.series_name(series), attrs=specimen)
+        self._group(s.series_name(series), attrs=specimen.attrs())
 
     def is_mounted(self, series: int) -> bool:
         g = self.h5.get(s.series_name(series))
@@ -329,18 +329,17 @@ class CampaignWriter:
         """The identified steps measured so far in this file, as stiffness table rows (what a planner needs)."""
         points: list[StiffnessPoint] = []
         for sg in s.children(self.h5, "series_"):
-            spec = attrs_of(sg)
+            spec = SpecimenRecord.from_attrs(attrs_of(sg))
             for rg in s.children(sg, "run_"):
                 for _, load, _, result in self.step_results(s.number(sg), s.number(rg)):
                     if result.identified:
-                        points.append(specimen_point(spec, s.number(rg), load, result.roller_stiffness_n_per_m,
-                                                     result))
+                        points.append(spec.point(s.number(rg), load, result.roller_stiffness_n_per_m, result))
         return points
 
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
         """Build a repetition's stiffness-vs-load table (from ``steps`` when given, else from the stored step
         results), store it, return it."""
-        label = str(self.h5[s.series_name(series)].attrs.get("label", ""))
+        label = SpecimenRecord.from_attrs(attrs_of(self.h5[s.series_name(series)])).label
         curve = curve_from_steps(series, run, label, self.step_results(series, run) if steps is None else steps)
         rg = self.h5[s.series_name(series)][s.run_name(run)]
         if s.CURVE in rg:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers.interfaces import Record
-from labctl.engine.sequencer import specimen_attrs
+from labctl.engine.sequencer import specimen_record
 from labctl.errors import InputError
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.processing import CheckConfig
@@ -193,7 +193,8 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
     try:
         with writer:
             for i, spec in enumerate(specs, start=1):
-                writer.series(i, {**specimen_attrs(spec), "mounted": True})
+                writer.series(i, specimen_record(spec))
+                writer.mark_mounted(i)
                 summary.series.append({"series": i, "label": spec.label, "roller_type": spec.roller_type,
                                        "rail_ra_m": spec.rail_ra_m})
             runs: dict[tuple[int, int], list[tuple[PlannedStep, StepResult]]] = defaultdict(list)
