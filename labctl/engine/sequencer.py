@@ -35,6 +35,14 @@ RigFactory = Callable[[SpecimenSpec, int], Rig]
 ADDED_ATTR = "added_steps"
 """Run attribute: JSON list of the steps an adaptive campaign added to the repetition (``AddedStep`` fields)."""
 NOTHING_LEFT = "nothing left to do: every repetition of this campaign is complete"
+EXTRA_STEPS_ALLOWED = 5
+"""Steps a repetition may take beyond the plan's estimate (softer springs than the rig file says) before it stops."""
+CAP_MARGIN = 1e-6
+"""Relative margin on the load cap: a next step predicted at the cap itself (rounding) is still taken."""
+RATE_TOLERANCE = 1e-9
+"""Relative difference between the asked and the set sample rate below which the DAQ is said to have obeyed."""
+ACQUIRE_GRACE_S = 10.0
+"""Time the guarded call allows a DAQ beyond its own trigger timeout before it is declared hung."""
 
 
 @dataclass
@@ -173,7 +181,7 @@ class Engine:
                 stack.callback(inst.__exit__, None, None, None)
             acq = self.protocol.acquisition
             fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
-            if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
+            if abs(fs - acq.sample_rate_hz) > RATE_TOLERANCE * acq.sample_rate_hz:
                 self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)",
                             position=ev.Position(index, 0))
             if not self.store.is_mounted(index):
@@ -211,9 +219,9 @@ class Engine:
                 self.checkpoint(ev.Position(series, run, step))
                 load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan.steps_estimate)
             loads.append(load)
-            if step >= plan.steps_estimate + 5:
+            if step >= plan.steps_estimate + EXTRA_STEPS_ALLOWED:
                 break
-            if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + 1e-6):
+            if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + CAP_MARGIN):
                 break
             step += 1
         if self.advisor is not None:
@@ -272,8 +280,8 @@ class Engine:
             self.call("daq (arm)", rig.daq.arm, trigger, retries=0)
             try:
                 rig.hammer.strike()
-                return self.call("daq (acquire)", rig.daq.acquire, acq.timeout_s, timeout_s=acq.timeout_s + 10.0,
-                                 retries=0)
+                return self.call("daq (acquire)", rig.daq.acquire, acq.timeout_s,
+                                 timeout_s=acq.timeout_s + ACQUIRE_GRACE_S, retries=0)
             except (DeviceError, LabctlError) as exc:
                 last = exc
                 if attempt < acq.retries:

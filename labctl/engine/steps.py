@@ -25,6 +25,9 @@ from labctl.recording import check_record
 from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, StepResult, Verdict
 from labctl.storage.store import CampaignStore, StepRow
 
+KNOB_TOLERANCE_DEG = 1e-9
+"""A knob turn smaller than this (degrees) is no turn: the step is already at its angle (e.g. on resume)."""
+
 
 class Interlock(LabctlError):
     """A condition stopped the run (e.g. the load cell read more than the cap); the operator was asked to unload."""
@@ -138,7 +141,7 @@ class StepRunner:
         delta = angle_deg - self.rig.actuator.knob_angle_deg
         expected = e.rig_config.preload_per_roller_n + angle_deg * e.rig_config.load_per_knob_degree_n
         e.emit(ev.StepStarted(e.now(), pos, steps_estimate, angle_deg, expected))
-        if abs(delta) > 1e-9:  # a manual actuator asks the technician, who may take as long as needed
+        if abs(delta) > KNOB_TOLERANCE_DEG:  # a manual actuator asks the technician, who may take as long as needed
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
         self.safe_point("before_step", pos, load_n=load)
