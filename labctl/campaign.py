@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import tomllib
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +113,21 @@ def rig_factory(backend: str, rig: RigConfig, *, world: str | Path | None = None
     return make
 
 
+@dataclass(frozen=True)
+class CampaignRequest:
+    """What a campaign run was asked for, with a resumed file's stored settings taking precedence."""
+
+    protocol: Protocol
+    out: Path
+    backend: str = "sim"
+    world: str | Path | None = None
+    seed: int | None = None
+    rig: str | Path | None = None
+    devices: str | Path | None = None
+    budget_steps: int = 0
+    """Load steps an adaptive campaign may add per repetition (0: not adaptive)."""
+
+
 def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: str = "sim", resume: bool = False,
                  world: str | Path | None = None, seed: int | None = None, rig: str | Path | None = None,
                  devices: str | Path | None = None, operator: Operator | None = None,
@@ -128,84 +144,111 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
     created, so a bad input leaves no file behind. ``conditions`` are extra safe-point checks for the engine.
     """
     out = Path(out)
-    if resume:
-        writer = CampaignWriter.open_existing(out)
-        stored = writer.config_text("protocol.toml")
-        proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
-        if stored is not None and stored != proto.source_text:
-            writer.close()
-            raise InputError(f"{out}: was written with a different protocol than {proto.source_path}; "
-                             "resume with the same protocol file")
-        stored_attrs = writer.attrs
-        desc = stored_attrs.get("backend_description") or {}
-        desc = desc if isinstance(desc, dict) else json.loads(str(desc) or "{}")
-        backend = str(stored_attrs.get("backend", backend))
-        seed_attr = int(stored_attrs.get("seed", -1))
-        seed = seed if seed is not None else (None if seed_attr < 0 else seed_attr)
-        world = world if world is not None else desc.get("world_file") or None
-        stored_budget = int(desc.get("adaptive_budget_steps", 0) or 0)
-        adaptive, budget_steps = stored_budget > 0, stored_budget or None
-    else:
-        proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
-        if out.exists():
-            raise InputError(f"{out}: already exists; use --resume to continue it or choose another --out")
-        if out.parent.exists() and not out.parent.is_dir():
-            raise InputError(f"{out}: its folder {out.parent} is a file")
-    if budget_steps is None:
-        from labctl.planning.plan import DEFAULT_BUDGET_STEPS
-
-        budget_steps = DEFAULT_BUDGET_STEPS
-    if adaptive and budget_steps < 1:
-        if resume:
-            writer.close()
-        raise InputError(f"--budget-steps {budget_steps}: expected at least 1 load step")
+    writer = CampaignWriter.open_existing(out) if resume else None
+    created = False
     try:
-        rig_config = load_rig(rig)
-        if adaptive:
-            for spec in proto.specimens:
-                if spec.kind != "roller":
-                    raise InputError(f"{proto.source_path}: specimen {spec.label!r} is a {spec.kind}; "
-                                     "--adaptive plans roller specimens only")
-        for spec in proto.specimens:
-            spec.case()
-            plan_steps(proto, spec, rig_config)
-        if backend == "sim":
-            load_world(world)
-            if any(spec.kind == "ball" for spec in proto.specimens) and world is None:
-                load_world("balls")
-        if backend == "hw":
-            from labctl.hardware import find_devices_file, load_devices
-
-            devices = find_devices_file(devices)
-            load_devices(devices)
+        proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
+        asked = CampaignRequest(proto, out, backend, world, seed, rig, devices)
+        request = _continued(asked, writer) if writer is not None else _fresh(asked, adaptive, budget_steps)
+        rig_config, devices = _checked_inputs(request)
+        if writer is None:
+            writer, created = _create_file(request, rig_config, devices), True
+        engine = _engine(request, rig_config, devices, writer, operator, subscribers, control, conditions)
     except BaseException:
-        if resume:
+        if writer is not None:
             writer.close()
-        raise
-    factory = rig_factory(backend, rig_config, world=world, seed=seed, operator=operator, devices=devices)
-    if not resume:
-        writer = CampaignWriter.create(out, protocol_name=proto.name, backend=backend, seed=seed,
-                                       config_files=_config_files(proto, rig_config, world, devices),
-                                       description={"world_file": "" if world is None else str(world),
-                                                    "rig_file": rig_config.source,
-                                                    "adaptive_budget_steps": budget_steps if adaptive else 0})
-    bus = EventBus()
-    for sub in subscribers:
-        bus.subscribe(sub)
-    try:
-        advisor = None
-        if adaptive:
-            from labctl.planning.adaptive import PlanAdvisor
-
-            advisor = PlanAdvisor(rig_config)
-        engine = Engine(proto, rig_config, factory, writer, bus, control, conditions, advisor=advisor,
-                        budget_steps=budget_steps if adaptive else 0)
-    except BaseException:
-        writer.close()
-        if not resume:
+        if created:
             out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
         raise
     try:
         return engine.run()
     finally:
         writer.close()
+
+
+def _continued(asked: CampaignRequest, writer: CampaignWriter) -> CampaignRequest:
+    """The request for resuming ``writer``'s campaign: its stored backend, seed, world and adaptive budget."""
+    stored = writer.config_text("protocol.toml")
+    if stored is not None and stored != asked.protocol.source_text:
+        raise InputError(f"{asked.out}: was written with a different protocol than {asked.protocol.source_path}; "
+                         "resume with the same protocol file")
+    attrs = writer.attrs
+    desc = attrs.get("backend_description") or {}
+    desc = desc if isinstance(desc, dict) else json.loads(str(desc) or "{}")
+    seed_attr = int(attrs.get("seed", -1))
+    return replace(asked, backend=str(attrs.get("backend", asked.backend)),
+                   seed=asked.seed if asked.seed is not None else (None if seed_attr < 0 else seed_attr),
+                   world=asked.world if asked.world is not None else desc.get("world_file") or None,
+                   budget_steps=int(desc.get("adaptive_budget_steps", 0) or 0))
+
+
+def _fresh(asked: CampaignRequest, adaptive: bool, budget_steps: int | None) -> CampaignRequest:
+    """The request for a new campaign file (refused where a file, or a file for its folder, already is)."""
+    out = asked.out
+    if out.exists():
+        raise InputError(f"{out}: already exists; use --resume to continue it or choose another --out")
+    if out.parent.exists() and not out.parent.is_dir():
+        raise InputError(f"{out}: its folder {out.parent} is a file")
+    if not adaptive:
+        return asked
+    if budget_steps is None:
+        from labctl.planning.plan import DEFAULT_BUDGET_STEPS
+
+        budget_steps = DEFAULT_BUDGET_STEPS
+    if budget_steps < 1:
+        raise InputError(f"--budget-steps {budget_steps}: expected at least 1 load step")
+    return replace(asked, budget_steps=budget_steps)
+
+
+def _checked_inputs(request: CampaignRequest) -> tuple[RigConfig, str | Path | None]:
+    """Read and check every input before anything is written: the rig, each specimen's plan, the world (sim)
+    or the devices file (hw, returned as found)."""
+    proto, devices = request.protocol, request.devices
+    rig_config = load_rig(request.rig)
+    if request.budget_steps:
+        for spec in proto.specimens:
+            if spec.kind != "roller":
+                raise InputError(f"{proto.source_path}: specimen {spec.label!r} is a {spec.kind}; "
+                                 "--adaptive plans roller specimens only")
+    for spec in proto.specimens:
+        spec.case()
+        plan_steps(proto, spec, rig_config)
+    if request.backend == "sim":
+        load_world(request.world)
+        if any(spec.kind == "ball" for spec in proto.specimens) and request.world is None:
+            load_world("balls")
+    if request.backend == "hw":
+        from labctl.hardware import find_devices_file, load_devices
+
+        devices = find_devices_file(devices)
+        load_devices(devices)
+    return rig_config, devices
+
+
+def _create_file(request: CampaignRequest, rig_config: RigConfig, devices: str | Path | None) -> CampaignWriter:
+    """The new campaign file with the configuration it runs on."""
+    world = request.world
+    return CampaignWriter.create(request.out, protocol_name=request.protocol.name, backend=request.backend,
+                                 seed=request.seed,
+                                 config_files=_config_files(request.protocol, rig_config, world, devices),
+                                 description={"world_file": "" if world is None else str(world),
+                                              "rig_file": rig_config.source,
+                                              "adaptive_budget_steps": request.budget_steps})
+
+
+def _engine(request: CampaignRequest, rig_config: RigConfig, devices: str | Path | None, writer: CampaignWriter,
+            operator: Operator | None, subscribers: Iterable[Callable[[Event], object]], control: RunControl | None,
+            conditions: Sequence[Condition]) -> Engine:
+    """The engine for a request, writing to ``writer``, with the planner as advisor when adaptive."""
+    factory = rig_factory(request.backend, rig_config, world=request.world, seed=request.seed, operator=operator,
+                          devices=devices)
+    bus = EventBus()
+    for sub in subscribers:
+        bus.subscribe(sub)
+    advisor = None
+    if request.budget_steps:
+        from labctl.planning.adaptive import PlanAdvisor
+
+        advisor = PlanAdvisor(rig_config)
+    return Engine(request.protocol, rig_config, factory, writer, bus, control, conditions, advisor=advisor,
+                  budget_steps=request.budget_steps)

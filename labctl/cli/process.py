@@ -19,29 +19,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.records import result_summary
     from labctl.storage.runlog import summarize
 
     done = process_campaign(args.file, rig=args.rig)
     if args.csv:
         write_stiffness_table(args.csv, done.points)
-    steps = []
-    for r in done.rows:
-        res = r.result
-        item = {"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
-                "knob_angle_deg": r.knob_angle_deg, "used_impacts": list(res.used_attempts),
-                "rejected_impacts": res.rejected_count}
-        if res.identified:
-            item.update({"bounce_hz": res.bounce_hz, "bounce_damping_ratio": res.bounce_damping_ratio,
-                         "tilt_hz": list(res.tilt_hz), "roller_stiffness_n_per_m": res.roller_stiffness_n_per_m,
-                         "roller_stiffness_std_n_per_m": res.roller_stiffness_std_n_per_m,
-                         "roller_stiffness_budget_n_per_m": dict(res.roller_stiffness_budget_n_per_m),
-                         "roller_stiffnesses_n_per_m": list(res.roller_stiffnesses_n_per_m),
-                         "roller_stiffnesses_std_n_per_m": list(res.roller_stiffnesses_std_n_per_m),
-                         "rollers_differing": list(res.rollers_differing),
-                         "coherence_at_bounce": res.coherence_at_bounce, "warnings": list(res.warnings)})
-        else:
-            item["error"] = res.error
-        steps.append(item)
+    steps = [{"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
+              "knob_angle_deg": r.knob_angle_deg, "used_impacts": list(r.result.used_attempts),
+              "rejected_impacts": r.result.rejected_count, **result_summary(r.result)} for r in done.rows]
     log = summarize(done.log)
     result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
               "csv": args.csv, "log": {"entries": log.entries, "by_kind": log.by_kind, "by_level": log.by_level,
@@ -56,11 +42,13 @@ def run(args: argparse.Namespace) -> int:
                      + (f" in {lg['entries']} entries ({kinds})" if lg["entries"] else " (no entries)"))
         lines.append("  run step   load [N]   bounce [Hz]   k [N/m]       1-σ [N/m]")
         for s in res["steps"]:
-            if "error" in s:
+            if s["error"]:
                 lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   not identified: {s['error']}")
             else:
+                std = s["roller_stiffness_std_n_per_m"]
+                std = float("nan") if std is None else std  # JSON keeps a non-finite 1-σ as null
                 lines.append(f"  {s['run']:3d} {s['step']:4d} {s['load_n']:10.1f}   {s['bounce_hz']:10.2f}"
-                             f"   {s['roller_stiffness_n_per_m']:.4e}   {s['roller_stiffness_std_n_per_m']:.2e}"
+                             f"   {s['roller_stiffness_n_per_m']:.4e}   {std:.2e}"
                              + (f"   rollers {', '.join(map(str, s['rollers_differing']))} differ"
                                 if s["rollers_differing"] else ""))
         return "\n".join(lines)

@@ -12,6 +12,9 @@ from labctl.protocol import Protocol as LabProtocol
 from labctl.protocol import SpecimenSpec
 from labctl.stiffness_table import StiffnessPoint
 
+FLOOR_SLACK = 1e-9
+"""Added before rounding a step count down, so a cap reached exactly (up to rounding) counts as reached."""
+
 
 @dataclass(frozen=True)
 class StepPlan:
@@ -24,7 +27,7 @@ def knob_steps_within_cap(spec: SpecimenSpec, rig: RigConfig) -> tuple[float, in
     """(nominal load per roller of one knob step, the number of whole knob steps above the preload whose load stays
     within the specimen's cap: negative when the preload alone passes it)."""
     per_step = rig.load_per_knob_degree_n * spec.knob_step_deg
-    return per_step, int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + 1e-9))
+    return per_step, int(math.floor((spec.max_load_n - rig.preload_per_roller_n) / per_step + FLOOR_SLACK))
 
 
 def plan_steps(protocol: LabProtocol, spec: SpecimenSpec, rig: RigConfig) -> StepPlan:
@@ -34,7 +37,7 @@ def plan_steps(protocol: LabProtocol, spec: SpecimenSpec, rig: RigConfig) -> Ste
     needed = max(n_cap, 0) + 1
     multiple = max(1, math.ceil(needed / protocol.loading.max_steps))
     angle = spec.knob_step_deg * multiple
-    return StepPlan(angle, int(math.floor(span / (per_step * multiple) + 1e-9)) + 1, spec.max_load_n)
+    return StepPlan(angle, int(math.floor(span / (per_step * multiple) + FLOOR_SLACK)) + 1, spec.max_load_n)
 
 
 def next_load_n(loads: list[float], step_angle_deg: float, rig: RigConfig) -> float:
