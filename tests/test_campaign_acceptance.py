@@ -9,7 +9,7 @@ import pytest
 
 from labctl.physics import HertzBallContact, material
 from labctl.stiffness_table import read_stiffness_table
-from tests.cli_util import assert_one_line_error, labctl, labctl_json
+from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_process
 
 
 @pytest.mark.slow
@@ -71,5 +71,5 @@ def test_process_refuses_foreign_and_corrupt_files(tmp_path):
 def test_run_refuses_to_overwrite_and_resume_needs_a_file(tmp_path):
     existing = tmp_path / "c.h5"
     existing.write_bytes(b"")
-    assert_one_line_error(labctl("run", "quick_check", "--out", str(existing)), "already exists")
+    assert_one_line_error(labctl_process("run", "quick_check", "--out", str(existing)), "already exists")
     assert_one_line_error(labctl("run", "quick_check", "--out", str(tmp_path / "none.h5"), "--resume"), "no campaign")
