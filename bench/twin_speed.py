@@ -5,7 +5,9 @@ modal superposition, noise, ADC), the automatic checks (``check_record``), the w
 (``CampaignWriter.write_impact``) and a third of the identification of its step (``process_step`` on the step's
 three impacts). Each is timed per impact (median over the impacts, CPU time of this process, so the machine's
 load shows less) and printed as a multiple of one ``numpy.fft.rfft`` over the record's 13 channels, the floor
-of any spectral synthesis of that record.
+of any spectral synthesis of that record. A second reference line is the Gaussian draws the synthesis must make
+for the sensors' noise (13 × samples normals from NumPy's generator): they are part of the record's data, so no
+faster synthesis can skip them.
 
     python bench/twin_speed.py [--impacts 12] [--samples 65536] [--seed 1]
 
@@ -63,7 +65,10 @@ def main() -> int:
     trigger = TriggerSpec(acq.trigger_level_n, acq.pretrigger_samples)
     calibration = calibration_of(rig, rig_config.channels)
     steps = max(1, args.impacts // IMPACTS_PER_STEP)
-    times: dict[str, list[float]] = {k: [] for k in ("rfft", "synthesis", "checks", "write", "identification")}
+    stages = ("rfft", "normal draws", "synthesis", "checks", "write", "identification")
+    references = ("rfft", "normal draws")
+    times: dict[str, list[float]] = {k: [] for k in stages}
+    draws = np.random.default_rng(args.seed)
     twin.record(twin.strike(), acq.sample_rate_hz, samples, trigger)  # warm caches (frequency grid, imports)
     with tempfile.TemporaryDirectory() as tmp:
         writer = CampaignWriter.create(Path(tmp) / "bench.h5", protocol_name="bench", backend="sim", seed=args.seed,
@@ -79,6 +84,7 @@ def main() -> int:
                     times["synthesis"].append(ms)
                     data = np.vstack([record.force_n[None, :], record.accel_m_per_s2])
                     times["rfft"].append(cpu_ms(lambda d=data: np.fft.rfft(d, axis=1))[0])
+                    times["normal draws"].append(cpu_ms(lambda d=data: draws.standard_normal(d.shape))[0])
                     ms, impact = cpu_ms(lambda r=record, a=attempt: check_record(r, a, proto.checks, calibration))
                     times["checks"].append(ms)
                     ms, stored = cpu_ms(lambda s=step, i=impact: writer.write_impact(1, 1, s, i))
@@ -89,12 +95,12 @@ def main() -> int:
                     raise RuntimeError(f"step {step} was not identified: {result.error}")
                 times["identification"].extend([ms / IMPACTS_PER_STEP] * IMPACTS_PER_STEP)
     med = {k: statistics.median(v) for k, v in times.items()}
-    total = sum(v for k, v in med.items() if k != "rfft")
+    total = sum(v for k, v in med.items() if k not in references)
     print(f"{steps * IMPACTS_PER_STEP} simulated impacts of 13 channels × {samples} samples "
           f"(median CPU ms per impact; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs)")
     print(f"{'stage':<16} {'ms':>8} {'× rfft':>8} {'share':>7}")
-    for k in ("rfft", "synthesis", "checks", "write", "identification"):
-        share = "" if k == "rfft" else f"{med[k] / total:7.0%}"
+    for k in stages:
+        share = "" if k in references else f"{med[k] / total:7.0%}"
         print(f"{k:<16} {med[k]:8.2f} {med[k] / med['rfft']:8.1f} {share}")
     print(f"{'impact total':<16} {total:8.2f} {total / med['rfft']:8.1f}")
     return 0

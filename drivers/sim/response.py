@@ -122,11 +122,12 @@ def _modal_frf(model: ModalModel, w: np.ndarray, w2: np.ndarray) -> np.ndarray:
 
 
 def _combine(participation: np.ndarray, per_mode: np.ndarray) -> np.ndarray:
-    """(channels × frequencies) Σ_r A_rc·X_r as one real matrix product over the interleaved real/imaginary parts."""
+    """(channels × frequencies) Σ_r A_rc·X_r over the interleaved real/imaginary parts, as one ``einsum``: with a
+    handful of modes a threaded BLAS product spends more CPU waking its threads than on the sum (twice the twin's
+    CPU per record on a busy machine, bench/twin_speed.py)."""
     modes, bins = per_mode.shape
     flat = per_mode.view(float).reshape(modes, 2 * bins)
-    by_channel = np.ascontiguousarray(participation.T)  # a contiguous left operand: BLAS's fast path
-    return (by_channel @ flat).view(complex).reshape(participation.shape[1], bins)
+    return np.einsum("rc,rk->ck", participation, flat).view(complex).reshape(participation.shape[1], bins)
 
 
 def accelerance(model: ModalModel, frequencies_hz: np.ndarray) -> np.ndarray:
