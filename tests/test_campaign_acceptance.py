@@ -13,8 +13,8 @@ from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_pr
 
 
 @pytest.mark.slow
-def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(tmp_path):
-    out = labctl_json("demo", "--out", str(tmp_path / "d"), timeout=300)
+def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(demo_campaign, tmp_path):
+    campaign, out = demo_campaign  # labctl demo --json, run once for the session (tests/conftest.py)
     steps = out["steps"]
     assert len(steps) >= 10 and out["repetitions"] == 3
     assert steps[0]["load_n"] == pytest.approx(38, rel=0.05) and steps[-1]["load_n"] <= 0.31 * 1447  # C0 cap
@@ -23,7 +23,7 @@ def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(tmp_path):
     assert steps[0]["spread"] < 0.05 and steps[-1]["spread"] < 0.015
 
     table = tmp_path / "s.csv"
-    proc = labctl("process", str(tmp_path / "d" / "campaign.h5"), "--csv", str(table))
+    proc = labctl("process", str(campaign), "--csv", str(table))
     assert proc.returncode == 0, proc.stderr
     with table.open(newline="") as fh:
         header = next(csv.reader(fh))
