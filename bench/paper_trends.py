@@ -109,6 +109,8 @@ def raw_curves(pairs: list[tuple[int, float]], world: str, seed: int, tmp: Path,
                 ((t, ra) for t in PAPER_TYPES for ra in PAPER_RAILS_RA_M), strict=True)}
     chosen = [jobs[p] for p in pairs]
     t0 = time.perf_counter()
+    if len(chosen) == 1 and workers is None and not scheduler:
+        workers = 0  # one campaign (--truth): no cluster to start
     done = run_programme(chosen, workers=workers, scheduler=scheduler)
     timing = Timing(time.perf_counter() - t0, {d.name: d.cpu_seconds for d in done},
                     workers if workers is not None else os.cpu_count() or 1, os.getloadavg())
@@ -234,9 +236,9 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         rows, timing = findings(args.world, args.seed, args.raw, Path(tmp), args.workers, args.scheduler)
     cpu = list(timing.cpu_s.values())
-    where = args.scheduler or f"{timing.workers} local worker processes"
+    where = args.scheduler or (f"{timing.workers} local worker processes" if timing.workers else "this process")
     summary = {"campaigns": len(cpu), "wall_s": timing.wall_s, "cpu_s": timing.cpu_s, "where": where,
-               "load_average": timing.load_average, "idle_wall_estimate_s": idle_wall_s(cpu, timing.workers)}
+               "load_average": timing.load_average, "idle_wall_estimate_s": idle_wall_s(cpu, max(1, timing.workers))}
     if args.json:
         print(json.dumps({"rows": rows, "timing": summary}))
     else:
@@ -249,7 +251,7 @@ def main() -> int:
               f"{' '.join(f'{x:.1f}' for x in timing.load_average)} on {os.cpu_count()} CPUs")
         per = " ".join(f"{k.removeprefix('paper_')} {v:.1f}" for k, v in timing.cpu_s.items())
         print(f"per campaign CPU s: {per}")
-        print(f"idle estimate: these CPU seconds, largest first on {timing.workers} idle workers: "
+        print(f"idle estimate: these CPU seconds, largest first on {max(1, timing.workers)} idle workers: "
               f"{summary['idle_wall_estimate_s']:.1f} s (plus the cluster's start-up)")
     return 0 if all(r["pass"] for r in rows) else 1
 
