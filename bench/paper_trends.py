@@ -2,22 +2,29 @@
 number, the twin's number, the tolerance and whether it holds.
 
 Run as the paper ran it: roller types 1-9 on rails of Ra 0.2 and 0.03 µm, the protocol's load steps (half
-turns from the preload up to the C0 cap), three repetitions with the rollers re-seated between them. The
-stiffness of every step comes from the twin's truth (the roller stiffness the bounce frequency of the three
-seated rollers implies, exactly what an ideal identification returns); the reference configuration (type 1,
-Ra 0.2 µm) is also run as a full campaign and processed from its raw impacts, which gives the scatter and the
-frequencies at 440 N. ``--raw`` processes every type and rail from raw impacts instead (the full paper
-programme: 18 campaigns, most of an hour on two shared cores; each file is deleted once processed).
+turns from the preload up to the C0 cap), three repetitions with the rollers re-seated between them. Every one
+of the 18 campaigns runs on the simulated rig and every step's stiffness is identified from its raw impacts, as
+on the rig (``labctl.programme``: the campaigns spread over worker processes, or an existing Dask scheduler,
+largest first; campaign i has seed ``--seed`` + i; each file is deleted once its curves are in hand). The last
+lines give the wall time, the CPU seconds of each campaign and the load average, and from those CPU seconds
+the wall time the same run would take on an idle machine with that many workers.
 
-    python bench/paper_trends.py [--world default] [--seed 1] [--raw] [--json]
+``--truth`` is the quick check: each step's stiffness from the twin's truth (the roller stiffness the bounce
+frequency of the three seated rollers implies, what an ideal identification returns), except the reference
+configuration (type 1, Ra 0.2 µm), still run as a campaign from raw impacts for its scatter.
+
+    python bench/paper_trends.py [--raw | --truth] [--workers N | --scheduler ADDR] [--world default] [--seed 1]
+                                 [--json]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,9 +38,15 @@ from labctl.physics import EQ5, EQ6, ContactCase, EmpiricalFit, material, roller
 from labctl.physics.rig import roller_stiffness_from_bounce  # noqa: E402
 from labctl.physics.rig_config import load_rig  # noqa: E402
 from labctl.physics.world import load_world  # noqa: E402
-from labctl.protocol import load_protocol  # noqa: E402
+from labctl.programme import (  # noqa: E402
+    PAPER_RAILS_RA_M,
+    PAPER_TYPES,
+    CampaignDone,
+    paper_programme,
+    paper_protocol_text,
+    run_programme,
+)
 
-PROTOCOL = ROOT / "protocols" / "roller_stiffness.toml"
 STEEL_TYPES = range(1, 8)
 RAILS = {0.2e-6: EQ5, 0.03e-6: EQ6}
 PER_LENGTH_AT = 150e3  # N/m: load per contact length where Fig. 10's curves are compared
@@ -46,9 +59,7 @@ class Curve:
 
 
 def protocol_for(type_id: int, rail_ra_m: float) -> str:
-    text = PROTOCOL.read_text()
-    text = text.replace("roller_type = 1", f"roller_type = {type_id}")
-    return text.replace("rail_ra_um = 0.2", f"rail_ra_um = {rail_ra_m * 1e6:g}")
+    return paper_protocol_text(type_id, rail_ra_m)
 
 
 def truth_curve(type_id: int, rail_ra_m: float, world: str, seed: int) -> Curve:
@@ -71,24 +82,39 @@ def truth_curve(type_id: int, rail_ra_m: float, world: str, seed: int) -> Curve:
     return Curve(loads, np.array(ks))
 
 
-def raw_curve(type_id: int, rail_ra_m: float, world: str, seed: int, tmp: Path) -> tuple[Curve, list]:
-    """A full campaign on the simulated rig, processed again from its stored raw impacts."""
-    from labctl.campaign import run_campaign
-    from labctl.reprocess import process_campaign
+def curve_of(done: CampaignDone) -> Curve:
+    """A campaign's repetition curves on the steps every repetition identified (load: mean over repetitions)."""
+    if not done.ok:
+        raise RuntimeError(f"campaign {done.name} ended {done.status}: {done.message}")
+    common = sorted(set.intersection(*(set(c.step.tolist()) for c in done.curves)))
+    rows = [np.isin(c.step, common) for c in done.curves]
+    k = np.array([c.stiffness_n_per_m[r] for c, r in zip(done.curves, rows, strict=True)])
+    loads = np.array([c.load_n[r] for c, r in zip(done.curves, rows, strict=True)]).mean(axis=0)
+    return Curve(loads, k)
 
-    path = tmp / f"t{type_id}_{rail_ra_m * 1e6:g}.h5"
-    proto_path = tmp / f"t{type_id}_{rail_ra_m * 1e6:g}.toml"
-    proto_path.write_text(protocol_for(type_id, rail_ra_m))
-    outcome = run_campaign(load_protocol(proto_path), out=path, backend="sim", seed=seed, world=world)
-    if outcome.status != "complete":
-        raise RuntimeError(f"campaign {path} ended {outcome.status}: {outcome.message}")
-    rows = [r for r in process_campaign(path).rows if r.result is not None]
-    path.unlink()  # a campaign of type 4 holds several GB of raw impacts
-    runs = sorted({r.run for r in rows})
-    steps = min(sum(r.run == run for r in rows) for run in runs)
-    k = np.array([[r.result.roller_stiffness_n_per_m for r in rows if r.run == run][:steps] for run in runs])
-    loads = np.array([[r.load_n for r in rows if r.run == run][:steps] for run in runs]).mean(axis=0)
-    return Curve(loads, k), rows
+
+@dataclass
+class Timing:
+    wall_s: float
+    cpu_s: dict[str, float]  # per campaign
+    workers: int
+    load_average: tuple[float, float, float]
+
+
+def raw_curves(pairs: list[tuple[int, float]], world: str, seed: int, tmp: Path, workers: int | None,
+               scheduler: str | None) -> tuple[dict[tuple[int, float], Curve], Timing]:
+    """Campaigns on the simulated rig for these (type, rail) pairs, identified from their raw impacts."""
+    jobs = {(j_type, j_ra): job for job, (j_type, j_ra) in
+            zip(paper_programme(tmp, seed=seed, world=world, keep_files=False),
+                ((t, ra) for t in PAPER_TYPES for ra in PAPER_RAILS_RA_M), strict=True)}
+    chosen = [jobs[p] for p in pairs]
+    t0 = time.perf_counter()
+    if len(chosen) == 1 and workers is None and not scheduler:
+        workers = 0  # one campaign (--truth): no cluster to start
+    done = run_programme(chosen, workers=workers, scheduler=scheduler)
+    timing = Timing(time.perf_counter() - t0, {d.name: d.cpu_seconds for d in done},
+                    workers if workers is not None else os.cpu_count() or 1, os.getloadavg())
+    return {p: curve_of(d) for p, d in zip(pairs, done, strict=True)}, timing
 
 
 def frequencies_at(load_n: float, world: str, seed: int) -> tuple[float, float]:
@@ -123,15 +149,13 @@ def at_load(curve: Curve, load_n: float) -> float:
     return float(np.exp(np.interp(np.log(load_n), np.log(curve.loads), np.log(curve.k.mean(axis=0)))))
 
 
-def findings(world: str, seed: int, raw: bool, tmp: Path) -> list[dict[str, object]]:
-    curves: dict[tuple[int, float], Curve] = {}
-    for type_id in range(1, 10):
-        for ra in RAILS:
-            if raw or (type_id, ra) == (1, 0.2e-6):
-                curve, _ = raw_curve(type_id, ra, world, seed, tmp)
-            else:
-                curve = truth_curve(type_id, ra, world, seed + type_id)
-            curves[type_id, ra] = curve
+def findings(world: str, seed: int, raw: bool, tmp: Path, workers: int | None = None,
+             scheduler: str | None = None) -> tuple[list[dict[str, object]], Timing]:
+    pairs = [(t, ra) for t in range(1, 10) for ra in RAILS]
+    curves, timing = raw_curves(pairs if raw else [(1, 0.2e-6)], world, seed, tmp, workers, scheduler)
+    for type_id, ra in pairs:
+        if (type_id, ra) not in curves:
+            curves[type_id, ra] = truth_curve(type_id, ra, world, seed + type_id)
     rows: list[dict[str, object]] = []
 
     def row(finding: str, figure: str, paper: str, twin: str, tolerance: str, ok: bool) -> None:
@@ -183,25 +207,52 @@ def findings(world: str, seed: int, raw: bool, tmp: Path) -> list[dict[str, obje
         f"spread {spread[0]:.2%} at {ref.loads[0]:.0f} N, {spread[-1]:.2%} at {ref.loads[-1]:.0f} N "
         f"(σ {sigma_top:.2g} N/m)", "≤ 5 % low, ≤ 1 % high, σ 1e4-2e5",
         spread[0] <= 0.05 and spread[-1] <= 0.01 and 1e4 <= sigma_top <= 2e5)
-    return rows
+    return rows, timing
+
+
+def idle_wall_s(cpu_s: list[float], workers: int) -> float:
+    """The campaigns' CPU seconds scheduled largest first on ``workers`` idle cores (what the runner does)."""
+    busy = [0.0] * max(1, workers)
+    for c in sorted(cpu_s, reverse=True):
+        busy[busy.index(min(busy))] += c
+    return max(busy)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="default")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--raw", action="store_true", help="process every type and rail from raw impacts (slow)")
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--raw", action="store_true", default=True,
+                      help="every type and rail from raw impacts: 18 campaigns (the default)")
+    mode.add_argument("--truth", dest="raw", action="store_false",
+                      help="the twin's truth for all but the reference campaign (quick)")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="local Dask cluster of N worker processes (default: one per CPU; 0: in this process)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (shared /tmp)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        rows = findings(args.world, args.seed, args.raw, Path(tmp))
+        rows, timing = findings(args.world, args.seed, args.raw, Path(tmp), args.workers, args.scheduler)
+    cpu = list(timing.cpu_s.values())
+    where = args.scheduler or (f"{timing.workers} local worker processes" if timing.workers else "this process")
+    summary = {"campaigns": len(cpu), "wall_s": timing.wall_s, "cpu_s": timing.cpu_s, "where": where,
+               "load_average": timing.load_average, "idle_wall_estimate_s": idle_wall_s(cpu, max(1, timing.workers))}
     if args.json:
-        print(json.dumps(rows))
+        print(json.dumps({"rows": rows, "timing": summary}))
     else:
         print(f"{'finding':<66} {'figure':<14} {'paper':<54} {'twin':<74} {'tolerance':<38} pass")
         for r in rows:
             print(f"{r['finding']:<66} {r['figure']:<14} {r['paper']:<54} {r['twin']:<74} {r['tolerance']:<38} "
                   f"{'yes' if r['pass'] else 'NO'}")
+        print(f"{len(cpu)} campaigns from raw impacts on {where}: {timing.wall_s:.1f} s wall, "
+              f"{sum(cpu):.1f} s CPU in the campaigns (largest {max(cpu):.1f} s); load average "
+              f"{' '.join(f'{x:.1f}' for x in timing.load_average)} on {os.cpu_count()} CPUs")
+        per = " ".join(f"{k.removeprefix('paper_')} {v:.1f}" for k, v in timing.cpu_s.items())
+        print(f"per campaign CPU s: {per}")
+        print(f"idle estimate: these CPU seconds, largest first on {max(1, timing.workers)} idle workers: "
+              f"{summary['idle_wall_estimate_s']:.1f} s (plus the cluster's start-up)")
     return 0 if all(r["pass"] for r in rows) else 1
 
 

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import fcntl
+import json
+from pathlib import Path
+
 import pytest
 
 from drivers.sim import RigTwin
@@ -20,3 +24,21 @@ def first_blow_double(monkeypatch):
 
     monkeypatch.setattr(RigTwin, "strike", strike)
     return blows
+
+
+@pytest.fixture(scope="session")
+def demo_campaign(tmp_path_factory) -> tuple[Path, dict]:
+    """``labctl demo --json`` run once per test session, shared by every test file and every xdist worker (the
+    first to ask makes it under a file lock, the others wait for it): its campaign file and printed summary.
+    Tests only read the campaign file; they write their own outputs under their own tmp_path."""
+    from tests.cli_util import labctl_json
+
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if base.name.startswith("popen-gw") else base  # xdist: one base per worker, one parent
+    out, done = shared / "demo-shared", shared / "demo-shared.json"
+    with (shared / "demo-shared.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            summary = labctl_json("demo", "--out", str(out))
+            done.write_text(json.dumps(summary), encoding="utf-8")
+        return out / "campaign.h5", json.loads(done.read_text(encoding="utf-8"))

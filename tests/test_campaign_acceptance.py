@@ -9,12 +9,12 @@ import pytest
 
 from labctl.physics import HertzBallContact, material
 from labctl.stiffness_table import read_stiffness_table
-from tests.cli_util import assert_one_line_error, labctl, labctl_json
+from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_process
 
 
 @pytest.mark.slow
-def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(tmp_path):
-    out = labctl_json("demo", "--out", str(tmp_path / "d"), timeout=300)
+def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(demo_campaign, tmp_path):
+    campaign, out = demo_campaign  # labctl demo --json, run once for the session (tests/conftest.py)
     steps = out["steps"]
     assert len(steps) >= 10 and out["repetitions"] == 3
     assert steps[0]["load_n"] == pytest.approx(38, rel=0.05) and steps[-1]["load_n"] <= 0.31 * 1447  # C0 cap
@@ -23,7 +23,7 @@ def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(tmp_path):
     assert steps[0]["spread"] < 0.05 and steps[-1]["spread"] < 0.015
 
     table = tmp_path / "s.csv"
-    proc = labctl("process", str(tmp_path / "d" / "campaign.h5"), "--csv", str(table))
+    proc = labctl("process", str(campaign), "--csv", str(table))
     assert proc.returncode == 0, proc.stderr
     with table.open(newline="") as fh:
         header = next(csv.reader(fh))
@@ -71,5 +71,5 @@ def test_process_refuses_foreign_and_corrupt_files(tmp_path):
 def test_run_refuses_to_overwrite_and_resume_needs_a_file(tmp_path):
     existing = tmp_path / "c.h5"
     existing.write_bytes(b"")
-    assert_one_line_error(labctl("run", "quick_check", "--out", str(existing)), "already exists")
+    assert_one_line_error(labctl_process("run", "quick_check", "--out", str(existing)), "already exists")
     assert_one_line_error(labctl("run", "quick_check", "--out", str(tmp_path / "none.h5"), "--resume"), "no campaign")

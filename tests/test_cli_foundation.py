@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from tests.cli_util import assert_one_line_error, labctl, labctl_json
+from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_process, one_json_object
 
 
 def test_model_tripp_default_and_fitted_depth():
-    out = labctl_json("model", "tripp", "--roller-type", "1", "--load-n", "440")
+    out = one_json_object(labctl_process("model", "tripp", "--roller-type", "1", "--load-n", "440", "--json"))
     assert out["model"] == "tripp" and out["load_n"] == [440.0]
     assert out["stiffness_n_per_m"][0] == pytest.approx(4.376e7, rel=5e-3)
     assert out["deflection_m"][0] > 0
@@ -34,7 +34,7 @@ def test_rig_modes_and_inverse():
 
 
 def test_fit_below_validity_is_one_line_exit_2():
-    proc = labctl("model", "fit-ra0.2", "--roller-type", "4", "--load-n", "10")
+    proc = labctl_process("model", "fit-ra0.2", "--roller-type", "4", "--load-n", "10")  # the console script
     assert_one_line_error(proc, "1.8 N/mm")
 
 

@@ -13,15 +13,13 @@ import pytest
 
 from labctl.physics import EQ5, EmpiricalFit, HertzBallContact, material
 from labctl.storage import CampaignReader
-from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json, labctl_json
+from tests.cli_util import assert_one_line_error, labctl, labctl_here, labctl_here_json
 from tests.engine_util import short_campaign_file
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory) -> tuple[Path, dict]:
-    out = tmp_path_factory.mktemp("demo")
-    summary = labctl_json("demo", "--out", str(out), timeout=300)
-    return out / "campaign.h5", summary
+def demo(demo_campaign) -> tuple[Path, dict]:
+    return demo_campaign  # the session's one demo run (tests/conftest.py)
 
 
 @pytest.fixture(scope="module")

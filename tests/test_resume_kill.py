@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from labctl.storage import CampaignReader
+from tests.cli_util import labctl
 from tests.engine_util import short_protocol
 
 
@@ -58,9 +59,8 @@ def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_pat
     with CampaignReader(out) as r:
         assert r.attrs["status"] == "running"  # killed: never marked finished
 
-    done = subprocess.run(_labctl_cmd("run", str(protocol), "--backend", "sim", "--out", str(out), "--resume",
-                                      "--quiet"), capture_output=True, text=True,
-                          cwd=os.path.dirname(os.path.dirname(__file__)), timeout=600)
+    # the resume needs no fresh interpreter: the CLI in this process (tests/cli_util.py)
+    done = labctl("run", str(protocol), "--backend", "sim", "--out", str(out), "--resume", "--quiet")
     assert done.returncode == 0, done.stderr
     after = _impacts(out)
     for name, (force, accel) in before.items():

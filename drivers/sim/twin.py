@@ -280,24 +280,27 @@ class RigTwin:
         if strike.overload_channel is not None:
             gain = self._overload_gain(strike.overload_channel, force, accel, channels)
             force, accel = force * gain, accel * gain
-        flat = {self._random_dropout(channels), self.pulled_channel} - {None}
-        for i, ch in enumerate(channels):
-            if ch in self.dead_channels:
-                accel[i] = 0.0
+        flat = np.isin(channels, [c for c in (self._random_dropout(channels), self.pulled_channel) if c])
+        accel[np.isin(channels, sorted(self.dead_channels))] = 0.0
         if self.faults.mains_hum_m_per_s2 > 0:
             accel += mains_hum(n_samples, sample_rate_hz, self.faults.mains_hum_m_per_s2, self.faults.mains_hz,
                                self._rng_fault, len(channels))
-        force = force + self._rng_noise.normal(0.0, s.force_noise_n, n_samples)
-        accel = accel + self._rng_noise.normal(0.0, s.accel_noise_m_per_s2, accel.shape)
+        force = force + self._noise(s.force_noise_n, force.shape)
+        accel += self._noise(s.accel_noise_m_per_s2, accel.shape)
         force, f_clip = digitise(force, s.force_range_n, s.adc_bits)
         accel, a_clip = digitise(accel, s.accel_range_m_per_s2, s.adc_bits)
-        for i, ch in enumerate(channels):
-            if ch in flat:  # an open IEPE input: the front end's open-circuit detection reads 0
-                accel[i], a_clip[i] = 0.0, False
+        accel[flat], a_clip[flat] = 0.0, False  # an open IEPE input: the front end's open-circuit detection reads 0
         self.time_s = max(self.time_s, strike.time_s) + n_samples / sample_rate_hz
-        clipped = (("F",) if f_clip[0] else ()) + tuple(ch for ch, c in zip(channels, a_clip, strict=True) if c)
+        clipped = (("F",) if f_clip[0] else ()) + tuple(np.asarray(channels)[a_clip].tolist())
         return Record(sample_rate_hz, force, accel, channels, trigger.pretrigger_samples,
                       self.clock_start_s + strike.time_s, clipped)
+
+    def _noise(self, rms: float, shape: tuple[int, ...]) -> np.ndarray:
+        """Gaussian noise of ``rms`` from the noise stream (the same numbers as ``normal(0, rms, shape)``, scaled in
+        place instead of through a second array)."""
+        out = self._rng_noise.standard_normal(shape)
+        out *= rms
+        return out
 
     def _random_dropout(self, channels: tuple[str, ...]) -> str | None:
         f, rng = self.faults, self._rng_fault
