@@ -229,7 +229,7 @@ def solve_rollers(
     sensors = _sensor_map(rig, names)[live]
     basis = _tilt_basis(model, sensors, k_equal)
     cross = cross_axis_variance(rig, names, np.asarray(tilt_constants, float))
-    meas_angles, sig_angles = [], []
+    meas_angles, sig_angles, projections = [], [], []
     for r in range(2):
         v = tilt_constants[r][live]
         ang, p = _angle(basis, v)
@@ -244,6 +244,15 @@ def solve_rollers(
         else:
             sig_angles.append(ANGLE_FALLBACK_RAD)
         meas_angles.append(ang)
+        projections.append(norm_p)
+    # Two modes much closer than their bandwidth: the data fix the sum of their modal constants and their
+    # difference times the split, so an error in the split (relative σ_split/split) mixes the two shapes — each
+    # shape turns by ½·(σ_split/split)·|other|/|own| inside the tilt subspace (their shapes near-orthogonal).
+    split = measured[2] - measured[1]
+    mixing = 0.5 * sig_split / max(abs(split), 1e-12)
+    for r in range(2):
+        other = projections[1 - r] / max(projections[r], 1e-300)
+        sig_angles[r] = math.hypot(sig_angles[r], min(mixing * other, 0.5 * math.pi))
     sig_asym = rig.uncertainty.inertia_asymmetry_rel
 
     def residuals(u: np.ndarray) -> np.ndarray:
@@ -255,14 +264,20 @@ def solve_rollers(
             cols += [asym[:, 0] / sig_asym, asym[:, 1] / sig_asym]
         return np.column_stack(cols)
 
-    split = measured[2] - measured[1]
     eps0 = split / max(abs(_split_per_deviation(rig, k_equal)), 1e-300)
     theta = np.radians(np.arange(0.0, 360.0, 45.0))[:, None]
     starts = np.log(k_equal * np.clip(1.0 + eps0 * np.cos(theta - np.radians([0.0, 120.0, 240.0])), 0.2, 5.0))
     best = starts[int(np.argmin(np.sum(residuals(starts) ** 2, axis=1)))]
     u, jac = _gauss_newton(residuals, best)
     if sig_asym > 0:  # the asymmetry as two more parameters with the rig file's prior: k's covariance holds it
-        u, jac_all = _gauss_newton(residuals, np.concatenate([u, [0.0, 0.0]]))
+        # starts: the rollers' solution, the split from the asymmetry alone at any orientation, and halves of both
+        a0 = abs(split) / max(abs(_split_per_asymmetry(rig, k_equal)), 1e-300)
+        circle = np.column_stack([np.cos(2 * theta[:, 0]), np.sin(2 * theta[:, 0])])
+        log_eq = np.full((len(theta), 3), math.log(k_equal))
+        joint = np.vstack([np.concatenate([u, [0.0, 0.0]])[None],
+                           np.column_stack([log_eq, a0 * circle]),
+                           np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
+        u, jac_all = _gauss_newton(residuals, joint[int(np.argmin(np.sum(residuals(joint) ** 2, axis=1)))])
         jac = jac_all[:-2, :3]
     else:
         jac_all = jac
