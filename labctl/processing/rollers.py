@@ -314,8 +314,8 @@ def per_roller(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: 
     if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     if blow_dependent:
-        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes materially, the tilt pair by "
-                        "other amounts than the bounce; equal rollers assumed")
+        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes materially, the tilt "
+                        "pair by other amounts than the bounce; equal rollers assumed until the blows are softer")
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     b, (t1, t2) = cls.bounce, cls.tilt
     idx = [b, t1, t2]
