@@ -29,6 +29,10 @@ from labctl.processing.stiffness import Stiffness
 
 DIFFER_LEVEL = 0.001  # two-sided level of the "this roller differs from the others" test
 ANGLE_FALLBACK_RAD = 0.05
+# The "roller or rig asymmetry" warning: when discs asymmetric as the rig file allows (each component of the
+# asymmetry normal with its σ) would give a split this large with probability below 0.05: |a| > σ·√(-2 ln 0.05)
+ASYMMETRY_WARNING_LEVEL = 0.05
+UNUSUAL_ASYMMETRY = math.sqrt(-2.0 * math.log(ASYMMETRY_WARNING_LEVEL))
 
 
 @dataclass(frozen=True)
@@ -343,7 +347,9 @@ def per_roller(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: 
     limit = -ndtri(DIFFER_LEVEL / 2)
     split_hz = float(abs(fit.frequencies_hz[t2] - fit.frequencies_hz[t1]))
     hidden = [i for i in range(3) if abs(out.z_symmetric[i]) > limit and i not in out.differing]
-    if hidden and not out.differing:
+    # A split the rig's usual asymmetry explains is no news (the σ holds it); one it explains only rarely is
+    unusual = out.asymmetry_equivalent > rig.uncertainty.inertia_asymmetry_rel * UNUSUAL_ASYMMETRY
+    if hidden and not out.differing and unusual:
         mean = out.mean_n_per_m
         parts = ", ".join(f"roller {i + 1} {100 * (out.values_n_per_m[i] / mean - 1):+.1f} % (z {out.z[i]:+.1f}; "
                           f"{out.z_symmetric[i]:+.1f} on symmetric discs)" for i in hidden)
