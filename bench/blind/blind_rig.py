@@ -116,9 +116,10 @@ def build_model(rig: Rig, k_n_per_m: np.ndarray, inertia_eps: float = 0.0, axis_
     stiff = rows.T @ (k_path[:, None] * rows) + np.diag([0, 0, 0, ks, ks * rs**2 / 2, ks * rs**2 / 2])
     lam, phi = linalg.eigh(stiff, mass)
     rel = rows @ phi  # roller compressions per mode
-    share = (k_path[:, None] * rel**2).sum(axis=0) / lam  # share of the strain energy in the rollers
+    # the share of each mode's strain energy that sits in the rollers (ω² is the whole, mass-normalised)
+    share = (k_path[:, None] * rel**2).sum(axis=0) / np.maximum(lam, 1e-9 * lam.max())
     contact = tuple(sorted(np.argsort(share)[-3:].tolist()))
     bounce_share = rel.mean(axis=0) ** 2 / (rel**2).mean(axis=0)
     bounce = max(contact, key=lambda r: bounce_share[r])
     tilts = tuple(r for r in contact if r != bounce)
-    return Model(mass, stiff, np.sqrt(lam) / (2 * np.pi), phi, contact, bounce, tilts, k_path)
+    return Model(mass, stiff, np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi), phi, contact, bounce, tilts, k_path)
