@@ -123,3 +123,18 @@ def build_model(rig: Rig, k_n_per_m: np.ndarray, inertia_eps: float = 0.0, axis_
     bounce = max(contact, key=lambda r: bounce_share[r])
     tilts = tuple(r for r in contact if r != bounce)
     return Model(mass, stiff, np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi), phi, contact, bounce, tilts, k_path)
+
+
+def main() -> None:
+    """Print the paper rig's eigen-frequencies at the type-1 440 N stiffness and at the brief's 6.6e8 N/m."""
+    rig = paper_rig()
+    for k in (eq4_stiffness(748.0, rig), 6.6e8):
+        m = build_model(rig, np.full(3, k))
+        tilt = "/".join(f"{f:.2f}" for f in m.freqs_hz[list(m.tilts)])
+        support = "/".join(f"{m.freqs_hz[r]:.1f}" for r in range(6) if r not in m.contact_modes)
+        print(f"k {k:.4g} N/m: bounce {m.freqs_hz[m.bounce]:.2f} Hz (Eq. 4: {eq4_bounce_hz(k, rig):.2f}), "
+              f"tilt {tilt} Hz, support {support} Hz")
+
+
+if __name__ == "__main__":
+    main()
