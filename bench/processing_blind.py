@@ -88,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
           "over the decay, force 40-60 dB, matched rig; per-roller σ: roller_stiffnesses_fit_std_n_per_m; 95 % "
           "Wilson intervals\n")
     print("| preset | files | k_i within 2σ | k_i within 3σ | a roller called different (no roller differs) | "
-          "the differing two named | pair resolved | resolved & a tilt > 3.29σ off | bounce within 2σ | ms |")
-    print("|---" * 10 + "|")
+          "the differing two named | pair resolved | resolved & a tilt > 3.29σ off | bounce within 2σ | "
+          "rms(k_i err/σ) | ms |")
+    print("|---" * 11 + "|")
     clean_warn: Counter[str] = Counter()
     clean_files = 0
     for preset in presets:
@@ -109,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
               + (f"{called}/{len(equal)}" if equal else "—") + " | "
               + (f"{named_right}/{len(unequal)}" if unequal else "—")
               + f" | {len(resolved)}/{len(ok)} | {false_resolved}/{len(resolved)} | "
-              f"{share(wilson(int(np.sum(np.abs(bz) <= 2)), len(bz)))} | {np.median([r['ms'] for r in ok]):.0f} |",
+              f"{share(wilson(int(np.sum(np.abs(bz) <= 2)), len(bz)))} | {float(np.sqrt(np.mean(z**2))):.2f} | "
+              f"{np.median([r['ms'] for r in ok]):.0f} |",
               flush=True)
         if preset in CLEAN:
             clean_files += len(ok)
