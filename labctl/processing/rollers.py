@@ -64,8 +64,24 @@ class RollerStiffnesses:
         return float(math.sqrt(max(float(np.ones(3) @ self.covariance @ np.ones(3)), 0.0)) / 3.0)
 
 
+_SENSOR_MAPS: dict[tuple[int, tuple[str, ...]], tuple[RigConfig, np.ndarray]] = {}
+
+
 def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
-    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own)."""
+    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own),
+    remembered per rig object (a campaign solves every step against the same, immutable rig)."""
+    key = (id(rig), tuple(names))
+    hit = _SENSOR_MAPS.get(key)
+    if hit is not None and hit[0] is rig:
+        return hit[1]
+    if len(_SENSOR_MAPS) > 16:
+        _SENSOR_MAPS.clear()
+    out = _build_sensor_map(rig, names)
+    _SENSOR_MAPS[key] = (rig, out)
+    return out
+
+
+def _build_sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
     eye = np.eye(6)
     by_channel: dict[str, np.ndarray] = {}
     for s in rig.sensors:
@@ -282,7 +298,7 @@ def solve_rollers(
                            np.column_stack([log_eq, a0 * circle]),
                            np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
         u, jac_all = _gauss_newton(residuals, joint[int(np.argmin(np.sum(residuals(joint) ** 2, axis=1)))])
-        jac = jac_all[:-2, :3]
+        jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
     else:
         jac_all = jac
     k = np.exp(u[:3])
