@@ -29,6 +29,9 @@ from labctl.processing.stiffness import Stiffness
 
 DIFFER_LEVEL = 0.001  # two-sided level of the "this roller differs from the others" test
 ANGLE_FALLBACK_RAD = 0.05
+JOINT_DESCENTS = 3  # Gauss–Newton descents from the best starts of the joint (rollers and asymmetry) problem
+JOINT_ITER = 12
+POOR_FIT_COST = 36.0  # χ² of the joint fit's 6 whitened residuals beyond which the other descents are tried
 # The "roller or rig asymmetry" warning: when discs asymmetric as the rig file allows (each component of the
 # asymmetry normal with its σ) would give a split this large with probability below 0.05: |a| > σ·√(-2 ln 0.05)
 ASYMMETRY_WARNING_LEVEL = 0.05
@@ -297,7 +300,18 @@ def solve_rollers(
         joint = np.vstack([np.concatenate([u, [0.0, 0.0]])[None],
                            np.column_stack([log_eq, a0 * circle]),
                            np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
-        u, jac_all = _gauss_newton(residuals, joint[int(np.argmin(np.sum(residuals(joint) ** 2, axis=1)))])
+        # the three best starts refined, the lowest cost kept: the angles' residuals are not convex far from the
+        # solution (a large asymmetry beyond the prior with unequal rollers stalled one descent at 600 σ)
+        ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
+
+        def cost(t: tuple[np.ndarray, np.ndarray]) -> float:
+            return float(np.sum(residuals(t[0][None])[0] ** 2))
+
+        best_try = _gauss_newton(residuals, joint[ranked[0]])
+        if cost(best_try) > POOR_FIT_COST:  # only a poor fit pays for the other descents
+            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked[1:])]
+            best_try = min(tries, key=cost)
+        u, jac_all = best_try
         jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
     else:
         jac_all = jac
