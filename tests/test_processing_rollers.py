@@ -114,7 +114,7 @@ def test_a_rig_known_symmetric_names_what_the_split_shows(asymmetric_disc):
     calibration): the rollers are then called different — the rig file's uncertainty decides."""
     asymmetric_disc.update(d=0.055, phi=1.1)
     g = ig.generate(RIG, K, n_samples=N, seed=4, force_snr_db=50.0)
-    text = Path(RIG.source).read_text().replace("model_rel = 0.003", "model_rel = 0.003\ninertia_asymmetry_rel = 0.0")
+    text = Path(RIG.source).read_text().replace("inertia_asymmetry_rel = 0.02", "inertia_asymmetry_rel = 0.0")
     rig0 = rig_from_text(text, "symmetric.toml")
     r = identify(g.force_n, g.accel_m_per_s2, g.fs_hz, g.channels, rig0)
     assert r.rollers_differing != ()
@@ -130,6 +130,6 @@ def test_rig_file_states_the_asymmetry_and_each_sensors_cross_axis_coupling():
     a1 = rig.sensors[0]
     assert a1.transverse_sensitivity == 0.01 and a1.mounting_angle_rad == pytest.approx(math.radians(0.5))
     assert rig.sensors[1].transverse_sensitivity is None
-    bad = text.replace("model_rel = 0.003", "model_rel = 0.003\ninertia_asymmetry_rel = -0.1")
+    bad = text.replace("inertia_asymmetry_rel = 0.02", "inertia_asymmetry_rel = -0.1")
     with pytest.raises(InputError, match=r"x\.toml: uncertainty.*inertia_asymmetry_rel"):
         rig_from_text(bad, "x.toml")

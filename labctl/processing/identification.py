@@ -69,7 +69,8 @@ class Identification:
     # per roller, in the rig file's roller order; the mean is roller_stiffness_n_per_m
     roller_stiffnesses_n_per_m: tuple[float, ...] = ()
     roller_stiffnesses_std_n_per_m: tuple[float, ...] = ()  # total (modal fit and rig parameters)
-    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()  # the modal fit's share (what tells rollers apart)
+    # what tells rollers apart: the modal fit, the sensors' cross-axis coupling and the discs' inertia asymmetry
+    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()
     roller_stiffnesses_resolved: bool = False  # False: the tilt pair could not tell the rollers apart
     roller_stiffness_condition: float | None = None  # condition number of the per-roller inverse
     rollers_differing: tuple[int, ...] = ()  # 1-based rollers whose stiffness differs beyond its uncertainty
