@@ -172,6 +172,7 @@ def _jacobian(residuals, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.n
     return ((residuals(u + h * np.eye(len(u))) - r0) / h).T
 
 
+MAX_HALVINGS = 6  # a step that still raises the cost at 1/64 of its length ends the descent
 STEP_TOLERANCE = 0.01  # converged when a full Gauss–Newton step moves every parameter by less than this share
 # of its 1-σ: the solution then sits far closer to the minimum than its stated uncertainty can tell
 
@@ -195,7 +196,7 @@ def _gauss_newton(residuals, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndar
         except np.linalg.LinAlgError:
             sigma = np.zeros(len(u))
         cost = float(r @ r)
-        for _ in range(20):
+        for _ in range(MAX_HALVINGS):
             r_new = residual(u + step)
             if float(r_new @ r_new) <= cost:
                 break
@@ -277,6 +278,7 @@ def solve_rollers(
         other = projections[1 - r] / max(projections[r], 1e-300)
         sig_angles[r] = math.hypot(sig_angles[r], min(mixing * other, 0.5 * math.pi))
     sig_asym = rig.uncertainty.inertia_asymmetry_rel
+    per_asymmetry = _split_per_asymmetry(rig, k_equal)
 
     def residuals(u: np.ndarray) -> np.ndarray:
         asym = u[:, 3:5] if u.shape[1] == 5 else None
@@ -293,23 +295,24 @@ def solve_rollers(
     best = starts[int(np.argmin(np.sum(residuals(starts) ** 2, axis=1)))]
     u, jac = _gauss_newton(residuals, best)
     if sig_asym > 0:  # the asymmetry as two more parameters with the rig file's prior: k's covariance holds it
-        # starts: the rollers' solution, the split from the asymmetry alone at any orientation, and halves of both
-        a0 = abs(split) / max(abs(_split_per_asymmetry(rig, k_equal)), 1e-300)
-        circle = np.column_stack([np.cos(2 * theta[:, 0]), np.sin(2 * theta[:, 0])])
-        log_eq = np.full((len(theta), 3), math.log(k_equal))
-        joint = np.vstack([np.concatenate([u, [0.0, 0.0]])[None],
-                           np.column_stack([log_eq, a0 * circle]),
-                           np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
-        # the three best starts refined, the lowest cost kept: the angles' residuals are not convex far from the
-        # solution (a large asymmetry beyond the prior with unequal rollers stalled one descent at 600 σ)
-        ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
+        u0 = np.concatenate([u, [0.0, 0.0]])
 
         def cost(t: tuple[np.ndarray, np.ndarray]) -> float:
             return float(np.sum(residuals(t[0][None])[0] ** 2))
 
-        best_try = _gauss_newton(residuals, joint[ranked[0]])
-        if cost(best_try) > POOR_FIT_COST:  # only a poor fit pays for the other descents
-            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked[1:])]
+        # Symmetric discs fit the data: the joint optimum lies a step or two away (the prior holds the asymmetry
+        # near zero). Otherwise the data want an asymmetry: starts from the split by the asymmetry alone at any
+        # orientation and halves of both, the three best refined, the lowest cost kept (the angles' residuals are
+        # not convex far from the solution: rollers ±15 % on discs 5.5 % asymmetric stalled one descent at 600 σ).
+        best_try = _gauss_newton(residuals, u0, max_iter=2)
+        if cost(best_try) > POOR_FIT_COST:
+            a0 = abs(split) / max(abs(per_asymmetry), 1e-300)
+            circle = np.column_stack([np.cos(2 * theta[:, 0]), np.sin(2 * theta[:, 0])])
+            log_eq = np.full((len(theta), 3), math.log(k_equal))
+            joint = np.vstack([np.column_stack([log_eq, a0 * circle]),
+                               np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
+            ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
+            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
             best_try = min(tries, key=cost)
         u, jac_all = best_try
         jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
@@ -326,7 +329,7 @@ def solve_rollers(
     cov = cov_u * kk
     z, differing = _differing(k, cov, rig.uncertainty.model_rel)
     z_sym, _ = _differing(k, cov_sym * kk, rig.uncertainty.model_rel)
-    equivalent = abs(split) / max(abs(_split_per_asymmetry(rig, float(np.mean(k)))), 1e-300)
+    equivalent = abs(split) / max(abs(per_asymmetry), 1e-300)
     return RollerStiffnesses((float(k[0]), float(k[1]), float(k[2])), cov, True, condition, z, differing, z_sym,
                              equivalent)
 
