@@ -203,6 +203,7 @@ class ContactModeModel:
         self.scale = 1.0 / np.sqrt(np.diag(mass))
         self.outer = np.outer(self.scale, self.scale)
         self.inv_setup = 3.0 / config.setup_stiffness_n_per_m
+        self.row_outer = np.einsum("ci,cj->cij", self.rows, self.rows).reshape(len(self.rows), 36)
 
     def __call__(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3)."""
@@ -220,7 +221,7 @@ class ContactModeModel:
         if np.any(~np.isfinite(k)) or np.any(k <= 0):
             raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
         k_path = 1.0 / (1.0 / k + self.inv_setup)
-        stiff = self.support + np.einsum("ci,nc,cj->nij", self.rows, k_path, self.rows)
+        stiff = self.support + (k_path @ self.row_outer).reshape(-1, 6, 6)
         if asymmetry is None:
             omega2, v = np.linalg.eigh(stiff * self.outer)
             shapes = v[:, :, 3:] * self.scale[None, :, None]
@@ -229,7 +230,7 @@ class ContactModeModel:
             omega2, v = np.linalg.eigh(scale @ stiff @ scale)
             shapes = (scale @ v)[:, :, 3:]
         freqs = np.sqrt(np.clip(omega2[:, 3:], 0.0, None)) / (2.0 * math.pi)
-        b = _bounce_index(np.einsum("cj,njm->ncm", self.rows, shapes))
+        b = _bounce_index(self.rows @ shapes)
         others = np.array([[1, 2], [0, 2], [0, 1]])[b]
         rows = np.arange(len(k))
         swap = freqs[rows, others[:, 0]] > freqs[rows, others[:, 1]]
