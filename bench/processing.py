@@ -334,7 +334,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="start the main table at its K-th condition (0-based; to finish an interrupted run)")
     ap.add_argument("--independent", type=int, metavar="N",
                     help="only the coverage check on N files of the independent generator")
+    ap.add_argument("--blind", type=int, metavar="N",
+                    help="only the blind generator's tables (bench/processing_blind.py): N files per preset")
     args = ap.parse_args(argv)
+    if args.blind:
+        from processing_blind import main as blind_main
+
+        return blind_main([str(args.blind)])
     if args.independent:
         r = independent_coverage(args.independent)
         print(f"independent generator, {r['files']} files, 40 dB over the decay, force 40-60 dB peak to noise: "

@@ -98,3 +98,35 @@ def test_bad_world_file_and_output_path_name_the_problem(tmp_path):
     proc = labctl("simulate", "impacts", "--roller-type", "1", "--load-n", "100",
                   "--out", str(tmp_path / "missing" / "x.npz"))
     assert_one_line_error(proc, "does not exist")
+
+
+def test_a_ball_is_hertz_whatever_the_world_or_refused(tmp_path):
+    """``--ball-mm`` alone simulates Hertz balls (world 'balls'), within 3 % of ``labctl model hertz``; a world
+    whose contacts are rollers is refused, not silently used (it gave 4.6 × Hertz)."""
+    truth = labctl_json("simulate", "impacts", "--ball-mm", "6", "--load-n", "100", "--impacts", "1", "--seed", "2",
+                        "--out", str(tmp_path / "b.npz"))
+    hertz = labctl_json("model", "hertz", "--ball-diameter-mm", "6", "--load-n", "100")
+    k_hertz = hertz["stiffness_n_per_m"][0]
+    assert truth["world"].endswith("balls.toml")
+    assert np.mean(truth["roller_stiffness_n_per_m"]) == pytest.approx(k_hertz, rel=0.03)
+    proc = labctl("simulate", "impacts", "--ball-mm", "6", "--load-n", "100", "--world", "default",
+                  "--out", str(tmp_path / "c.npz"))
+    assert_one_line_error(proc, "--ball-mm", "default", "balls")
+
+
+def test_hammer_level_is_a_setting_and_out_names_the_file_written(tmp_path):
+    """``--hammer-level`` sets the blows' mean peak (scatter 20 % around it); ``--out`` not ending in .npz is
+    refused (numpy would have written s.h5.npz while the tool printed s.h5)."""
+    out = tmp_path / "h.npz"
+    r = labctl_json("simulate", "impacts", "--roller-type", "1", "--load-n", "200", "--hammer-level", "60",
+                    "--impacts", "3", "--seed", "4", "--out", str(out))
+    assert r["hammer_level_n"] == 60 and r["out"] == str(out) and out.exists()
+    with np.load(out) as d:
+        peaks = d["force"].max(axis=1)
+    assert np.all((peaks > 30) & (peaks < 120)), peaks
+    proc = labctl("simulate", "impacts", "--roller-type", "1", "--load-n", "200", "--out", str(tmp_path / "s.h5"))
+    assert_one_line_error(proc, "s.h5", ".npz")
+    assert not (tmp_path / "s.h5.npz").exists() and not (tmp_path / "s.h5").exists()
+    proc = labctl("simulate", "impacts", "--roller-type", "1", "--load-n", "200", "--hammer-level", "0",
+                  "--out", str(tmp_path / "z.npz"))
+    assert_one_line_error(proc, "--hammer-level")

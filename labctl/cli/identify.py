@@ -103,11 +103,15 @@ def _text(r: dict[str, Any]) -> str:
                else "tilt pair unresolved: the rollers cannot be told apart")
         lines.append("  per roller: " + ", ".join(f"{i + 1}: {k:.4e} ± {s:.1e}" for i, (k, s)
                                                  in enumerate(zip(ks, kstd, strict=True))) + f" N/m ({how})")
-    lin = r["linearity"]
+    lin, blow = r["linearity"], r.get("blow_effect")
     if lin:
+        note = ""
+        if blow and blow["significant"]:
+            note = (f"   (not linear: k moved ~{100 * blow['effect_rel']:.2f} % by the blows, "
+                    + ("see warning)" if blow["material"] else
+                       f"below {100 * blow['limit_rel']:.2f} %: within the stated σ)"))
         lines.append(f"linearity  bounce {100 * lin['slope_hz_per_n']:+.4f} ± {100 * lin['slope_std_hz_per_n']:.4f} Hz "
-                     f"per 100 N of blow over {min(lin['peak_force_n']):.0f}-{max(lin['peak_force_n']):.0f} N"
-                     + ("   (not linear: see warning)" if lin["nonlinear"] else ""))
+                     f"per 100 N of blow over {min(lin['peak_force_n']):.0f}-{max(lin['peak_force_n']):.0f} N" + note)
     if "roller_only_stiffness_n_per_m" in r:
         lines.append(f"roller alone     {r['roller_only_stiffness_n_per_m']:.5e} ± "
                      f"{r['roller_only_stiffness_std_n_per_m']:.2e} N/m (rails' Tripp compliance removed)")

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
 SAMPLE_RATE_HZ = 20_480.0
 N_SAMPLES = 65_536
 UM, MM = 1e-6, 1e-3
+BALL_WORLD = "balls"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,15 +31,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     i = ss.add_parser("impacts", help="strike the twin at one load and write an impacts NPZ; print the truth")
     what = i.add_mutually_exclusive_group(required=True)
     what.add_argument("--roller-type", type=int, metavar="N", help="roller type of the catalogue (Table 1)")
-    what.add_argument("--ball-mm", type=float, metavar="D", help="a steel ball of diameter D mm (world 'balls')")
+    what.add_argument("--ball-mm", type=float, metavar="D",
+                      help="a steel ball of diameter D mm: Hertz contacts (world 'balls' unless --world names another "
+                           "world with ball contacts)")
     i.add_argument("--load-n", type=float, required=True, metavar="F", help="load per roller, N")
     i.add_argument("--impacts", type=int, default=3, help="number of impacts (default 3)")
     i.add_argument("--world", help="world scenario: a TOML file or a shipped name (default: default)")
+    i.add_argument("--hammer-level", type=float, metavar="N",
+                   help="the hammer's mean peak force, N (default: the world's [instruments] peak_force_n, else 250)")
     i.add_argument("--seed", type=int, help="random seed (default: fresh; the one used is printed)")
     i.add_argument("--rail-ra-um", type=float, default=0.2, help="rail roughness Ra, µm (default 0.2)")
     i.add_argument("--rail-material", help="rail material (default: the catalogue's bearing steel)")
     i.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
-    i.add_argument("--out", required=True, help="impacts NPZ file to write")
+    i.add_argument("--out", required=True, help="impacts NPZ file to write (a name ending in .npz)")
     add_json(i)
     i.set_defaults(func=run_impacts)
 
@@ -49,26 +54,41 @@ def run_impacts(args: argparse.Namespace) -> int:
     if not args.rail_ra_um > 0:
         raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a positive roughness in µm")
     out = Path(args.out)
+    if out.suffix.lower() != ".npz":
+        raise InputError(f"--out {out}: an impacts file is an NPZ; expected a name ending in .npz "
+                         f"(e.g. {out.with_suffix('.npz')})")
     if not out.parent.is_dir():
         raise InputError(f"--out {out}: directory {out.parent} does not exist")
+    if args.hammer_level is not None and not args.hammer_level > 0:
+        raise InputError(f"--hammer-level {args.hammer_level!r}: expected a positive peak force in N")
+    from dataclasses import replace
+
     import numpy as np
 
     from drivers.sim import twin_of
     from labctl.backends import make_rig
     from labctl.physics import ContactCase, material, roller
     from labctl.physics.materials import BEARING_STEEL
-    from labctl.physics.world import ball
+    from labctl.physics.world import ball, load_world
 
     rail = material(args.rail_material or BEARING_STEEL)
+    world = args.world
     if args.ball_mm is not None:
         if not args.ball_mm > 0:
             raise InputError(f"--ball-mm {args.ball_mm!r}: expected a positive diameter in mm")
+        world = world or BALL_WORLD
+        baseline = load_world(world).law.baseline
+        if baseline != "hertz":
+            raise InputError(f"--ball-mm with --world {world}: that world's contacts are '{baseline}' (rollers), not "
+                             f"balls; use --world {BALL_WORLD} or a world whose baseline model is 'hertz'")
         element = ball(args.ball_mm * MM, material(BEARING_STEEL))
     else:
         element = roller(args.roller_type)
-    rig = make_rig("sim", case=ContactCase(element, rail, args.rail_ra_um * UM), rig=args.rig, world=args.world,
+    rig = make_rig("sim", case=ContactCase(element, rail, args.rail_ra_um * UM), rig=args.rig, world=world,
                    seed=args.seed)
     twin = twin_of(rig)
+    if args.hammer_level is not None:
+        twin.settings = replace(twin.settings, peak_force_n=args.hammer_level)
     if not args.load_n >= twin.preload_n:
         raise InputError(f"--load-n {args.load_n:g}: below the preload {twin.preload_n:.1f} N per roller "
                          "(the upper disc's weight)")
@@ -76,7 +96,7 @@ def run_impacts(args: argparse.Namespace) -> int:
     fs, force, accel, channels = strike_series(rig, args.impacts)
     np.savez(out, fs=np.float64(fs), force=force, accel=accel, channels=np.array(channels, dtype=np.str_))
     result: dict[str, Any] = {**twin.truth(), "seed": twin.seed, "world": rig.description["world"],
-                              "out": str(out)}
+                              "hammer_level_n": twin.settings.peak_force_n, "out": str(out)}
     emit(result, args.json, _text)
     return 0
 
@@ -101,6 +121,6 @@ def strike_series(rig: Rig, impacts: int) -> tuple[float, np.ndarray, np.ndarray
 def _text(r: dict[str, Any]) -> str:
     k = ", ".join(f"{v:.4e}" for v in r["roller_stiffness_n_per_m"])
     t = r["tilt_hz"]
-    return (f"wrote {r['out']}  (world {r['world']}, seed {r['seed']})\n"
+    return (f"wrote {r['out']}  (world {r['world']}, seed {r['seed']}, hammer {r['hammer_level_n']:.0f} N)\n"
             f"load {r['load_n']:.1f} N per roller; roller stiffness {k} N/m\n"
             f"bounce {r['bounce_hz']:.2f} Hz   tilt {t[0]:.2f} / {t[1]:.2f} Hz")

@@ -203,29 +203,59 @@ class ContactModeModel:
         self.scale = 1.0 / np.sqrt(np.diag(mass))
         self.outer = np.outer(self.scale, self.scale)
         self.inv_setup = 3.0 / config.setup_stiffness_n_per_m
+        self.row_outer = np.einsum("ci,cj->cij", self.rows, self.rows).reshape(len(self.rows), 36)
 
     def __call__(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(bounce, lower tilt, upper tilt) frequencies (Hz) and their DOF shapes (6, 3)."""
         freqs, shapes = self.many(np.asarray(roller_stiffness_n_per_m, dtype=float)[None, :])
         return freqs[0], shapes[0]
 
-    def many(self, roller_stiffness_n_per_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The same for n sets of three stiffnesses (n, 3) at once: frequencies (n, 3), shapes (n, 6, 3)."""
+    def many(self, roller_stiffness_n_per_m: np.ndarray,
+             asymmetry: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The same for n sets of three stiffnesses (n, 3) at once: frequencies (n, 3), shapes (n, 6, 3).
+
+        ``asymmetry`` (n, 2): the discs' inertia asymmetry (u, v) = (I1 - I2)/I · (cos 2φ, sin 2φ), carried by the
+        upper disc (both discs tilt together in the contact modes: their asymmetries act alike on the tilt pair);
+        None: symmetric discs, as the rig file describes them."""
         k = np.asarray(roller_stiffness_n_per_m, dtype=float)
         if np.any(~np.isfinite(k)) or np.any(k <= 0):
             raise ModelDomainError(f"roller stiffness must be positive and finite, got {k.tolist()} N/m")
         k_path = 1.0 / (1.0 / k + self.inv_setup)
-        stiff = self.support + np.einsum("ci,nc,cj->nij", self.rows, k_path, self.rows)
-        omega2, v = np.linalg.eigh(stiff * self.outer)
-        shapes = v[:, :, 3:] * self.scale[None, :, None]
+        stiff = self.support + (k_path @ self.row_outer).reshape(-1, 6, 6)
+        if asymmetry is None:
+            omega2, v = np.linalg.eigh(stiff * self.outer)
+            shapes = v[:, :, 3:] * self.scale[None, :, None]
+        else:
+            scale = _inverse_sqrt_mass(self.scale, np.asarray(asymmetry, dtype=float).reshape(len(k), 2))
+            omega2, v = np.linalg.eigh(scale @ stiff @ scale)
+            shapes = (scale @ v)[:, :, 3:]
         freqs = np.sqrt(np.clip(omega2[:, 3:], 0.0, None)) / (2.0 * math.pi)
-        b = _bounce_index(np.einsum("cj,njm->ncm", self.rows, shapes))
+        b = _bounce_index(self.rows @ shapes)
         others = np.array([[1, 2], [0, 2], [0, 1]])[b]
         rows = np.arange(len(k))
         swap = freqs[rows, others[:, 0]] > freqs[rows, others[:, 1]]
         others[swap] = others[swap][:, ::-1]
         order = np.column_stack([b, others])
         return np.take_along_axis(freqs, order, axis=1), np.take_along_axis(shapes, order[:, None, :], axis=2)
+
+
+def _inverse_sqrt_mass(scale: np.ndarray, asymmetry: np.ndarray) -> np.ndarray:
+    """(n, 6, 6) M^(-1/2) of the rig's mass matrix (diagonal ``scale`` = 1/sqrt(m)) with the upper disc's
+    rotational block I·(1 + ½[[u, v], [v, -u]]): its eigenvalues are I(1 ± r/2), r = |(u, v)|, so its inverse
+    square root is a·1 + b·R with R = [[u, v], [v, -u]]/r and a, b from (1 ± r/2)^(-1/2)."""
+    u, v = asymmetry[:, 0], asymmetry[:, 1]
+    r = np.hypot(u, v)
+    if np.any(r >= 2.0):
+        raise ModelDomainError(f"inertia asymmetry {float(r.max()):.3g} leaves a principal inertia ≤ 0")
+    hi, lo = (1.0 + 0.5 * r) ** -0.5, (1.0 - 0.5 * r) ** -0.5
+    a, b = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    safe = np.where(r > 0, r, 1.0)
+    out = np.repeat(np.diag(scale)[None], len(u), axis=0)
+    s = scale[1]  # the upper disc's 1/sqrt(I)
+    out[:, 1, 1] = s * (a + b * u / safe)
+    out[:, 2, 2] = s * (a - b * u / safe)
+    out[:, 1, 2] = out[:, 2, 1] = s * b * v / safe
+    return out
 
 
 def contact_modes(config: RigConfig, roller_stiffness_n_per_m: ArrayLike) -> tuple[np.ndarray, np.ndarray]:

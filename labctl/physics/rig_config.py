@@ -14,6 +14,9 @@ from labctl.data.schema import Integer, Number, Numbers, Spec, Table, Tables, Te
 
 DEFAULT_RIG = "rigs/paper_rig.toml"
 AXES = ("X", "Y", "Z")
+DEFAULT_INERTIA_ASYMMETRY_REL = 0.02
+DEFAULT_TRANSVERSE_SENSITIVITY = 0.05
+DEFAULT_MOUNTING_ANGLE_RAD = math.radians(2.0)
 
 
 @dataclass(frozen=True)
@@ -33,6 +36,8 @@ class Sensor:
     y_m: float
     z_m: float
     angle_rad: float
+    transverse_sensitivity: float | None = None  # None: the rig's [uncertainty] value
+    mounting_angle_rad: float | None = None
 
     @property
     def channels(self) -> tuple[str, str, str]:
@@ -68,6 +73,15 @@ class RigUncertainty:
     setup_stiffness_std_n_per_m: float = 0.0  # K_setup
     mass_setup_correlation: float = 0.0  # correlation of the two estimates (a calibration fit gives it)
     model_rel: float = 0.0  # relative stiffness error of the rig model's idealisation (rigid discs, point contacts)
+    # The discs' inertia about two diameters is taken equal; a real disc with rails, bolts and sensors is not quite.
+    # Each component of the discs' combined asymmetry (I1 - I2)/I · (cos 2φ, sin 2φ), principal axes at any angle
+    # φ, has this 1-σ: 2 % splits the tilt pair by ~3 Hz at 584 Hz with equal rollers (docs/processing.md §4).
+    inertia_asymmetry_rel: float = DEFAULT_INERTIA_ASYMMETRY_REL
+    # Accelerometers' cross-axis coupling: the data sheet's maximum transverse sensitivity of the class (PCB 356A
+    # tri-axial ICP: ≤ 5 %) and how far a sensor's axes may be turned on its mount (a glued or stud-mounted block
+    # on a machined face: ~2°); a sensor's own entry in [[sensors]] overrides both.
+    transverse_sensitivity: float = DEFAULT_TRANSVERSE_SENSITIVITY
+    mounting_angle_rad: float = DEFAULT_MOUNTING_ANGLE_RAD
 
 
 @dataclass(frozen=True)
@@ -133,9 +147,14 @@ SUPPORT: dict[str, Spec] = {"stiffness_n_per_m": _POSITIVE, "radius_mm": Number(
 LOADING: dict[str, Spec] = {"rods": Integer(ge=1), "thread_pitch_mm": Number(gt=0, unit="mm"),
                             "spring_rate_n_per_m": _POSITIVE, "gravity_m_per_s2": _POSITIVE}
 UNCERTAINTY: dict[str, Spec] = {"mass_std_kg": Number(ge=0), "setup_stiffness_std_n_per_m": Number(ge=0),
-                                "mass_setup_correlation": Number(ge=-1, le=1), "model_rel": Number(ge=0)}
+                                "mass_setup_correlation": Number(ge=-1, le=1), "model_rel": Number(ge=0),
+                                "inertia_asymmetry_rel": Number(ge=0, le=0.5),
+                                "transverse_sensitivity": Number(ge=0, le=0.5),
+                                "mounting_angle_deg": Number(ge=0, le=30, unit="deg")}
 POINT: dict[str, Spec] = {"radius_mm": Number(ge=0, unit="mm"), "angle_deg": Number(unit="deg")}
-SENSOR: dict[str, Spec] = {"name": Text(), "disc": Text(("upper", "lower")), **POINT}
+SENSOR: dict[str, Spec] = {"name": Text(), "disc": Text(("upper", "lower")), **POINT,
+                           "transverse_sensitivity": Number(ge=0, le=0.5, default=None),
+                           "mounting_angle_deg": Number(ge=0, le=30, unit="deg", default=None)}
 FLEXIBLE_MODE: dict[str, Spec] = {"frequency_hz": _POSITIVE, "damping_ratio": _POSITIVE, "modal_mass_kg": _POSITIVE,
                                   "hammer": Number(default=1.0), "shape": Table(default={})}
 TOP: dict[str, Spec] = {
@@ -151,7 +170,8 @@ def _sensor(entry: dict[str, Any], discs: dict[str, Disc], where: Where) -> Sens
     r, ang = t["radius_m"], t["angle_rad"]
     # upper-disc sensors sit on its top face, lower-disc sensors on its underside
     z = 0.5 * discs[t["disc"]].thickness_m * (1.0 if t["disc"] == "upper" else -1.0)
-    return Sensor(t["name"], t["disc"], r * math.cos(ang), r * math.sin(ang), z, ang)
+    return Sensor(t["name"], t["disc"], r * math.cos(ang), r * math.sin(ang), z, ang,
+                  t.get("transverse_sensitivity"), t.get("mounting_angle_rad"))
 
 
 def _flexible_mode(entry: dict[str, Any], channels: tuple[str, ...], where: Where) -> FlexibleMode:

@@ -69,13 +69,15 @@ class Identification:
     # per roller, in the rig file's roller order; the mean is roller_stiffness_n_per_m
     roller_stiffnesses_n_per_m: tuple[float, ...] = ()
     roller_stiffnesses_std_n_per_m: tuple[float, ...] = ()  # total (modal fit and rig parameters)
-    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()  # the modal fit's share (what tells rollers apart)
+    # what tells rollers apart: the modal fit, the sensors' cross-axis coupling and the discs' inertia asymmetry
+    roller_stiffnesses_fit_std_n_per_m: tuple[float, ...] = ()
     roller_stiffnesses_resolved: bool = False  # False: the tilt pair could not tell the rollers apart
     roller_stiffness_condition: float | None = None  # condition number of the per-roller inverse
     rollers_differing: tuple[int, ...] = ()  # 1-based rollers whose stiffness differs beyond its uncertainty
     roller_stiffness_budget_n_per_m: dict[str, float] = field(default_factory=dict)
     linearity: dict | None = None  # bounce frequency against peak force over the step's impacts
-    small_blow: dict | None = None  # the modes' shift above their small-blow limit, removed from the result
+    small_blow: dict | None = None  # the modes' shift above their small-blow limit, carried in the σ
+    blow_effect: dict | None = None  # that shift on the stiffness against its stated σ: is the hammer level too high?
 
     @property
     def accepted(self) -> list[int]:
@@ -127,6 +129,7 @@ class Identification:
             "roller_stiffness_budget_n_per_m": dict(self.roller_stiffness_budget_n_per_m),
             "linearity": self.linearity,
             "small_blow": self.small_blow,
+            "blow_effect": self.blow_effect,
         })
         if self.roller_only_stiffness_n_per_m is not None:
             out["roller_only_stiffness_n_per_m"] = self.roller_only_stiffness_n_per_m

@@ -16,6 +16,7 @@ import numpy as np
 
 from labctl.errors import InputError
 from labctl.physics import RigConfig, TrippContact
+from labctl.processing.blow import blow_effect
 from labctl.processing.channels import (
     channel_noise,
     live_channels,
@@ -189,19 +190,20 @@ def identify(
         warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
     lin = step_linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise,
-                     widen)
-    if lin is not None and lin.warning():
-        warnings.append(lin.warning())
+                         widen)
     small_blow = small_blow_limit(modes, spectra, used, lin, fs_hz)
+    b = modes.classes.bounce
+    blow = blow_effect(rig, float(modes.fit.frequencies_hz[b]), float(modes.fit.frequency_std_hz[b]), lin, small_blow,
+                       [checks[accepted[u]].peak_force_n for u in used])
     if small_blow is not None and small_blow.significant:
-        modes = widened(modes, small_blow)
-        warnings.append(f"the blows' size moves the contact modes by about {small_blow.shift_hz:+.3f} Hz at the "
-                        f"bounce (z {small_blow.z:+.1f}): the frequencies are those at these blows, their "
-                        "uncertainty covers the small-blow limit; hit softer or vary the hammer level")
+        modes = widened(modes, small_blow)  # the σ covers the small-blow limit whether or not that is material
+    if blow is not None and blow.warning():
+        warnings.append(blow.warning())
     result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
-                     dropped, blow_dependent=small_blow is not None and small_blow.significant)
+                     dropped, blow_dependent=blow is not None and blow.material)
     result.linearity = lin.to_dict() if lin is not None else None
     result.small_blow = small_blow.to_dict() if small_blow is not None else None
+    result.blow_effect = blow.to_dict() if blow is not None else None
     return result
 
 
@@ -249,8 +251,6 @@ def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, sp
         warnings.append(f"mode(s) at {', '.join(f'{f:.1f}' for f in modes.stray_hz)} Hz in the contact-mode range have "
                         "neither the bounce's nor the tilt's shape (a rail, mount or support resonance?): not "
                         "taken for contact modes")
-    if not modes.pair_resolved:
-        warnings.append("the tilt pair is not resolved by the data: reported as one (degenerate) frequency")
     if not cls.by_shape:
         warnings.append("the live channels cannot separate bounce from tilt shapes: assigned by frequency order")
     dead = tuple(n for n, ok in zip(names, live, strict=True) if not ok and n not in dropped)

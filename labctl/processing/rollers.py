@@ -29,6 +29,13 @@ from labctl.processing.stiffness import Stiffness
 
 DIFFER_LEVEL = 0.001  # two-sided level of the "this roller differs from the others" test
 ANGLE_FALLBACK_RAD = 0.05
+JOINT_DESCENTS = 3  # Gauss–Newton descents from the best starts of the joint (rollers and asymmetry) problem
+JOINT_ITER = 12
+POOR_FIT_COST = 36.0  # χ² of the joint fit's 6 whitened residuals beyond which the other descents are tried
+# The "roller or rig asymmetry" warning: when discs asymmetric as the rig file allows (each component of the
+# asymmetry normal with its σ) would give a split this large with probability below 0.05: |a| > σ·√(-2 ln 0.05)
+ASYMMETRY_WARNING_LEVEL = 0.05
+UNUSUAL_ASYMMETRY = math.sqrt(-2.0 * math.log(ASYMMETRY_WARNING_LEVEL))
 
 
 @dataclass(frozen=True)
@@ -36,11 +43,15 @@ class RollerStiffnesses:
     """k per roller (rig-file order) with the modal part of their covariance, and what the data could tell."""
 
     values_n_per_m: tuple[float, float, float]
-    covariance: np.ndarray  # (3, 3) N²/m² from the modal fit (rig parameters excluded: common to all)
+    covariance: np.ndarray  # (3, 3) N²/m²: modal fit, sensors' cross-axis coupling and the discs' inertia asymmetry
+    # (the rig parameters common to all three are excluded)
     resolved: bool  # False: tilt pair unresolved, equal-roller values with the spread the data could hide
     condition: float | None  # of the weighted inverse (None when not solved)
     z: tuple[float, float, float]  # each roller's deviation from the mean over its uncertainty
     differing: tuple[int, ...]  # 0-based rollers whose deviation passes the test at DIFFER_LEVEL
+    # z with the rig's inertia asymmetry taken as known to be zero: what the split alone would say
+    z_symmetric: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    asymmetry_equivalent: float = 0.0  # the discs' inertia asymmetry (I1 - I2)/I that alone gives the split
 
     @property
     def std_n_per_m(self) -> tuple[float, float, float]:
@@ -56,8 +67,24 @@ class RollerStiffnesses:
         return float(math.sqrt(max(float(np.ones(3) @ self.covariance @ np.ones(3)), 0.0)) / 3.0)
 
 
+_SENSOR_MAPS: dict[tuple[int, tuple[str, ...]], tuple[RigConfig, np.ndarray]] = {}
+
+
 def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
-    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own)."""
+    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own),
+    remembered per rig object (a campaign solves every step against the same, immutable rig)."""
+    key = (id(rig), tuple(names))
+    hit = _SENSOR_MAPS.get(key)
+    if hit is not None and hit[0] is rig:
+        return hit[1]
+    if len(_SENSOR_MAPS) > 16:
+        _SENSOR_MAPS.clear()
+    out = _build_sensor_map(rig, names)
+    _SENSOR_MAPS[key] = (rig, out)
+    return out
+
+
+def _build_sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
     eye = np.eye(6)
     by_channel: dict[str, np.ndarray] = {}
     for s in rig.sensors:
@@ -67,6 +94,38 @@ def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
     return np.array([by_channel[c] for c in names])
 
 
+def _cross_axis_std(rig: RigConfig, names: Sequence[str]) -> dict[str, tuple[float, tuple[str, str]]]:
+    """Per channel: the 1-σ of its coupling to each of its sensor's two other axes, and their channel names.
+
+    A transverse sensitivity T (the sensor class's data-sheet maximum, at an unknown angle) and a mounting turn
+    θ (about an unknown axis) each give a perpendicular axis a coefficient of RMS T/√2 and sin θ/√2."""
+    u = rig.uncertainty
+    out: dict[str, tuple[float, tuple[str, str]]] = {}
+    for s in rig.sensors:
+        t = u.transverse_sensitivity if s.transverse_sensitivity is None else s.transverse_sensitivity
+        theta = u.mounting_angle_rad if s.mounting_angle_rad is None else s.mounting_angle_rad
+        sigma = math.hypot(t, math.sin(theta)) / math.sqrt(2.0)
+        chans = s.channels
+        for i, ch in enumerate(chans):
+            if ch in names:
+                out[ch] = (sigma, (chans[(i + 1) % 3], chans[(i + 2) % 3]))
+    return out
+
+
+def cross_axis_variance(rig: RigConfig, names: Sequence[str], constants: np.ndarray) -> np.ndarray:
+    """(m, n_ch) variance each channel's modal constant gets from its sensor's cross-axis coupling: the other
+    axes' constants of the same mode times the coupling's σ (systematic: the impacts do not average it)."""
+    info = _cross_axis_std(rig, names)
+    index = {c: i for i, c in enumerate(names)}
+    out = np.zeros_like(constants, dtype=float)
+    for c, (sigma, others) in info.items():
+        j = index[c]
+        for o in others:
+            if o in index:
+                out[:, j] += (sigma * constants[:, index[o]]) ** 2
+    return out
+
+
 def _tilt_basis(model: ContactModeModel, sensors: np.ndarray, k: float) -> np.ndarray:
     """Orthonormal basis (n_live, 2) of the equal-roller model's tilt subspace over the live channels."""
     _, shapes = model(np.full(3, k))
@@ -74,11 +133,12 @@ def _tilt_basis(model: ContactModeModel, sensors: np.ndarray, k: float) -> np.nd
     return u[:, :2]
 
 
-def _model(model: ContactModeModel, k: np.ndarray, sensors: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray,
-                                                                                                      np.ndarray]:
-    """For n sets of stiffnesses (n, 3): (bounce, tilt lo, tilt hi) Hz (n, 3) and the angles (n, 2) of the two
-    tilt shapes over the live channels inside the equal-roller tilt subspace ``basis``."""
-    freqs, shapes = model.many(k)
+def _model(model: ContactModeModel, k: np.ndarray, sensors: np.ndarray, basis: np.ndarray,
+           asymmetry: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """For n sets of stiffnesses (n, 3) (and inertia asymmetries (n, 2)): (bounce, tilt lo, tilt hi) Hz (n, 3)
+    and the angles (n, 2) of the two tilt shapes over the live channels inside the equal-roller tilt subspace
+    ``basis``."""
+    freqs, shapes = model.many(k, asymmetry)
     p = np.einsum("ca,cj,njm->nam", basis, sensors, shapes[:, :, 1:])  # (n, 2 basis components, 2 tilt modes)
     return freqs, np.arctan2(p[:, 1], p[:, 0])
 
@@ -100,11 +160,19 @@ def _split_per_deviation(rig: RigConfig, k: float) -> float:
     return (hi - lo) / eps
 
 
+def _split_per_asymmetry(rig: RigConfig, k: float) -> float:
+    """d(tilt split)/d|asymmetry| for equal rollers k (Hz per unit (I1 - I2)/I)."""
+    a = 1e-3
+    f, _ = ContactModeModel.of(rig).many(np.full((1, 3), k), np.array([[a, 0.0]]))
+    return float(f[0, 2] - f[0, 1]) / a
+
+
 def _jacobian(residuals, u: np.ndarray, r0: np.ndarray, h: float = 1e-6) -> np.ndarray:
     """Forward differences, every parameter's step evaluated in one batch of ``residuals`` ((n, p) → (n, m))."""
     return ((residuals(u + h * np.eye(len(u))) - r0) / h).T
 
 
+MAX_HALVINGS = 6  # a step that still raises the cost at 1/64 of its length ends the descent
 STEP_TOLERANCE = 0.01  # converged when a full Gauss–Newton step moves every parameter by less than this share
 # of its 1-σ: the solution then sits far closer to the minimum than its stated uncertainty can tell
 
@@ -128,7 +196,7 @@ def _gauss_newton(residuals, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndar
         except np.linalg.LinAlgError:
             sigma = np.zeros(len(u))
         cost = float(r @ r)
-        for _ in range(20):
+        for _ in range(MAX_HALVINGS):
             r_new = residual(u + step)
             if float(r_new @ r_new) <= cost:
                 break
@@ -142,20 +210,24 @@ def _gauss_newton(residuals, u0: np.ndarray, max_iter: int = 8) -> tuple[np.ndar
     return u, jac
 
 
-def _differing(values: np.ndarray, cov: np.ndarray, model_rel: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
+def _differing(values: np.ndarray, cov: np.ndarray, model_rel: float) -> tuple[tuple[float, float, float],
+                                                                             tuple[int, ...]]:
     a = np.eye(3) - 1.0 / 3.0
     cov_d = a @ (cov + np.diag((model_rel * values) ** 2)) @ a.T
     d = a @ values
     z = d / np.sqrt(np.maximum(np.diag(cov_d), 1e-300))
     limit = -ndtri(DIFFER_LEVEL / 2)
-    return tuple(float(v) for v in z), tuple(i for i in range(3) if abs(z[i]) > limit)
+    return (float(z[0]), float(z[1]), float(z[2])), tuple(i for i in range(3) if abs(z[i]) > limit)
 
 
 def equal_rollers(rig: RigConfig, k: float, k_std: float, split_std_hz: float) -> RollerStiffnesses:
     """Unresolved tilt pair: all three at the equal-roller value; each roller's 1-σ adds the deviation that
-    a split of ``split_std_hz`` (one σ of a split the data could hide) would mean."""
+    a split of ``split_std_hz`` (one σ of a split the data could hide) would mean, and the one a 1-σ inertia
+    asymmetry of the discs could cancel."""
     slope = abs(_split_per_deviation(rig, k))
-    dev = k * split_std_hz / slope if slope > 0 and math.isfinite(split_std_hz) else math.inf
+    # a roller deviation and the discs' inertia asymmetry can cancel in the split: both bound what is hidden
+    hidden = math.hypot(split_std_hz, rig.uncertainty.inertia_asymmetry_rel * abs(_split_per_asymmetry(rig, k)))
+    dev = k * hidden / slope if slope > 0 and math.isfinite(hidden) else math.inf
     a = np.eye(3) - 1.0 / 3.0
     cov = np.full((3, 3), k_std**2) + dev**2 * a
     return RollerStiffnesses((k, k, k), cov, False, None, (0.0, 0.0, 0.0), ())
@@ -180,40 +252,86 @@ def solve_rollers(
     model = ContactModeModel.of(rig)
     sensors = _sensor_map(rig, names)[live]
     basis = _tilt_basis(model, sensors, k_equal)
-    meas_angles, sig_angles = [], []
+    cross = cross_axis_variance(rig, names, np.asarray(tilt_constants, float))
+    meas_angles, sig_angles, projections = [], [], []
     for r in range(2):
         v = tilt_constants[r][live]
         ang, p = _angle(basis, v)
         norm_p = float(np.linalg.norm(p))
-        if tilt_constants_std is not None and norm_p > 0 and np.all(np.isfinite(tilt_constants_std[r][live])):
+        std_ok = tilt_constants_std is not None and np.all(np.isfinite(tilt_constants_std[r][live]))
+        if norm_p > 0 and (std_ok or np.any(cross[r][live] > 0)):
             perp = np.array([-p[1], p[0]]) / norm_p
-            var = float(np.sum((basis @ perp) ** 2 * tilt_constants_std[r][live] ** 2))
-            sig_angles.append(max(math.sqrt(var) / norm_p, 1e-6))
+            var_c = cross[r][live] + (tilt_constants_std[r][live] ** 2 if std_ok else 0.0)
+            var = float(np.sum((basis @ perp) ** 2 * var_c))
+            sig_angles.append(max(math.sqrt(var) / norm_p, 1e-6) if std_ok else max(math.sqrt(var) / norm_p,
+                                                                                    ANGLE_FALLBACK_RAD))
         else:
             sig_angles.append(ANGLE_FALLBACK_RAD)
         meas_angles.append(ang)
+        projections.append(norm_p)
+    # Two modes much closer than their bandwidth: the data fix the sum of their modal constants and their
+    # difference times the split, so an error in the split (relative σ_split/split) mixes the two shapes — each
+    # shape turns by ½·(σ_split/split)·|other|/|own| inside the tilt subspace (their shapes near-orthogonal).
+    split = measured[2] - measured[1]
+    mixing = 0.5 * sig_split / max(abs(split), 1e-12)
+    for r in range(2):
+        other = projections[1 - r] / max(projections[r], 1e-300)
+        sig_angles[r] = math.hypot(sig_angles[r], min(mixing * other, 0.5 * math.pi))
+    sig_asym = rig.uncertainty.inertia_asymmetry_rel
+    per_asymmetry = _split_per_asymmetry(rig, k_equal)
 
     def residuals(u: np.ndarray) -> np.ndarray:
-        f, angles = _model(model, np.exp(u), sensors, basis)
-        return np.column_stack([(f[:, 0] - measured[0]) / sig[0],
-                                ((f[:, 2] - f[:, 1]) - (measured[2] - measured[1])) / sig_split,
-                                _wrap(angles - np.asarray(meas_angles)) / np.asarray(sig_angles)])
+        asym = u[:, 3:5] if u.shape[1] == 5 else None
+        f, angles = _model(model, np.exp(u[:, :3]), sensors, basis, asym)
+        cols = [(f[:, 0] - measured[0]) / sig[0], ((f[:, 2] - f[:, 1]) - (measured[2] - measured[1])) / sig_split,
+                *(_wrap(angles - np.asarray(meas_angles)) / np.asarray(sig_angles)).T]
+        if asym is not None:  # the rig file's prior on the asymmetry: what the data must overcome
+            cols += [asym[:, 0] / sig_asym, asym[:, 1] / sig_asym]
+        return np.column_stack(cols)
 
-    split = measured[2] - measured[1]
     eps0 = split / max(abs(_split_per_deviation(rig, k_equal)), 1e-300)
     theta = np.radians(np.arange(0.0, 360.0, 45.0))[:, None]
     starts = np.log(k_equal * np.clip(1.0 + eps0 * np.cos(theta - np.radians([0.0, 120.0, 240.0])), 0.2, 5.0))
     best = starts[int(np.argmin(np.sum(residuals(starts) ** 2, axis=1)))]
     u, jac = _gauss_newton(residuals, best)
-    k = np.exp(u)
+    if sig_asym > 0:  # the asymmetry as two more parameters with the rig file's prior: k's covariance holds it
+        u0 = np.concatenate([u, [0.0, 0.0]])
+
+        def cost(t: tuple[np.ndarray, np.ndarray]) -> float:
+            return float(np.sum(residuals(t[0][None])[0] ** 2))
+
+        # Symmetric discs fit the data: the joint optimum lies a step or two away (the prior holds the asymmetry
+        # near zero). Otherwise the data want an asymmetry: starts from the split by the asymmetry alone at any
+        # orientation and halves of both, the three best refined, the lowest cost kept (the angles' residuals are
+        # not convex far from the solution: rollers ±15 % on discs 5.5 % asymmetric stalled one descent at 600 σ).
+        best_try = _gauss_newton(residuals, u0, max_iter=2)
+        if cost(best_try) > POOR_FIT_COST:
+            a0 = abs(split) / max(abs(per_asymmetry), 1e-300)
+            circle = np.column_stack([np.cos(2 * theta[:, 0]), np.sin(2 * theta[:, 0])])
+            log_eq = np.full((len(theta), 3), math.log(k_equal))
+            joint = np.vstack([np.column_stack([log_eq, a0 * circle]),
+                               np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
+            ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
+            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
+            best_try = min(tries, key=cost)
+        u, jac_all = best_try
+        jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
+    else:
+        jac_all = jac
+    k = np.exp(u[:3])
     try:
-        cov_u = np.linalg.inv(jac.T @ jac)
-        condition = float(np.linalg.cond(jac))
+        cov_u = np.linalg.inv(jac_all.T @ jac_all)[:3, :3]
+        cov_sym = np.linalg.inv(jac.T @ jac)
+        condition = float(np.linalg.cond(jac_all))
     except np.linalg.LinAlgError:
-        cov_u, condition = np.full((3, 3), np.inf), math.inf
-    cov = cov_u * np.outer(k, k)
+        cov_u, cov_sym, condition = np.full((3, 3), np.inf), np.full((3, 3), np.inf), math.inf
+    kk = np.outer(k, k)
+    cov = cov_u * kk
     z, differing = _differing(k, cov, rig.uncertainty.model_rel)
-    return RollerStiffnesses((float(k[0]), float(k[1]), float(k[2])), cov, True, condition, z, differing)
+    z_sym, _ = _differing(k, cov_sym * kk, rig.uncertainty.model_rel)
+    equivalent = abs(split) / max(abs(per_asymmetry), 1e-300)
+    return RollerStiffnesses((float(k[0]), float(k[1]), float(k[2])), cov, True, condition, z, differing, z_sym,
+                             equivalent)
 
 
 # A per-roller solution is taken only when it is physically credible: rollers of one type differ by less than
@@ -233,8 +351,8 @@ def per_roller(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: 
     if not (modes.pair_resolved and cls.by_shape and len(cls.tilt) == 2):
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     if blow_dependent:
-        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes, the tilt pair by "
-                        "other amounts than the bounce; equal rollers assumed")
+        warnings.append("per-roller stiffnesses not solved: the blows move the contact modes materially, the tilt "
+                        "pair by other amounts than the bounce; equal rollers assumed until the blows are softer")
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, hidden)
     b, (t1, t2) = cls.bounce, cls.tilt
     idx = [b, t1, t2]
@@ -259,6 +377,20 @@ def per_roller(rig: RigConfig, names: tuple[str, ...], live: np.ndarray, modes: 
                         f"value, rollers {', '.join(f'{v:.3g}' for v in values)} N/m): equal rollers assumed — "
                         "the tilt pair may be moved by the blows or misassigned")
         return equal_rollers(rig, k_eq.value_n_per_m, k_eq.std_n_per_m, math.sqrt(2.0) * t_std)
+    limit = -ndtri(DIFFER_LEVEL / 2)
+    split_hz = float(abs(fit.frequencies_hz[t2] - fit.frequencies_hz[t1]))
+    hidden = [i for i in range(3) if abs(out.z_symmetric[i]) > limit and i not in out.differing]
+    # A split the rig's usual asymmetry explains is no news (the σ holds it); one it explains only rarely is
+    unusual = out.asymmetry_equivalent > rig.uncertainty.inertia_asymmetry_rel * UNUSUAL_ASYMMETRY
+    if hidden and not out.differing and unusual:
+        mean = out.mean_n_per_m
+        parts = ", ".join(f"roller {i + 1} {100 * (out.values_n_per_m[i] / mean - 1):+.1f} % (z {out.z[i]:+.1f}; "
+                          f"{out.z_symmetric[i]:+.1f} on symmetric discs)" for i in hidden)
+        warnings.append(f"roller or rig asymmetry, the data cannot tell: the tilt split {split_hz:.2f} Hz "
+                        f"would mean {parts} from their mean, or discs whose inertias about two diameters differ by "
+                        f"{100 * out.asymmetry_equivalent:.1f} % (the rig file allows "
+                        f"{100 * rig.uncertainty.inertia_asymmetry_rel:.1f} % at 1 σ); the rollers' σ covers both. "
+                        "A rig calibrated with equal elements (balls: its own split) tells them apart")
     if out.differing:
         mean = out.mean_n_per_m
         worst = max(out.differing, key=lambda i: abs(out.z[i]))
