@@ -16,9 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--db", help="archive catalogue for groups given as queries (labctl archive index)")
     p.add_argument("--level", type=float, default=0.05,
                    help="family-wise test level over all loads (default 0.05)")
-    p.add_argument("--unit", choices=("repetition", "campaign"), default="repetition",
-                   help="the replicate: each repetition (re-seating; default) or each campaign's mean curve (use "
-                        "when the groups hold several campaigns each and campaigns may differ by day or specimen)")
+    p.add_argument("--unit", choices=("auto", "repetition", "campaign"), default="auto",
+                   help="the replicate: each repetition (re-seating) or each campaign's mean curve; auto (default): "
+                        "campaigns when both groups hold two or more, else repetitions")
     add_json(p)
     p.set_defaults(func=run)
 

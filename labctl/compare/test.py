@@ -19,7 +19,7 @@ from labctl.errors import InputError
 
 DEFAULT_LEVEL = 0.05
 MIN_CURVES = 2
-UNITS = ("repetition", "campaign")
+UNITS = ("auto", "repetition", "campaign")
 END_STRETCH = 0.02
 
 
@@ -110,19 +110,26 @@ def _replicates(curves: Sequence[Curve], grid: np.ndarray, unit: str) -> np.ndar
 
 
 def compare_groups(a: Sequence[Curve], b: Sequence[Curve], *, level: float = DEFAULT_LEVEL,
-                   unit: str = "repetition") -> Comparison:
-    """Is ln k of group A different from group B's beyond the replicates' scatter, and at which loads?"""
+                   unit: str = "auto") -> Comparison:
+    """Is ln k of group A different from group B's beyond the replicates' scatter, and at which loads?
+
+    ``unit="auto"`` takes each campaign's mean curve as the replicate when both groups hold two or more campaigns
+    (campaigns may differ by day or specimen, which repetitions within one campaign do not show), else each
+    repetition."""
     if not 0.0 < level < 0.5:
         raise InputError(f"--level {level!r}: expected a test level between 0 and 0.5 (e.g. 0.05)")
     if unit not in UNITS:
         raise InputError(f"--unit {unit!r}: expected one of {', '.join(UNITS)}")
+    if unit == "auto":
+        several = all(len({c.campaign for c in g}) >= MIN_CURVES for g in (a, b))
+        unit = "campaign" if several else "repetition"
     grid = _grid([*a, *b])
     ya, yb = _replicates(a, grid, unit), _replicates(b, grid, unit)
     for name, y in (("A", ya), ("B", yb)):
         if len(y) < MIN_CURVES:
             raise InputError(f"group {name} has {len(y)} {unit}(s): the scatter needs at least {MIN_CURVES} "
                              f"({'run more repetitions' if unit == 'repetition' else 'add campaigns'} to the group)")
-    na, nb = len(a), len(b)
+    na, nb = len(ya), len(yb)
     va, vb = ya.var(axis=0, ddof=1) / na, yb.var(axis=0, ddof=1) / nb
     se = np.sqrt(va + vb)
     diff = ya.mean(axis=0) - yb.mean(axis=0)
