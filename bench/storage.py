@@ -22,8 +22,9 @@ from drivers.interfaces import TriggerSpec
 from labctl.backends import make_rig
 from labctl.engine.steps import calibration_of
 from labctl.protocol import load_protocol
-from labctl.recording import Delivered, check_record
+from labctl.recording import check_record
 from labctl.storage import CampaignWriter
+from labctl.storage.records import SpecimenRecord
 
 
 def records(n: int) -> tuple[list, object]:
@@ -75,13 +76,11 @@ def write_v2(path: Path, recs: list, rig: object, proto: object) -> list[tuple[f
     times = []
     with CampaignWriter.create(path, protocol_name="bench", backend="sim", seed=None, config_files={},
                                description={}) as w:
-        w.series(1, {"label": "bench"})
+        w.series(1, SpecimenRecord(label="bench"))
         w.run(1, 1)
         w.step(1, 1, 1, {"load_n": 0.0})
         for i, r in enumerate(recs, start=1):
-            impact = check_record(Delivered(r.sample_rate_hz, r.force_n, r.accel_m_per_s2, tuple(r.channels),
-                                            r.trigger_index, r.timestamp_s, tuple(r.clipped),
-                                            calibration_of(rig, r.channels)), i, proto.checks)  # type: ignore[attr-defined]
+            impact = check_record(r, i, proto.checks, calibration_of(rig, r.channels))  # type: ignore[attr-defined]
             t = _clock()
             w.write_impact(1, 1, 1, impact)
             times.append(_since(t))

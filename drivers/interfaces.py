@@ -6,6 +6,7 @@ of ``drivers.errors``. Values are SI: N, m/s², Hz, s, degrees only for knob ang
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Literal, Protocol, runtime_checkable
 
@@ -161,6 +162,31 @@ class ImpactReviewer(Protocol):
     def review_impact(self, review: ImpactReview) -> tuple[str, str] | None: ...
 
 
+@runtime_checkable
+class Clock(Protocol):
+    """The rig's time: the engine waits and keeps deadlines on it, so a simulated rig runs at the speed of its
+    computation (virtual time) while real instruments keep real time."""
+
+    def now(self) -> float:
+        """Seconds on a monotonic clock (any origin)."""
+        ...
+
+    def sleep(self, seconds: float) -> None:
+        """Let ``seconds`` pass (a real clock waits; a virtual one advances)."""
+        ...
+
+
+class SystemClock:
+    """Real time: ``time.monotonic`` and ``time.sleep`` (the hardware path)."""
+
+    def now(self) -> float:
+        return time.monotonic()
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+
+
 @dataclass
 class Rig:
     """The instruments of one test stand, as the engine receives them from a backend factory."""
@@ -172,3 +198,4 @@ class Rig:
     operator: Operator
     backend: str = "sim"
     description: dict[str, str] = field(default_factory=dict)
+    clock: Clock = field(default_factory=SystemClock)  # real time unless the backend keeps its own

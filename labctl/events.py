@@ -1,5 +1,7 @@
 """Typed events the engine emits at every stage, and the bus that delivers them.
 
+Events carry the records themselves (the stored impact, the step result), not copies of their fields.
+
 Subscribers (TUI, CLI progress, logging) receive each event in the engine's thread; one that raises is logged
 and skipped, never stopping the run.
 """
@@ -10,9 +12,12 @@ import logging
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
+
+from labctl.storage.records import ImpactRecord, StepFrf, StepResult
 
 log = logging.getLogger("labctl.events")
 
@@ -69,19 +74,47 @@ class LoadMeasured(Event):
 
 @dataclass(frozen=True)
 class ImpactAcquired(Event):
-    """An impact passed its checks; the traces are in physical units at ``sample_rate_hz``."""
+    """A blow was stored and passed its checks; ``impact`` is the record as stored (traces in physical units)."""
 
     position: Position
-    attempt: int
-    accepted: bool
-    reasons: tuple[str, ...]
-    peak_force_n: float
-    pulse_width_s: float
-    sample_rate_hz: float
-    force_n: np.ndarray = field(repr=False)
-    accel_m_per_s2: np.ndarray = field(repr=False)
-    channels: tuple[str, ...] = ()
+    impact: ImpactRecord = field(repr=False)
     range_use: dict[str, float] = field(default_factory=dict)  # channel → peak of this blow / channel range
+
+    @property
+    def attempt(self) -> int:
+        return self.impact.attempt
+
+    @property
+    def accepted(self) -> bool:
+        return self.impact.accepted
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        return self.impact.info.reasons
+
+    @property
+    def peak_force_n(self) -> float:
+        return self.impact.info.checks.peak_force_n
+
+    @property
+    def pulse_width_s(self) -> float:
+        return self.impact.info.checks.pulse_width_s
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return self.impact.sample_rate_hz
+
+    @property
+    def force_n(self) -> np.ndarray:
+        return self.impact.force_n
+
+    @property
+    def accel_m_per_s2(self) -> np.ndarray:
+        return self.impact.accel_m_per_s2
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return self.impact.channels
 
 
 @dataclass(frozen=True)
@@ -91,20 +124,69 @@ class ImpactRejected(ImpactAcquired):
 
 @dataclass(frozen=True)
 class StepProcessed(Event):
+    """A step was identified; ``result`` is the step result as stored (with its FRF), ``load_n`` per roller."""
+
     position: Position
     load_n: float
-    bounce_hz: float
-    tilt_hz: tuple[float, float]
-    roller_stiffness_n_per_m: float
-    coherence_at_bounce: float
-    frequencies_hz: np.ndarray = field(repr=False)
-    h1_magnitude: np.ndarray = field(repr=False)  # (n_ch, n_f)
-    coherence: np.ndarray = field(repr=False)
-    channels: tuple[str, ...] = ()
-    roller_stiffness_std_n_per_m: float = float("nan")  # 1-σ of the roller stiffness
-    used_attempts: tuple[int, ...] = ()  # the blows identification averaged
-    rejected: dict[int, str] = field(default_factory=dict)  # attempt → why it was not used
-    warnings: tuple[str, ...] = ()  # what identification could not vouch for (e.g. rollers differing)
+    result: StepResult = field(repr=False)
+
+    @property
+    def bounce_hz(self) -> float:
+        return self.result.bounce_hz
+
+    @property
+    def tilt_hz(self) -> tuple[float, ...]:
+        return tuple(self.result.tilt_hz)
+
+    @property
+    def roller_stiffness_n_per_m(self) -> float:
+        return self.result.roller_stiffness_n_per_m
+
+    @property
+    def roller_stiffness_std_n_per_m(self) -> float:
+        return self.result.roller_stiffness_std_n_per_m
+
+    @property
+    def coherence_at_bounce(self) -> float:
+        return self.result.coherence_at_bounce
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return tuple(self.result.channels)
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        return self._frf.frequencies_hz
+
+    @cached_property
+    def h1_magnitude(self) -> np.ndarray:
+        """|H1| per channel (n_ch, n_f), computed once per event."""
+        return np.abs(self._frf.h1)
+
+    @property
+    def coherence(self) -> np.ndarray:
+        return self._frf.coherence
+
+    @property
+    def used_attempts(self) -> tuple[int, ...]:
+        """The blows identification averaged."""
+        return self.result.used_attempts
+
+    @property
+    def rejected(self) -> dict[int, str]:
+        """Attempt → why identification did not use it."""
+        return {i.attempt: ", ".join(i.reasons) for i in self.result.impacts if not i.used}
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What identification could not vouch for (e.g. rollers differing)."""
+        return tuple(self.result.warnings)
+
+    @property
+    def _frf(self) -> StepFrf:
+        if self.result.frf is None:
+            raise ValueError(f"step {self.position.step}: its result carries no FRF")
+        return self.result.frf
 
 
 @dataclass(frozen=True)

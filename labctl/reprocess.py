@@ -13,7 +13,6 @@ from labctl.protocol import parse_protocol
 from labctl.recording import process_step
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import CampaignReader, LogEntry, StepResult
-from labctl.storage.table import specimen_point
 
 
 @dataclass
@@ -64,9 +63,8 @@ def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None
             for run in reader.runs(series):
                 for step in run.steps:
                     result = process_step(reader.impacts(series, run.run, step.step), rig, checks)
-                    out.rows.append(StepRow(series, str(spec.get("label", "")), run.run, step.step, step.load_n,
+                    out.rows.append(StepRow(series, spec.label, run.run, step.step, step.load_n,
                                             step.knob_angle_deg, result))
                     if result.identified:
-                        out.points.append(specimen_point(spec, run.run, step.load_n,
-                                                         result.roller_stiffness_n_per_m, result))
+                        out.points.append(spec.point(run.run, step.load_n, result.roller_stiffness_n_per_m, result))
     return out

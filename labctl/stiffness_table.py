@@ -32,34 +32,21 @@ OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa",
 COLUMNS = REQUIRED + OPTIONAL
 
 
-@dataclass(frozen=True)
-class StiffnessPoint:
-    """One measured roller stiffness at one load, with the contact it was measured on (SI units)."""
+class RollerContact:
+    """The contact case of anything that names a roller and its rails (a table row, a stored specimen): needs
+    ``diameter_m``, ``contact_length_m``, ``roller_length_m``, ``roller_type``, ``material``, ``youngs_modulus_pa``,
+    ``poisson_ratio``, ``hardness_hrc``, ``rail_material`` and ``rail_ra_m``."""
 
     diameter_m: float
     contact_length_m: float
     rail_ra_m: float
-    load_n: float
-    stiffness_n_per_m: float
-    roller_type: int | None = None
-    roller_length_m: float | None = None
-    material: str | None = None
-    youngs_modulus_pa: float | None = None
-    poisson_ratio: float | None = None
-    hardness_hrc: float | None = None
-    repetition: int | None = None
-    rail_material: str | None = None
-    """Catalogue name of the rails' material (None: 1.3505 bearing steel)."""
-    stiffness_std_n_per_m: float | None = None
-    """1-σ of the measured stiffness (all sources), N/m."""
-    stiffness_std_fit_n_per_m: float | None = None
-    """Its modal-fit share (what repeated measurements on this rig scatter by), N/m."""
-    stiffness_std_mass_n_per_m: float | None = None
-    """Its disc-mass share (common to every point of one rig), N/m."""
-    stiffness_std_setup_n_per_m: float | None = None
-    """Its K_setup share (common to every point of one rig, larger for stiffer contacts), N/m."""
-    stiffness_std_model_n_per_m: float | None = None
-    """Its rig-model share (the 6-DOF idealisation), N/m."""
+    roller_type: int | None
+    roller_length_m: float | None
+    material: str | None
+    youngs_modulus_pa: float | None
+    poisson_ratio: float | None
+    hardness_hrc: float | None
+    rail_material: str | None
 
     def roller_material(self) -> Material:
         """The roller's material: catalogue values for a known name, overridden by any explicit column."""
@@ -99,6 +86,36 @@ class StiffnessPoint:
             type_id=self.roller_type,
         )
         return ContactCase(roller=roller, rail=self.rail(), rail_ra_m=self.rail_ra_m)
+
+
+@dataclass(frozen=True)
+class StiffnessPoint(RollerContact):
+    """One measured roller stiffness at one load, with the contact it was measured on (SI units)."""
+
+    diameter_m: float
+    contact_length_m: float
+    rail_ra_m: float
+    load_n: float
+    stiffness_n_per_m: float
+    roller_type: int | None = None
+    roller_length_m: float | None = None
+    material: str | None = None
+    youngs_modulus_pa: float | None = None
+    poisson_ratio: float | None = None
+    hardness_hrc: float | None = None
+    repetition: int | None = None
+    rail_material: str | None = None
+    """Catalogue name of the rails' material (None: 1.3505 bearing steel)."""
+    stiffness_std_n_per_m: float | None = None
+    """1-σ of the measured stiffness (all sources), N/m."""
+    stiffness_std_fit_n_per_m: float | None = None
+    """Its modal-fit share (what repeated measurements on this rig scatter by), N/m."""
+    stiffness_std_mass_n_per_m: float | None = None
+    """Its disc-mass share (common to every point of one rig), N/m."""
+    stiffness_std_setup_n_per_m: float | None = None
+    """Its K_setup share (common to every point of one rig, larger for stiffer contacts), N/m."""
+    stiffness_std_model_n_per_m: float | None = None
+    """Its rig-model share (the 6-DOF idealisation), N/m."""
 
 
 def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:

@@ -94,6 +94,7 @@ def test_a_file_that_is_no_campaign_is_a_one_line_error(tmp_path):
 def _campaign(path, points, rig_text):
     """A campaign file holding only processed step results (as the engine stores them) and its rig."""
     from labctl.storage import CampaignWriter, StepResult
+    from labctl.storage.records import SpecimenRecord
 
     types = sorted({p.roller_type for p in points})
     with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=1, config_files={"rig.toml": rig_text},
@@ -101,9 +102,9 @@ def _campaign(path, points, rig_text):
         for series, t in enumerate(types, 1):
             mine = [p for p in points if p.roller_type == t]
             p0 = mine[0]
-            w.series(series, {"label": f"type {t}", "roller_type": t, "diameter_m": p0.diameter_m,
-                              "contact_length_m": p0.contact_length_m, "roller_length_m": p0.roller_length_m,
-                              "rail_ra_m": p0.rail_ra_m, "material": "1.3505", "rail_material": "1.3505"})
+            w.series(series, SpecimenRecord(label=f"type {t}", roller_type=t, diameter_m=p0.diameter_m,
+                                            contact_length_m=p0.contact_length_m, roller_length_m=p0.roller_length_m,
+                                            rail_ra_m=p0.rail_ra_m, material="1.3505", rail_material="1.3505"))
             for rep in sorted({p.repetition for p in mine}):
                 w.run(series, rep)
                 for step, p in enumerate([q for q in mine if q.repetition == rep], 1):

@@ -1,17 +1,13 @@
-"""The engine on the simulated rig: sequence, storage, events, controls, interlock, drift and failing subscribers."""
+"""The engine on the simulated rig into a campaign file: sequence, storage, events, failing subscribers, failed
+steps and the protocol's checks. Re-hits, overrides, drift, the interlock, pause/abort and resume are engine logic,
+tested on a scripted rig into memory in tests/test_engine_logic.py."""
 
 from __future__ import annotations
 
-import dataclasses
-import threading
-
-import h5py
-import numpy as np
 import pytest
 
 from labctl import events as ev
 from labctl.campaign import run_campaign
-from labctl.engine import RunControl
 from labctl.physics import load_rig
 from labctl.storage import CampaignReader, campaign_stiffness_points
 from tests.engine_util import Recorder, run_engine, short_protocol
@@ -55,116 +51,6 @@ def test_failing_subscriber_never_stops_the_run(tmp_path):
     rec = Recorder()
     outcome = run_campaign(short_protocol(reps=1), out=tmp_path / "c.h5", seed=1, subscribers=[broken, rec])
     assert outcome.status == "complete" and rec.of(ev.CampaignFinished)
-
-
-def test_pause_resume_and_abort_at_safe_points(tmp_path):
-    control = RunControl()
-    rec = Recorder()
-    seen = threading.Event()
-
-    def on_event(event: ev.Event) -> None:
-        rec(event)
-        if isinstance(event, ev.ImpactAcquired) and not seen.is_set():
-            seen.set()
-            control.pause()
-            threading.Timer(0.2, control.resume).start()
-        if isinstance(event, ev.StepProcessed) and event.position.step == 1:
-            control.abort()
-
-    out = tmp_path / "c.h5"
-    outcome = run_campaign(short_protocol(reps=1), out=out, seed=1, subscribers=[on_event], control=control)
-    assert outcome.status == "aborted"
-    assert rec.of(ev.Paused) and rec.of(ev.Resumed)
-    with CampaignReader(out) as r:
-        assert r.attrs["status"] == "aborted"
-        assert len(r.runs(1)[0].steps) == 1
-    resumed = run_campaign(short_protocol(reps=1), out=out, resume=True, seed=1)
-    assert resumed.status == "complete"
-
-
-def test_interlock_unloads_when_the_load_exceeds_the_cap(tmp_path):
-    rig = load_rig()
-    soft = dataclasses.replace(rig, loading=dataclasses.replace(rig.loading, spring_rate_n_per_m=rig.loading.
-                                                                   spring_rate_n_per_m / 4))
-    from labctl.campaign import rig_factory
-
-    proto = short_protocol(max_load=100.0, step=360.0, reps=1)
-    # the engine believes the springs are 4x softer than they are, so a step overshoots the cap
-    outcome, rec = run_engine(tmp_path / "c.h5", proto, rig_factory("sim", rig, seed=1), soft)
-    assert outcome.status == "interlock" and "exceeds the cap" in outcome.message
-    assert [e.action for e in rec.of(ev.OperatorPrompted)][-1] == "unload"
-
-
-def test_rejected_impacts_are_kept_and_rehit(tmp_path):
-    from drivers.sim import twin_of
-    from labctl.campaign import rig_factory
-
-    made = []
-    base = rig_factory("sim", load_rig(), seed=2)
-
-    def factory(spec, series):
-        rig = base(spec, series)
-        twin = twin_of(rig)
-        twin.next_blow_double(delay_s=0.005, ratio=0.3)
-        made.append(twin)
-        return rig
-
-    outcome, rec = run_engine(tmp_path / "c.h5", short_protocol(reps=1, max_load=60.0), factory)
-    assert outcome.status == "complete"
-    rejected = rec.of(ev.ImpactRejected)
-    assert len(rejected) == 1 and "double_hit" in rejected[0].reasons
-    with h5py.File(tmp_path / "c.h5") as f:
-        first = f["series_01/run_01/step_001/impact_001"]
-        assert not first.attrs["accepted"] and "double_hit" in first.attrs["reasons"]
-        assert f["series_01/run_01/step_001"].attrs["complete"]
-        assert sum(bool(g.attrs["accepted"]) for g in f["series_01/run_01/step_001"].values()
-                   if isinstance(g, h5py.Group) and "force_n" in g) == 2
-    assert np.isfinite(campaign_stiffness_points(tmp_path / "c.h5")[0].stiffness_n_per_m)
-
-
-def test_load_drift_suspends_the_step_and_asks_the_operator(tmp_path):
-    from drivers.operators import ScriptedOperator
-    from drivers.sim import twin_of
-    from labctl.campaign import rig_factory
-    operator = ScriptedOperator()
-    base = rig_factory("sim", load_rig(), seed=3, operator=operator)
-
-    def factory(spec, series):
-        rig = base(spec, series)
-        twin, strike = twin_of(rig), rig.hammer.strike
-
-        def strike_then_creep() -> None:  # the springs start to creep once the step's impacts begin
-            strike()
-            twin.set_creep(3.0)
-
-        rig.hammer.strike = strike_then_creep
-        operator.on("confirm", lambda message, choices: twin.set_creep(0.0) or "continue")  # re-tightened
-        return rig
-
-    outcome, rec = run_engine(tmp_path / "c.h5", short_protocol(reps=1, max_load=120.0), factory)
-    assert outcome.status == "complete"
-    suspended = rec.of(ev.Suspended)
-    assert suspended and "drifted" in suspended[0].reason
-    with h5py.File(tmp_path / "c.h5") as f:
-        assert f["series_01/run_01/step_001"].attrs["load_drift"]
-
-
-def test_operator_override_rejects_an_accepted_impact_and_it_is_hit_again(tmp_path):
-    control = RunControl()
-    rec = Recorder()
-
-    def on_event(event: ev.Event) -> None:
-        rec(event)
-        if isinstance(event, ev.ImpactAcquired) and event.position == ev.Position(1, 1, 1, 1) and event.attempt == 1:
-            control.override_last_impact(False)
-
-    out = tmp_path / "c.h5"
-    assert run_campaign(short_protocol(reps=1), out=out, seed=1, subscribers=[on_event],
-                        control=control).status == "complete"
-    with h5py.File(out) as f:
-        step = f["series_01/run_01/step_001"]
-        assert not step["impact_001"].attrs["accepted"] and "operator_rejected" in step["impact_001"].attrs["reasons"]
-        assert [bool(step[f"impact_00{i}"].attrs["accepted"]) for i in (2, 3)] == [True, True]
 
 
 def test_a_step_that_cannot_be_identified_is_stored_failed_and_the_loading_goes_on(tmp_path):

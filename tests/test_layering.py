@@ -16,8 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # longest matching prefix wins; a new top-level module must be given its floor here
 FLOORS: dict[str, int] = {
     "labctl": 0, "labctl.errors": 0, "labctl.data": 0,
-    "labctl.physics": 1, "labctl.events": 1, "drivers": 1,
-    "labctl.processing": 2, "labctl.protocol": 2, "labctl.protocols": 2, "labctl.storage": 2,
+    "labctl.physics": 1, "drivers": 1,
+    "labctl.events": 2, "labctl.processing": 2, "labctl.protocol": 2, "labctl.protocols": 2, "labctl.storage": 2,
     "labctl.discrepancy": 2, "labctl.backends": 2, "labctl.hardware": 2, "labctl.stiffness_table": 2,
     "labctl.engine": 3, "labctl.report": 3, "labctl.uff": 3, "labctl.campaign": 3, "labctl.reprocess": 3,
     "labctl.recording": 3,

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from labctl.storage import CampaignReader
+from tests.engine_util import short_protocol
 
 
 def _labctl_cmd(*args: str) -> list[str]:
@@ -34,9 +35,11 @@ def _impacts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 @pytest.mark.slow
 def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_path):
+    # 3 repetitions of 5 steps (180° knob steps up to 200 N), 3 blows of 16 384 samples each: 45 impacts
+    protocol = tmp_path / "short.toml"
+    protocol.write_text(short_protocol(max_load=200.0, step=180.0, samples=16384, impacts=3, reps=3).source_text)
     out = tmp_path / "c.h5"
-    proc = subprocess.Popen(_labctl_cmd("run", "protocols/roller_stiffness.toml", "--backend", "sim", "--out", str(out),
-                                        "--seed", "5"),
+    proc = subprocess.Popen(_labctl_cmd("run", str(protocol), "--backend", "sim", "--out", str(out), "--seed", "5"),
                             stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
                             cwd=os.path.dirname(os.path.dirname(__file__)))
     seen = 0
@@ -45,18 +48,18 @@ def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_pat
     for line in proc.stderr:
         if " impacts · ETA" in line:
             seen += 1
-        if seen >= 40 or time.monotonic() > deadline:  # well into the second repetition
+        if seen >= 20 or time.monotonic() > deadline:  # well into the second repetition
             break
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    assert seen >= 40, "the run did not get far enough before the kill"
+    assert seen >= 20, "the run did not get far enough before the kill"
     before = _impacts(out)
-    assert len(before) >= 35
+    assert len(before) >= 18
     with CampaignReader(out) as r:
         assert r.attrs["status"] == "running"  # killed: never marked finished
 
-    done = subprocess.run(_labctl_cmd("run", "protocols/roller_stiffness.toml", "--backend", "sim", "--out", str(out),
-                                      "--resume", "--quiet"), capture_output=True, text=True,
+    done = subprocess.run(_labctl_cmd("run", str(protocol), "--backend", "sim", "--out", str(out), "--resume",
+                                      "--quiet"), capture_output=True, text=True,
                           cwd=os.path.dirname(os.path.dirname(__file__)), timeout=600)
     assert done.returncode == 0, done.stderr
     after = _impacts(out)
@@ -68,7 +71,7 @@ def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_pat
         assert len(runs) == 3 and all(run.complete for run in runs)
         for run in runs:
             steps = [s.step for s in run.steps]
-            assert steps == list(range(1, len(steps) + 1)) and len(steps) >= 10
+            assert steps == list(range(1, len(steps) + 1)) and len(steps) >= 4
             for s in run.steps:
                 assert s.complete and s.accepted_count == 3 and s.result is not None
             assert r.curve(1, run.run)["load_n"].size == len(steps)

@@ -17,6 +17,7 @@ from labctl.storage.records import (
     ImpactOutcome,
     ImpactRecord,
     ModeResult,
+    SpecimenRecord,
     StepFrf,
     Verdict,
 )
@@ -29,7 +30,7 @@ V1 = Path(__file__).parent / "fixtures" / "campaign_v1.h5"  # written by labctl'
 def _writer(path: Path) -> CampaignWriter:
     w = CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None,
                               config_files={"rig.toml": "x"}, description={})
-    w.series(1, {"label": "roller"})
+    w.series(1, SpecimenRecord(label="roller"))
     w.run(1, 1)
     w.step(1, 1, 1, {"load_n": 50.0, "knob_angle_deg": 0.0})
     return w

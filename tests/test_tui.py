@@ -22,7 +22,7 @@ from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.dialogs import PromptDialog
 from labctl.tui.plots import StiffnessPlot
-from tests.engine_util import Recorder, short_protocol
+from tests.engine_util import Recorder, impact_event, short_protocol
 
 SNAPSHOT = Path(__file__).parent / "snapshots" / "tui_running.svg"
 SIZE = (160, 48)
@@ -259,8 +259,8 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         force = np.zeros(2048)
         force[300:306] = [50, 200, 250, 200, 50, 0]
         force[900:904] = [40, 90, 40, 0]
-        rejected = ev.ImpactRejected(1.0, ev.Position(1, 1, 1, 1), 1, False, ("double_hit",), 250.0, 4e-4, 20480.0,
-                                     force, np.zeros((12, 2048)), tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"))
+        rejected = impact_event(ev.Position(1, 1, 1, 1), 1, ("double_hit",), force, np.zeros((12, 2048)),
+                                tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"), peak_force_n=250.0)
         app.post_message(app_event(rejected))
         await pilot.pause(0.2)
         panel = app.monitor.query_one("#impact-panel")

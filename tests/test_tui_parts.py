@@ -19,12 +19,13 @@ from labctl.tui import plotdata as pd
 from labctl.tui.operator import TuiOperator
 from labctl.tui.state import CampaignState, clock, reason_text
 from tests.cli_util import assert_one_line_error, labctl
+from tests.engine_util import impact_event, step_event
 
 
 def step_processed(step: int, load: float, bounce: float, k: float) -> ev.StepProcessed:
     f = np.linspace(0, 2000, 11)
-    return ev.StepProcessed(1.0, ev.Position(1, 1, step), load, bounce, (bounce * 0.8, bounce * 0.81), k, 0.999,
-                            f, np.ones((1, 11)), np.ones((1, 11)), ("A1Z",))
+    return step_event(ev.Position(1, 1, step), load, bounce, (bounce * 0.8, bounce * 0.81), k, f, np.ones((1, 11)),
+                      np.ones((1, 11)), ("A1Z",), coherence_at_bounce=0.999)
 
 
 def test_state_header_follows_the_events():
@@ -199,9 +200,8 @@ def test_step_blows_average_the_accepted_blows_and_the_one_under_review():
     blows = StepBlows()
     blows(ev.StepStarted(0.0, ev.Position(1, 1, 2), 3, 360.0, 40.0))
     for i, accepted in enumerate((True, False, True, True)):  # the checks flag blow 2
-        cls = ev.ImpactAcquired if accepted else ev.ImpactRejected
-        blows(cls(1.0, ev.Position(1, 1, 2, 1), i + 1, accepted, (), 200.0, 3e-4, s.fs_hz, s.force_n[i],
-                  s.accel_m_per_s2[i], ("A1Z", "A4Z")))
+        blows(impact_event(ev.Position(1, 1, 2, 1), i + 1, (), s.force_n[i], s.accel_m_per_s2[i], ("A1Z", "A4Z"),
+                           accepted=accepted, fs_hz=s.fs_hz))
 
     def review(attempt: int, step: int = 2) -> ImpactReview:
         return ImpactReview(1, 1, step, attempt, True, (), 200.0, 3e-4)

@@ -12,20 +12,18 @@ from labctl.campaign import run_campaign
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui.state import CampaignState
-from tests.engine_util import Recorder
+from tests.engine_util import Recorder, impact_event, step_event
 
 PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
 
 
 def impact(attempt: int, reasons: tuple[str, ...] = (), use: dict[str, float] | None = None) -> ev.ImpactAcquired:
-    cls = ev.ImpactRejected if reasons else ev.ImpactAcquired
-    return cls(1.0, ev.Position(1, 1, 1, attempt), attempt, not reasons, reasons, 200.0, 4e-4, 20480.0,
-               np.zeros(8), np.zeros((2, 8)), ("A1Z", "A2Z"), use or {})
+    return impact_event(ev.Position(1, 1, 1, attempt), attempt, reasons, range_use=use)
 
 
 def step(rejected: dict[int, str], warnings: tuple[str, ...] = ()) -> ev.StepProcessed:
-    return ev.StepProcessed(2.0, ev.Position(1, 1, 1), 100.0, 400.0, (500.0, 501.0), 5.0e8, 0.99, np.zeros(3),
-                            np.zeros((1, 3)), np.zeros((1, 3)), ("A1Z",), 0.2e8, (2, 3), rejected, warnings)
+    return step_event(ev.Position(1, 1, 1), 100.0, 400.0, (500.0, 501.0), 5.0e8, np.zeros(3), np.zeros((1, 3)),
+                      np.zeros((1, 3)), ("A1Z",), 0.2e8, (2, 3), rejected, warnings, time_s=2.0)
 
 
 def test_header_goes_armed_then_triggered_then_armed_after_the_verdict():

@@ -9,7 +9,7 @@ from __future__ import annotations
 from drivers.interfaces import Operator, Rig
 from drivers.operators import ScriptedOperator
 from drivers.sim.faults import FaultSettings
-from drivers.sim.instruments import SimActuator, SimDaq, SimHammer, SimLoadCell
+from drivers.sim.instruments import SimActuator, SimClock, SimDaq, SimHammer, SimLoadCell
 from drivers.sim.model import ModesFunction, RigLike, SimSettings, Specimen
 from drivers.sim.operator import TwinOperator
 from drivers.sim.twin import RigTwin
@@ -25,6 +25,7 @@ def build_sim_rig(twin: RigTwin, operator: Operator | None = None, description: 
         operator=TwinOperator(operator if operator is not None else ScriptedOperator(), twin),
         backend="sim",
         description={"seed": str(twin.seed), **(description or {})},
+        clock=SimClock(twin),
     )
 
 
@@ -37,6 +38,6 @@ def twin_of(rig: Rig) -> RigTwin:
 
 
 __all__ = [
-    "FaultSettings", "ModesFunction", "RigLike", "RigTwin", "SimActuator", "SimDaq", "SimHammer", "SimLoadCell",
-    "SimSettings", "Specimen", "TwinOperator", "build_sim_rig", "twin_of",
+    "FaultSettings", "ModesFunction", "RigLike", "RigTwin", "SimActuator", "SimClock", "SimDaq", "SimHammer",
+    "SimLoadCell", "SimSettings", "Specimen", "TwinOperator", "build_sim_rig", "twin_of",
 ]

@@ -17,6 +17,23 @@ DEFAULT_SAMPLES = 65_536
 MAX_SAMPLES = 1 << 24
 
 
+class SimClock:
+    """The twin's virtual clock: ``now`` is rig time, ``sleep`` advances it at once (nothing waits in real time).
+
+    The engine's settling polls and deadlines run on it, so a simulated campaign takes the time of its
+    computation and gives the same results for the same seed however loaded the machine is."""
+
+    def __init__(self, twin: RigTwin) -> None:
+        self.twin = twin
+
+    def now(self) -> float:
+        return self.twin.time_s
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            self.twin.time_s += seconds
+
+
 class _SimInstrument:
     """Lifecycle shared by the simulated instruments."""
 
@@ -94,6 +111,8 @@ class SimDaq(_SimInstrument):
             record = self.twin.record(strike, self.sample_rate_hz, self.n_samples, trigger)
             if record is not None:
                 return record
+        if timeout_s > 0 and math.isfinite(timeout_s):
+            self.twin.time_s += timeout_s  # a real DAQ would have waited that long for the trigger
         raise DeviceTimeout(self.name, "acquire",
                             f"no force above {trigger.level_n:g} N within {timeout_s:g} s (no blow since arm)")
 
@@ -105,6 +124,7 @@ class SimHammer(_SimInstrument):
         super().__init__(twin, name)
 
     def strike(self) -> None:
+        """One blow at the current rig time (its record's length passes on the rig clock when it is acquired)."""
         self._check("strike")
         self.last: Strike = self.twin.strike()
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from labctl.archive.source import CampaignRecord, read_campaign, root_sha256
 from labctl.errors import InputError
-from labctl.storage.records import result_from_mapping
+from labctl.storage.records import SpecimenRecord, result_from_mapping
 from labctl.storage.results import read_results, results_path
 from labctl.storage.writer import utc_now
 
@@ -236,16 +236,14 @@ def _toml_field(text: str | None, table: str, key: str) -> Any:
     return value if isinstance(value, str | int | float) else None
 
 
-def _specimen_row(series: int, sp: dict[str, Any]) -> dict[str, Any]:
-    return {"series": series, "kind": sp.get("kind"), "label": sp.get("label"),
-            "roller_type": _int(sp.get("roller_type")),
-            "ball_diameter_mm": edge(sp.get("ball_diameter_m"), 3), "diameter_mm": edge(sp.get("diameter_m"), 3),
-            "contact_length_mm": edge(sp.get("contact_length_m"), 3),
-            "roller_length_mm": edge(sp.get("roller_length_m"), 3), "material": sp.get("material"),
-            "youngs_modulus_gpa": edge(sp.get("youngs_modulus_pa"), -9), "poisson_ratio": edge(sp.get("poisson_ratio")),
-            "hardness_hrc": edge(sp.get("hardness_hrc")), "rail_material": sp.get("rail_material"),
-            "rail_ra_um": edge(sp.get("rail_ra_m"), 6), "max_load_n": edge(sp.get("max_load_n")),
-            "knob_step_deg": edge(sp.get("knob_step_deg"))}
+def _specimen_row(series: int, sp: SpecimenRecord) -> dict[str, Any]:
+    return {"series": series, "kind": sp.kind, "label": sp.label, "roller_type": _int(sp.roller_type),
+            "ball_diameter_mm": edge(sp.ball_diameter_m, 3), "diameter_mm": edge(sp.diameter_m, 3),
+            "contact_length_mm": edge(sp.contact_length_m, 3), "roller_length_mm": edge(sp.roller_length_m, 3),
+            "material": sp.material, "youngs_modulus_gpa": edge(sp.youngs_modulus_pa, -9),
+            "poisson_ratio": edge(sp.poisson_ratio), "hardness_hrc": edge(sp.hardness_hrc),
+            "rail_material": sp.rail_material, "rail_ra_um": edge(sp.rail_ra_m, 6), "max_load_n": edge(sp.max_load_n),
+            "knob_step_deg": edge(sp.knob_step_deg)}
 
 
 def _result_columns(result: dict[str, Any] | None) -> dict[str, Any]:

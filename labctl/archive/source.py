@@ -16,6 +16,7 @@ from labctl.physics.rig_config import DEFAULT_RIG
 from labctl.reprocess import process_campaign, rig_of
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import CampaignReader, result_summary
+from labctl.storage.records import SpecimenRecord
 from labctl.storage.results import attrs_sha256
 
 
@@ -43,7 +44,7 @@ class CampaignRecord:
     root_sha256: str
     protocol_text: str | None
     rig_text: str | None
-    specimens: dict[int, dict[str, Any]]
+    specimens: dict[int, SpecimenRecord]
     steps: list[StepRecord] = field(default_factory=list)
 
 

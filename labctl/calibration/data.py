@@ -57,16 +57,16 @@ def read_ball_steps(path: str | Path) -> CampaignBalls:
         rig_text = reader.config_text("rig.toml")
         for series in reader.series_indices():
             spec = reader.specimen(series)
-            label = str(spec.get("label", f"series {series}"))
-            if spec.get("kind") != "ball":
+            label = spec.label or f"series {series}"
+            if spec.kind != "ball":
                 skipped.append(f"{path}: series {series} ({label}) is not a ball specimen")
                 continue
-            diameter = _finite(spec.get("ball_diameter_m"))
+            diameter = _finite(spec.ball_diameter_m)
             if diameter is None or diameter <= 0:
-                raise InputError(f"{path}: series {series}: ball_diameter_m = {spec.get('ball_diameter_m')!r}: "
+                raise InputError(f"{path}: series {series}: ball_diameter_m = {spec.ball_diameter_m!r}: "
                                  "expected a positive diameter in m")
-            contact = HertzBallContact(diameter, material(str(spec.get("material", "1.3505"))),
-                                       material(str(spec.get("rail_material", "1.3505"))))
+            contact = HertzBallContact(diameter, material(spec.material or "1.3505"),
+                                       material(spec.rail_material or "1.3505"))
             for run in reader.runs(series):
                 for step in run.steps:
                     r = step.result

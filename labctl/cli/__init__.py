@@ -7,7 +7,7 @@ Python keyword) follows three rules:
   calls ``common.add_json`` on every parser that runs something, and sets ``func`` to a callable taking the
   parsed arguments and returning an exit code;
 - its top level and ``register`` import only the standard library, ``labctl.cli.common`` and
-  ``labctl.errors``: numpy, scipy, h5py, textual, matplotlib and the labctl packages that pull them in are
+  ``labctl.errors``: numpy, scipy, the HDF5 bindings, textual, matplotlib and the labctl packages that pull them in are
   imported inside the function that runs the command, so that start-up stays fast
   (tests/test_cli_foundation.py checks this for every command module);
 - errors a user can fix raise ``labctl.errors.InputError`` (or another ``LabctlError``): one line on

@@ -15,11 +15,9 @@ from __future__ import annotations
 import statistics
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from datetime import datetime
-from typing import Any
 
 from labctl import events as ev
-from labctl.storage import schema
+from labctl.storage.store import StepStamp
 
 MIN_ETA_S = 1.0  # shown while work is left, however fast the estimate says it goes
 
@@ -105,28 +103,15 @@ class EtaEstimator:
         return eta
 
 
-def _seconds(stamp: Any) -> float | None:
-    try:
-        return datetime.fromisoformat(str(stamp)).timestamp()
-    except ValueError:
-        return None
-
-
-def campaign_estimator(h5: Any, steps_total: int, impacts_per_step: int, record_s: float) -> EtaEstimator:
-    """An estimator for a campaign file about to be run or resumed: its completed steps count as done, and the
-    stored impacts' timestamps give a step's time. A new campaign has no estimate until a step is measured; a
-    resumed one without usable timestamps starts from the impacts' record time (a rough guess)."""
-    done = 0
-    firsts: list[tuple[tuple[int, int], int, float]] = []
-    for step in schema.all_steps(h5):
-        if not step.attrs.get(schema.COMPLETE):
-            continue
-        done += 1
-        times = [t for g in schema.children(step, "impact_") if (t := _seconds(g.attrs.get("timestamp_utc")))]
-        if times:
-            run = step.parent
-            firsts.append(((schema.number(run.parent), schema.number(run)), schema.number(step), min(times)))
-    gaps = stored_step_times_s(firsts)
+def campaign_estimator(completed: Iterable[StepStamp], steps_total: int, impacts_per_step: int, record_s: float
+                       ) -> EtaEstimator:
+    """An estimator for a campaign about to be run or resumed, from the store's completed steps: they count as
+    done, and their first impacts' times give a step's time. A new campaign has no estimate until a step is
+    measured; a resumed one without usable timestamps starts from the impacts' record time (a rough guess)."""
+    stamps = list(completed)
+    gaps = stored_step_times_s(((st.series, st.run), st.step, st.first_impact_s) for st in stamps
+                               if st.first_impact_s is not None)
+    done = len(stamps)
     if gaps:
         return EtaEstimator(steps_total, done, statistics.median(gaps))
     if done == 0:  # a new campaign: no estimate until its first step has been measured

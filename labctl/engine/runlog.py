@@ -23,7 +23,7 @@ log = logging.getLogger("labctl.engine.runlog")
 
 
 class LogSink(Protocol):
-    """Where entries go (the campaign writer)."""
+    """Where entries go (the campaign store)."""
 
     def append_log(self, entry: LogEntry) -> None: ...
 

@@ -22,13 +22,14 @@ from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
 from labctl.engine.runlog import RunLog
-from labctl.engine.steps import Interlock, StepRunner
+from labctl.engine.steps import Interlock, StepProcessor, StepRunner
 from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
-from labctl.storage.records import RepetitionCurve
-from labctl.storage.writer import CampaignWriter
+from labctl.recording import process_step
+from labctl.storage.records import RepetitionCurve, SpecimenRecord
+from labctl.storage.store import CampaignStore, StepRow
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]
 ADDED_ATTR = "added_steps"
@@ -46,46 +47,52 @@ class Outcome:
     curves: list[RepetitionCurve] = field(default_factory=list)
 
 
-def specimen_attrs(spec: SpecimenSpec) -> dict:
-    case = spec.case()
-    r = case.roller
-    return {"kind": spec.kind, "label": spec.label, "roller_type": spec.roller_type,
-            "ball_diameter_m": spec.ball_diameter_m, "diameter_m": r.diameter_m,
-            "contact_length_m": r.contact_length_m, "roller_length_m": r.total_length_m,
-            "material": r.material.name, "youngs_modulus_pa": r.material.youngs_modulus_pa,
-            "poisson_ratio": r.material.poisson_ratio, "hardness_hrc": r.material.hardness_hrc,
-            "rail_material": spec.rail_material, "rail_ra_m": spec.rail_ra_m, "max_load_n": spec.max_load_n,
-            "knob_step_deg": spec.knob_step_deg}
+def specimen_record(spec: SpecimenSpec) -> SpecimenRecord:
+    """What is stored of a protocol's specimen: its kind and label, the roller's geometry and material, the
+    rails and the protocol's limits for it."""
+    r = spec.case().roller
+    return SpecimenRecord(
+        kind=spec.kind, label=spec.label, roller_type=spec.roller_type, ball_diameter_m=spec.ball_diameter_m,
+        diameter_m=r.diameter_m, contact_length_m=r.contact_length_m, roller_length_m=r.total_length_m,
+        material=r.material.name, youngs_modulus_pa=r.material.youngs_modulus_pa,
+        poisson_ratio=r.material.poisson_ratio, hardness_hrc=r.material.hardness_hrc,
+        rail_material=spec.rail_material, rail_ra_m=spec.rail_ra_m, max_load_n=spec.max_load_n,
+        knob_step_deg=spec.knob_step_deg)
 
 
 class Engine:
-    """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``writer``'s file."""
+    """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``store`` (an HDF5 file
+    through ``CampaignWriter``, or memory)."""
 
-    def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, writer: CampaignWriter,
+    def __init__(self, protocol: Protocol, rig_config: RigConfig, rig_factory: RigFactory, store: CampaignStore,
                  bus: ev.EventBus | None = None, control: RunControl | None = None,
                  conditions: Sequence[Condition] = (), advisor: StepAdvisor | None = None,
-                 budget_steps: int = 0) -> None:
+                 budget_steps: int = 0, identify_step: StepProcessor = process_step) -> None:
         """``conditions`` are checked at every safe point after the load interlock and the load-drift check.
 
         With an ``advisor`` (adaptive campaign), each repetition gets up to ``budget_steps`` extra load steps
         after its base steps, chosen by the advisor from everything measured so far in the file.
+        ``identify_step`` turns a step's stored impacts into its result: the one step pipeline, or a script
+        when only the engine's logic is under test.
         """
-        self.protocol, self.rig_config, self.rig_factory, self.writer = protocol, rig_config, rig_factory, writer
+        self.identify_step = identify_step
+        self.protocol, self.rig_config, self.rig_factory, self.store = protocol, rig_config, rig_factory, store
         self.conditions: tuple[Condition, ...] = (*DEFAULT_CONDITIONS, *conditions)
         self.bus = bus or ev.EventBus()
         self.control = control or RunControl()
         self.t0 = time.monotonic()
         acq = protocol.acquisition
-        self.runlog = RunLog(writer, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
+        self.runlog = RunLog(store, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
         self.call = GuardedCaller(acq.timeout_s, acq.retries,
                                   on_retry=lambda m: self.notify("warning", m, kind="retry"))
         self.advisor, self.budget_steps = advisor, budget_steps if advisor is not None else 0
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
         steps = sum(p.steps_estimate + self.budget_steps for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
-        self.eta = campaign_estimator(writer.h5, steps * protocol.repetitions.count, acq.impacts_per_step,
+        self.eta = campaign_estimator(store.completed_steps(), steps * protocol.repetitions.count, acq.impacts_per_step,
                                       acq.samples / acq.sample_rate_hz)
         self.bus.subscribe(self.eta)
+        self.curves: dict[tuple[int, int], RepetitionCurve] = {}  # the repetitions finished in this session
 
     # --- events -------------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -115,20 +122,20 @@ class Engine:
 
     @property
     def impacts_done(self) -> int:
-        """Accepted impacts in the file (the file is the only count)."""
-        return self.writer.accepted_count()
+        """Accepted impacts in the store (the store is the only count)."""
+        return self.store.accepted_count()
 
     # --- campaign -----------------------------------------------------------------------------------------
     def run(self) -> Outcome:
         """Run (or continue) the whole campaign; the file's status tells how it ended."""
-        resumed = self.writer.has_series()
-        self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.writer.path,
-                                     str(self.writer.attrs.get("backend", "")), len(self.protocol.specimens),
+        resumed = self.store.has_series()
+        self.emit(ev.CampaignStarted(self.now(), self.protocol.name, self.store.path,
+                                     str(self.store.attrs.get("backend", "")), len(self.protocol.specimens),
                                      self.protocol.repetitions.count, tuple(p.steps_estimate for p in self.plans),
                                      self.protocol.acquisition.impacts_per_step, resumed))
-        outcome = Outcome("complete", self.writer.path)
+        outcome = Outcome("complete", self.store.path)
         reps = self.protocol.repetitions.count
-        if resumed and all(len(self.writer.complete_runs(i)) >= reps
+        if resumed and all(len(self.store.complete_runs(i)) >= reps
                            for i in range(1, len(self.protocol.specimens) + 1)):
             outcome.message = NOTHING_LEFT
         try:
@@ -144,17 +151,18 @@ class Engine:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
         finally:
             self.call.close()
-            outcome.curves = self.writer.curves()
+            resumed_runs = resumed and any(self.store.complete_runs(i) for i in range(1, len(self.plans) + 1))
+            outcome.curves = self.store.curves() if resumed_runs else [self.curves[k] for k in sorted(self.curves)]
             unstored = self.runlog.close()
             if unstored:
                 outcome.message = "; ".join(m for m in (outcome.message, unstored) if m)
-            self.writer.set_status(outcome.status, outcome.message)
-            self.emit(ev.CampaignFinished(self.now(), outcome.status, self.writer.path, outcome.message))
+            self.store.set_status(outcome.status, outcome.message)
+            self.emit(ev.CampaignFinished(self.now(), outcome.status, self.store.path, outcome.message))
         return outcome
 
     def _series(self, index: int, spec: SpecimenSpec, plan: StepPlan) -> None:
-        self.writer.series(index, specimen_attrs(spec))
-        runs_done = self.writer.complete_runs(index)
+        self.store.series(index, specimen_record(spec))
+        runs_done = self.store.complete_runs(index)
         if len(runs_done) >= self.protocol.repetitions.count:
             return
         with ExitStack() as stack:
@@ -168,22 +176,22 @@ class Engine:
             if abs(fs - acq.sample_rate_hz) > 1e-9 * acq.sample_rate_hz:
                 self.notify("info", f"DAQ set the sample rate to {fs:.6g} Hz (asked {acq.sample_rate_hz:g} Hz)",
                             position=ev.Position(index, 0))
-            if not self.writer.is_mounted(index):
+            if not self.store.is_mounted(index):
                 self.prompt(rig, f"Mount {spec.label} between the rails (rail Ra {spec.rail_ra_m * 1e6:g} µm) and "
                             "set the knobs to the preload", "mount_specimen", position=ev.Position(index, 0))
-                self.writer.mark_mounted(index)
+                self.store.mark_mounted(index)
             for run in range(1, self.protocol.repetitions.count + 1):
                 if run in runs_done:
                     continue
                 pos = ev.Position(index, run)
                 self.checkpoint(pos)
-                started = self.writer.run_started(index, run)
+                started = self.store.run_started(index, run)
                 if run > 1 and not started:
                     self._unload(rig)
                     self.prompt(rig, f"Lift the upper disc and rotate the rollers about "
                                 f"±{self.protocol.repetitions.rotate_rollers_deg:g}°, then lower the disc",
                                 "rotate_rollers", position=pos)
-                self.writer.run(index, run)
+                self.store.run(index, run)
                 self.emit(ev.RunStarted(self.now(), pos, spec.label))
                 self._run(rig, index, run, spec, plan)
             self._unload(rig)
@@ -209,23 +217,25 @@ class Engine:
                 break
             step += 1
         if self.advisor is not None:
-            self._added_steps(steps, series, run, spec, step)
-        return self._store_curve(series, run, spec)
+            step = self._added_steps(steps, series, run, spec, step)
+        held = [steps.rows.get(n) for n in range(1, step + 1)]
+        return self._store_curve(series, run, spec, None if None in held else held)  # type: ignore[arg-type]
 
-    def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> None:
+    def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> int:
         """Ask the advisor once per repetition (the answer is stored in the file before the first added step,
-        so a resumed campaign runs exactly the steps planned), then run them as ordinary steps."""
+        so a resumed campaign runs exactly the steps planned), then run them as ordinary steps; returns the
+        repetition's last step."""
         assert self.advisor is not None
-        stored = self.writer.run_attrs(series, run).get(ADDED_ATTR)
+        stored = self.store.run_attrs(series, run).get(ADDED_ATTR)
         if stored is None:
             try:
-                added = self.advisor.extra_steps(self.writer.stiffness_points(), spec, self.budget_steps)
+                added = self.advisor.extra_steps(self.store.stiffness_points(), spec, self.budget_steps)
             except LabctlError as exc:
                 self.notify("warning", f"no steps added: the planner could not plan ({exc})",
                             position=ev.Position(series, run))
                 added = []
             added = added[: self.budget_steps]
-            self.writer.set_run_attrs(series, run, {ADDED_ATTR: json.dumps([asdict(a) for a in added]),
+            self.store.set_run_attrs(series, run, {ADDED_ATTR: json.dumps([asdict(a) for a in added]),
                                                     "base_steps": base_steps})
         else:
             added = [AddedStep(**a) for a in (json.loads(stored) if isinstance(stored, str) else stored)]
@@ -237,9 +247,14 @@ class Engine:
             self.checkpoint(ev.Position(series, run, step))
             steps.run_step(step, a.angle_deg, total, {"added_by": "plan", "plan_reason": a.reason,
                                                       "plan_score": a.score, "plan_load_n": a.target_load_n})
+        return total
 
-    def _store_curve(self, series: int, run: int, spec: SpecimenSpec) -> RepetitionCurve:
-        curve = self.writer.store_curve(series, run)
+    def _store_curve(self, series: int, run: int, spec: SpecimenSpec, rows: list[StepRow] | None
+                     ) -> RepetitionCurve:
+        """Store the repetition's curve, built once from the step results this session holds (``rows``; None
+        when some steps were finished before a resume: the store builds it from its results)."""
+        curve = self.store.store_curve(series, run, rows)
+        self.curves[(series, run)] = curve
         refs = reference_curves(spec.case(), spec.kind, curve.load_n) if curve.load_n.size else {}
         self.emit(ev.RunProcessed(self.now(), ev.Position(series, run), spec.label, tuple(curve.load_n),
                                   tuple(curve.stiffness_n_per_m), {k: tuple(v) for k, v in refs.items()}))

@@ -2,13 +2,13 @@
 verdicts), identify the step through the one step pipeline, store the result.
 
 The runner talks to the engine only through ``Services`` (a Protocol the engine satisfies), so this module
-does not import the sequencer, and it keeps no counters: what was taken is what the file holds.
+does not import the sequencer, and it keeps no counters: what was taken is what the store holds.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Protocol
 
 import numpy as np
@@ -19,24 +19,32 @@ from labctl.engine.conditions import Condition, SafePoint, Trip, Where
 from labctl.engine.control import RunControl
 from labctl.errors import LabctlError
 from labctl.physics.rig_config import RigConfig
+from labctl.processing import CheckConfig
 from labctl.protocol import Protocol as LabProtocol
-from labctl.recording import Delivered, check_record, process_step
-from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, Verdict
-from labctl.storage.writer import CampaignWriter
+from labctl.recording import check_record
+from labctl.storage.records import OPERATOR, Calibration, ImpactRecord, StepResult, Verdict
+from labctl.storage.store import CampaignStore, StepRow
 
 
 class Interlock(LabctlError):
     """A condition stopped the run (e.g. the load cell read more than the cap); the operator was asked to unload."""
 
 
+class StepProcessor(Protocol):
+    """Identifies one step from its stored impacts (``labctl.recording.process_step``)."""
+
+    def __call__(self, records: Sequence[ImpactRecord], rig: RigConfig, checks: CheckConfig) -> StepResult: ...
+
+
 class Services(Protocol):
-    """What a step needs from the engine: configuration, the file, guarded calls, events and prompts."""
+    """What a step needs from the engine: configuration, the store, guarded calls, events and prompts."""
 
     protocol: LabProtocol
-    writer: CampaignWriter
+    store: CampaignStore
     control: RunControl
     conditions: Sequence[Condition]
     rig_config: RigConfig
+    identify_step: StepProcessor
 
     def call(self, what: str, fn: object, *args: object, timeout_s: object = ..., retries: int | None = None
              ) -> object: ...
@@ -68,10 +76,12 @@ class StepRunner:
     def __init__(self, services: Services, rig: Rig, series: int, run: int, cap_n: float) -> None:
         self.e, self.rig, self.series, self.run, self.cap_n = services, rig, series, run, cap_n
         self.checks = services.protocol.checks
+        self.rows: dict[int, StepRow] = {}  # the steps identified in this session: what the curve is built from
+        self._held: dict[int, ImpactRecord] = {}  # the current step's impacts as stored, by attempt
 
     def completed_load(self, step: int) -> float | None:
         """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
-        return self.e.writer.step_load(self.series, self.run, step, complete_only=True)
+        return self.e.store.step_load(self.series, self.run, step, complete_only=True)
 
     def read_load_once(self, pos: ev.Position) -> tuple[float, bool]:
         """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable."""
@@ -82,14 +92,13 @@ class StepRunner:
 
     def read_load(self, pos: ev.Position) -> tuple[float, bool]:
         """Poll the load cell until it reports a stable value (or the settle time runs out)."""
-        lo = self.e.protocol.loading
-        deadline = time.monotonic() + lo.settle_timeout_s
+        lo, clock = self.e.protocol.loading, self.rig.clock
+        deadline = clock.now() + lo.settle_timeout_s
         while True:
             load, stable = self.read_load_once(pos)
-            if stable or time.monotonic() >= deadline:
+            if stable or clock.now() >= deadline:
                 return load, stable
-            if lo.settle_poll_s:
-                time.sleep(lo.settle_poll_s)
+            clock.sleep(lo.settle_poll_s)
 
     # --- safe points ------------------------------------------------------------------------------------
     def safe_point(self, where: Where, pos: ev.Position, load_n: float | None = None,
@@ -133,26 +142,27 @@ class StepRunner:
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
         load, stable = self.read_load(pos)
         self.safe_point("before_step", pos, load_n=load)
-        if e.writer.step_load(self.series, self.run, step) is None:
-            e.writer.step(self.series, self.run, step, {
+        if e.store.step_load(self.series, self.run, step) is None:
+            e.store.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
                 "load_stable": stable, "expected_load_n": expected, **(attrs or {})})
-        step_load = e.writer.step_load(self.series, self.run, step)
+        step_load = e.store.step_load(self.series, self.run, step)
         assert step_load is not None
         self._take_impacts(step, step_load)
         load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
         trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)
         flags = {t.condition: True for t in trips}
-        e.writer.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
-        self._identify(step, pos, step_load)
+        e.store.update_step(self.series, self.run, step, {"load_after_n": load_after, **flags})
+        self._identify(step, pos, step_load, angle_deg)
         return step_load
 
     def _take_impacts(self, step: int, step_load: float) -> None:
         e, acq = self.e, self.e.protocol.acquisition
-        infos = e.writer.impact_infos(self.series, self.run, step)
+        self._held = {}
+        infos = e.store.impact_infos(self.series, self.run, step)
         attempt = infos[-1].attempt if infos else 0
         while True:
-            infos = e.writer.impact_infos(self.series, self.run, step)
+            infos = e.store.impact_infos(self.series, self.run, step)
             accepted = sum(i.accepted for i in infos)
             pos = ev.Position(self.series, self.run, step, accepted + 1)
             e.checkpoint(pos)  # a verdict given while paused applies here
@@ -181,30 +191,25 @@ class StepRunner:
             self.e.notify("warning", f"verdict on impact {target} ignored: impact {attempt} was taken since",
                           kind="verdict")
             return False
-        infos = self.e.writer.impact_infos(self.series, self.run, step)
+        infos = self.e.store.impact_infos(self.series, self.run, step)
         latest = next((i for i in infos if i.attempt == attempt), None)
         if latest is None or latest.accepted == verdict:
             return False
-        self.e.writer.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
+        self.e.store.set_verdict(self.series, self.run, step, attempt, Verdict(verdict, OPERATOR, "monitor"))
         self.e.notify("info", f"impact {attempt} of step {step} {'accepted' if verdict else 'rejected'} "
                       "by the operator", kind="verdict")
         return True
 
     def _store(self, step: int, attempt: int, record: Record, pos: ev.Position) -> None:
         """Check, store and (when the operator reviews) judge one blow; the next is armed only after that."""
-        impact = check_record(Delivered(record.sample_rate_hz, record.force_n, record.accel_m_per_s2,
-                                        tuple(record.channels), record.trigger_index, record.timestamp_s,
-                                        tuple(record.clipped), calibration_of(self.rig, record.channels)),
-                              attempt, self.checks)
-        self.e.writer.write_impact(self.series, self.run, step, impact)
-        info = impact.info
-        cls = ev.ImpactAcquired if impact.accepted else ev.ImpactRejected
-        self.e.emit(cls(self.e.now(), pos, attempt, impact.accepted, info.reasons, info.checks.peak_force_n,
-                        info.checks.pulse_width_s, record.sample_rate_hz, impact.force_n, impact.accel_m_per_s2,
-                        tuple(record.channels), range_use(self.rig, record)))
+        impact = check_record(record, attempt, self.checks, calibration_of(self.rig, record.channels))
+        self._held[attempt] = self.e.store.write_impact(self.series, self.run, step, impact)
+        stored = self._held[attempt]
+        cls = ev.ImpactAcquired if stored.accepted else ev.ImpactRejected
+        self.e.emit(cls(self.e.now(), pos, stored, range_use(self.rig, record)))
         verdict = self._review(step, impact, pos)
         if verdict is not None:
-            self.e.writer.set_verdict(self.series, self.run, step, attempt, verdict)
+            self.e.store.set_verdict(self.series, self.run, step, attempt, verdict)
             if verdict.accepted != impact.accepted:
                 verb = "accepted" if verdict.accepted else "rejected"
                 self.e.notify("info", f"impact {attempt} of step {step} {verb} by the operator ({verdict.reason})",
@@ -228,21 +233,23 @@ class StepRunner:
             return None
         return Verdict(choice == "accept", OPERATOR, reason or "operator")
 
-    def _identify(self, step: int, pos: ev.Position, load: float) -> None:
+    def step_impacts(self, step: int) -> list[ImpactRecord]:
+        """The step's stored impacts with their current verdicts: the records held since they were written,
+        read back from the store only when some were taken before a resume."""
+        infos = self.e.store.impact_infos(self.series, self.run, step)
+        if all(i.attempt in self._held for i in infos):
+            return [replace(self._held[i.attempt], info=i) for i in infos]
+        return self.e.store.impacts(self.series, self.run, step)
+
+    def _identify(self, step: int, pos: ev.Position, load: float, angle_deg: float) -> None:
         e = self.e
-        result = process_step(e.writer.impacts(self.series, self.run, step), e.rig_config, self.checks)
-        e.writer.write_step_result(self.series, self.run, step, result)
+        result = e.identify_step(self.step_impacts(step), e.rig_config, self.checks)
+        e.store.write_step_result(self.series, self.run, step, result)
+        self.rows[step] = (step, load, angle_deg, result)
         if not result.identified:
             e.emit(ev.StepFailed(e.now(), pos, result.error))
             return
-        frf = result.frf
-        assert frf is not None
-        e.emit(ev.StepProcessed(e.now(), pos, load, result.bounce_hz, tuple(result.tilt_hz),
-                                result.roller_stiffness_n_per_m, result.coherence_at_bounce, frf.frequencies_hz,
-                                np.abs(frf.h1), frf.coherence, tuple(result.channels),
-                                result.roller_stiffness_std_n_per_m, result.used_attempts,
-                                {i.attempt: ", ".join(i.reasons) for i in result.impacts if not i.used},
-                                tuple(result.warnings)))
+        e.emit(ev.StepProcessed(e.now(), pos, load, result))
 
 
 def range_use(rig: Rig, record: Record) -> dict[str, float]:

@@ -18,7 +18,6 @@ from labctl.physics import ContactCase, RigConfig
 from labctl.reprocess import rig_of
 from labctl.storage import CampaignReader, RunInfo, StepInfo
 from labctl.storage.records import curve_from_steps
-from labctl.storage.table import specimen_point
 
 
 @dataclass
@@ -132,11 +131,6 @@ class ReportData:
     failed_steps: list[tuple[int, int, int, str]]
 
 
-def specimen_case(specimen: dict[str, Any]) -> ContactCase:
-    """The contact case of a stored specimen (the stiffness table's reading of it, with the stored rails)."""
-    return specimen_point(specimen, 1, 1.0, 1.0).case()
-
-
 def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
     """(accepted, rejected, rejection reasons) of a step's impacts, the identification's verdict included."""
     late = {i.attempt: i for i in step.result.impacts} if step.result is not None else {}
@@ -201,8 +195,7 @@ def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = N
                     if st.result is not None and st.result.error:
                         failed.append((s, run.run, st.step, st.result.error))
             curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
-            series.append(SeriesData(s, str(spec.get("label", f"series {s}")), str(spec.get("kind", "roller")),
-                                     spec, specimen_case(spec), curves))
+            series.append(SeriesData(s, spec.label or f"series {s}", spec.kind, spec, spec.case(), curves))
         config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
                   if (text := reader.config_text(name))}
         return ReportData(Path(path), reader.attrs, series, stats, _frf(reader, series, frf_step), config,

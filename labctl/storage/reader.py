@@ -25,6 +25,7 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
+    SpecimenRecord,
     StepFrf,
     StepResult,
     Verdict,
@@ -200,7 +201,7 @@ def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
     """The stored curve of every finished repetition of a campaign, in series and run order."""
     out = []
     for sg in s.children(h5, "series_"):
-        label = str(_decode(sg.attrs.get("label", "")))
+        label = SpecimenRecord.from_attrs(attrs_of(sg)).label
         for rg in s.children(sg, "run_"):
             curve = curve_of(rg, s.number(sg), label)
             if curve is not None:
@@ -262,8 +263,8 @@ class CampaignReader:
     def series_indices(self) -> list[int]:
         return sorted(s.index_of(k) for k in self.h5 if k.startswith("series_"))
 
-    def specimen(self, series: int) -> dict[str, Any]:
-        return attrs_of(self.h5[s.series_name(series)])
+    def specimen(self, series: int) -> SpecimenRecord:
+        return SpecimenRecord.from_attrs(attrs_of(self.h5[s.series_name(series)]))
 
     def runs(self, series: int) -> list[RunInfo]:
         out = []
@@ -297,7 +298,7 @@ class CampaignReader:
 
     def curve(self, series: int, run: int) -> RepetitionCurve | None:
         rg = self.h5[s.series_name(series)][s.run_name(run)]
-        return curve_of(rg, series, str(self.specimen(series).get("label", "")))
+        return curve_of(rg, series, self.specimen(series).label)
 
     def curves(self) -> list[RepetitionCurve]:
         """The stored curve of every finished repetition, in series and run order."""

@@ -2,31 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Any
 
-from labctl.stiffness_table import BUDGET_COLUMNS, StiffnessPoint
+from labctl.stiffness_table import StiffnessPoint
 from labctl.storage.reader import CampaignReader
-from labctl.storage.records import StepResult
-
-
-def specimen_point(specimen: dict[str, Any], repetition: int, load_n: float, stiffness_n_per_m: float,
-                   result: StepResult | None = None) -> StiffnessPoint:
-    """A table row for a measured point of a stored specimen (with the result's uncertainty budget when given)."""
-    rt = specimen.get("roller_type")
-    budget = result.roller_stiffness_budget_n_per_m if result is not None else {}
-    std = result.roller_stiffness_std_n_per_m if result is not None else None
-    return StiffnessPoint(
-        diameter_m=float(specimen["diameter_m"]), contact_length_m=float(specimen["contact_length_m"]),
-        rail_ra_m=float(specimen["rail_ra_m"]), load_n=float(load_n), stiffness_n_per_m=float(stiffness_n_per_m),
-        roller_type=None if rt is None or rt == "" else int(rt),
-        roller_length_m=float(specimen["roller_length_m"]) if "roller_length_m" in specimen else None,
-        material=specimen.get("material"), youngs_modulus_pa=specimen.get("youngs_modulus_pa"),
-        poisson_ratio=specimen.get("poisson_ratio"), hardness_hrc=specimen.get("hardness_hrc"),
-        repetition=int(repetition), rail_material=specimen.get("rail_material") or None,
-        stiffness_std_n_per_m=std if std is not None and math.isfinite(std) else None,
-        **{column: float(budget[key]) for key, column in BUDGET_COLUMNS.items() if key in budget})
 
 
 def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
@@ -38,6 +17,6 @@ def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
             for run in reader.runs(series):
                 for step in run.steps:
                     if step.result is not None and step.result.identified:
-                        points.append(specimen_point(spec, run.run, step.load_n,
-                                                     step.result.roller_stiffness_n_per_m, step.result))
+                        points.append(spec.point(run.run, step.load_n, step.result.roller_stiffness_n_per_m,
+                                                 step.result))
     return points

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, fields, is_dataclass
+from dataclasses import asdict, fields, is_dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -26,12 +26,13 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
+    SpecimenRecord,
     StepResult,
     Verdict,
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
-from labctl.storage.table import specimen_point
+from labctl.storage.store import StepRow, StepStamp, first_impact_s
 
 
 def utc_now() -> str:
@@ -81,9 +82,10 @@ def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, fl
     return None
 
 
-def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float | None]) -> h5py.Dataset:
+def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float | None]
+                 ) -> tuple[h5py.Dataset, np.ndarray]:
     """A trace as integer counts with per-channel ``scale`` (scale-offset filter) when the samples are exact
-    ADC steps, else as float32 with shuffle + gzip."""
+    ADC steps, else as float32 with shuffle + gzip; with the values a reader will get back (no read needed)."""
     x = np.asarray(x, dtype=float)
     rows = x.reshape(-1, x.shape[-1])
     coded = [adc_counts(row, r) for row, r in zip(rows, ranges, strict=True)] if len(ranges) == len(rows) else [None]
@@ -95,8 +97,9 @@ def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float
         ds = g.create_dataset(name, data=counts, chunks=chunks, scaleoffset=0)
         ds.attrs["scale"] = scale if x.ndim == 2 else scale[0]
         ds.attrs["offset"] = [0.0] * len(scale) if x.ndim == 2 else 0.0
-        return ds
-    return g.create_dataset(name, data=x.astype(np.float32), chunks=chunks, **COMPRESS)
+        return ds, x  # counts × scale reproduce every sample (adc_counts checked it)
+    stored = x.astype(np.float32)
+    return g.create_dataset(name, data=stored, chunks=chunks, **COMPRESS), stored.astype(float)
 
 
 class CampaignWriter:
@@ -186,9 +189,9 @@ class CampaignWriter:
     def _step_group(self, series: int, run: int, step: int) -> h5py.Group | None:
         return self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}/{s.step_name(step)}")
 
-    def series(self, series: int, specimen: Mapping[str, Any]) -> None:
+    def series(self, series: int, specimen: SpecimenRecord) -> None:
         """The specimen's group; its attributes are set when it is first created."""
-        self._group(s.series_name(series), attrs=specimen)
+        self._group(s.series_name(series), attrs=specimen.attrs())
 
     def is_mounted(self, series: int) -> bool:
         g = self.h5.get(s.series_name(series))
@@ -239,16 +242,17 @@ class CampaignWriter:
                                  for ig in complete_impacts(st))
         return self._accepted
 
-    def write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> None:
-        """Store one blow (accepted or not) and flush; ``complete`` is written last."""
+    def write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> ImpactRecord:
+        """Store one blow (accepted or not) and flush; ``complete`` is written last. Returns the record as a
+        reader will read it back (traces at their stored precision), so the caller needs no read-back."""
         g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].create_group(
             s.impact_name(record.attempt))
         cal, info = record.calibration, record.info
-        f = _write_trace(g, s.FORCE, record.force_n, [cal.force_range_n])
+        f, force_n = _write_trace(g, s.FORCE, record.force_n, [cal.force_range_n])
         _attrs(f, {"unit": "N", "sensitivity_v_per_unit": cal.force_sensitivity_v_per_n,
                    "range_units": cal.force_range_n})
         n_ch = len(record.channels)
-        a = _write_trace(g, s.ACCEL, record.accel_m_per_s2, list(cal.accel_range_m_per_s2 or [None] * n_ch))
+        a, accel = _write_trace(g, s.ACCEL, record.accel_m_per_s2, list(cal.accel_range_m_per_s2 or [None] * n_ch))
         _attrs(a, {"unit": "m/s^2", "channels": list(record.channels),
                    "sensitivity_v_per_unit": cal.accel_sensitivity_v_per_m_per_s2,
                    "range_units": cal.accel_range_m_per_s2})
@@ -262,6 +266,7 @@ class CampaignWriter:
                    "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)})
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
+        return replace(record, force_n=force_n, accel_m_per_s2=accel)
 
     def _verdict(self, g: h5py.Group, verdict: Verdict) -> None:
         if self._accepted is not None:
@@ -324,18 +329,18 @@ class CampaignWriter:
         """The identified steps measured so far in this file, as stiffness table rows (what a planner needs)."""
         points: list[StiffnessPoint] = []
         for sg in s.children(self.h5, "series_"):
-            spec = attrs_of(sg)
+            spec = SpecimenRecord.from_attrs(attrs_of(sg))
             for rg in s.children(sg, "run_"):
                 for _, load, _, result in self.step_results(s.number(sg), s.number(rg)):
                     if result.identified:
-                        points.append(specimen_point(spec, s.number(rg), load, result.roller_stiffness_n_per_m,
-                                                     result))
+                        points.append(spec.point(s.number(rg), load, result.roller_stiffness_n_per_m, result))
         return points
 
-    def store_curve(self, series: int, run: int) -> RepetitionCurve:
-        """Build a repetition's stiffness-vs-load table from its stored step results, store it, return it."""
-        label = str(self.h5[s.series_name(series)].attrs.get("label", ""))
-        curve = curve_from_steps(series, run, label, self.step_results(series, run))
+    def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
+        """Build a repetition's stiffness-vs-load table (from ``steps`` when given, else from the stored step
+        results), store it, return it."""
+        label = SpecimenRecord.from_attrs(attrs_of(self.h5[s.series_name(series)])).label
+        curve = curve_from_steps(series, run, label, self.step_results(series, run) if steps is None else steps)
         rg = self.h5[s.series_name(series)][s.run_name(run)]
         if s.CURVE in rg:
             del rg[s.CURVE]
@@ -351,6 +356,12 @@ class CampaignWriter:
     def curves(self) -> list[RepetitionCurve]:
         """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
         return curves_of(self.h5)
+
+    def completed_steps(self) -> list[StepStamp]:
+        """Every completed step with its first impact's time (what the ETA needs)."""
+        return [StepStamp(s.number(st.parent.parent), s.number(st.parent), s.number(st),
+                          first_impact_s(impact_info(ig) for ig in complete_impacts(st)))
+                for st in s.all_steps(self.h5) if st.attrs.get(s.COMPLETE)]
 
     def append_log(self, entry: LogEntry) -> None:
         """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -82,8 +81,7 @@ class BrowserScreen(Screen):
         tree.root.expand()
         for series in self.reader.series_indices():
             spec = self.reader.specimen(series)
-            node = tree.root.add(f"series {series}: {spec.get('label', '?')} "
-                                 f"(rails Ra {float(spec.get('rail_ra_m', math.nan)) * 1e6:g} µm)",
+            node = tree.root.add(f"series {series}: {spec.label or '?'} (rails Ra {spec.rail_ra_m * 1e6:g} µm)",
                                  data=("series", series), expand=True)
             for run in self.reader.runs(series):
                 rnode = node.add(f"run {run.run} · {'complete' if run.complete else 'unfinished'} · "

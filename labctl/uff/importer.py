@@ -16,12 +16,13 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from labctl.engine.sequencer import specimen_attrs
+from drivers.interfaces import Record
+from labctl.engine.sequencer import specimen_record
 from labctl.errors import InputError
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.processing import CheckConfig
 from labctl.protocol import SpecimenSpec
-from labctl.recording import Delivered, check_record, process_step
+from labctl.recording import check_record, process_step
 from labctl.storage import CampaignWriter, StepResult
 from labctl.uff import mapping as m
 from labctl.uff.manifest import ManifestRow, read_manifest
@@ -192,7 +193,8 @@ def import_uff(files: list[str | Path], manifest: str | Path, out: str | Path, o
     try:
         with writer:
             for i, spec in enumerate(specs, start=1):
-                writer.series(i, {**specimen_attrs(spec), "mounted": True})
+                writer.series(i, specimen_record(spec))
+                writer.mark_mounted(i)
                 summary.series.append({"series": i, "label": spec.label, "roller_type": spec.roller_type,
                                        "rail_ra_m": spec.rail_ra_m})
             runs: dict[tuple[int, int], list[tuple[PlannedStep, StepResult]]] = defaultdict(list)
@@ -221,11 +223,11 @@ def _store_step(writer: CampaignWriter, p: PlannedStep, imp: UffImpacts, rig: Ri
     writer.step(p.series, p.run, p.step, {"knob_angle_deg": p.row.knob_angle_deg, "load_n": load,
                                           "load_total_n": load * rig.roller_count, "load_stable": True,
                                           "source_file": str(p.file), "load_cases": list(imp.load_cases)})
-    for i in range(len(imp.load_cases)):
-        record = check_record(Delivered(fs, imp.force_n[i], imp.accel_m_per_s2[i], imp.channels, 0,
-                                        _timestamp(imp.ids[i])), i + 1, opts.checks)
-        writer.write_impact(p.series, p.run, p.step, record)
-    result = process_step(writer.impacts(p.series, p.run, p.step), rig, opts.checks)
+    stored = [writer.write_impact(p.series, p.run, p.step,
+                                  check_record(Record(fs, imp.force_n[i], imp.accel_m_per_s2[i], tuple(imp.channels), 0,
+                                                      _timestamp(imp.ids[i])), i + 1, opts.checks))
+              for i in range(len(imp.load_cases))]
+    result = process_step(stored, rig, opts.checks)
     writer.write_step_result(p.series, p.run, p.step, result)
     return result
 

@@ -24,6 +24,7 @@ import numpy as np
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.storage import CampaignReader
+from labctl.storage.records import SpecimenRecord
 from labctl.uff import mapping as m
 from labctl.uff.manifest import MANIFEST_COLUMNS, format_load_cases
 
@@ -165,7 +166,7 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
         writer = _Out(tmp)
         try:
             for series, run, step in steps:
-                label = str(reader.specimen(series).get("label", f"series {series}"))
+                label = reader.specimen(series).label or f"series {series}"
                 head = f"{protocol}: {label}"[:80]
                 where = f"series {series} run {run} step {step.step}"
                 load = f"load {step.load_n:.6g} N per roller"
@@ -248,14 +249,14 @@ def _write_frf(writer: _Out, reader: CampaignReader, series: int, run: int, step
             summary.coherences += 1
 
 
-def _manifest_row(file: str, specimen: dict[str, Any], run: int, step: Any, load_cases: list[int]
+def _manifest_row(file: str, specimen: SpecimenRecord, run: int, step: Any, load_cases: list[int]
                   ) -> dict[str, Any]:
-    rt = specimen.get("roller_type")
+    rt = specimen.roller_type
     return {"file": file, "load_cases": format_load_cases(load_cases), "load_n": f"{step.load_n:.12g}",
             "repetition": run, "step": step.step,
             "knob_angle_deg": f"{float(step.attrs.get('knob_angle_deg', float('nan'))):.12g}",
-            "roller_type": "" if rt is None or rt == "" else int(rt),
-            "rail_ra_um": f"{float(specimen.get('rail_ra_m', float('nan'))) * 1e6:.12g}"}
+            "roller_type": "" if rt is None else int(rt),
+            "rail_ra_um": f"{specimen.rail_ra_m * 1e6:.12g}"}
 
 
 def write_manifest(path: str | Path, rows: list[dict[str, Any]]) -> None:
