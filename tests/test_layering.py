@@ -21,7 +21,7 @@ FLOORS: dict[str, int] = {
     "labctl.discrepancy": 2, "labctl.backends": 2, "labctl.hardware": 2, "labctl.stiffness_table": 2,
     "labctl.engine": 3, "labctl.report": 3, "labctl.uff": 3, "labctl.campaign": 3, "labctl.reprocess": 3,
     "labctl.recording": 3,
-    "labctl.calibration": 2, "labctl.archive": 3, "labctl.planning": 3, "labctl.programme": 3,
+    "labctl.calibration": 2, "labctl.archive": 3, "labctl.planning": 3, "labctl.programme": 3, "labctl.compare": 3,
     "labctl.tui": 4,
     "labctl.cli": 5, "labctl.__main__": 5,
 }

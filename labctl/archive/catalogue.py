@@ -22,7 +22,7 @@ from labctl.storage.records import SpecimenRecord, result_from_mapping
 from labctl.storage.results import read_results, results_path
 from labctl.storage.writer import utc_now
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: the specimen's conditions (lubrication, orientation, measured roughness and form)
 CAMPAIGN_GLOB = "*.h5"
 
 _TABLES = """
@@ -40,6 +40,8 @@ CREATE TABLE IF NOT EXISTS specimen_row (
     kind TEXT, label TEXT, roller_type INTEGER, ball_diameter_mm REAL, diameter_mm REAL, contact_length_mm REAL,
     roller_length_mm REAL, material TEXT, youngs_modulus_gpa REAL, poisson_ratio REAL, hardness_hrc REAL,
     rail_material TEXT, rail_ra_um REAL, max_load_n REAL, knob_step_deg REAL,
+    lubrication TEXT, lubricant TEXT, orientation_deg REAL, roller_ra_measured_um REAL, rail_ra_measured_um REAL,
+    roundness_um REAL, cylindricity_um REAL,
     PRIMARY KEY (campaign_id, series));
 CREATE TABLE IF NOT EXISTS step_row (
     campaign_id INTEGER NOT NULL REFERENCES campaign_file(id) ON DELETE CASCADE, series INTEGER NOT NULL,
@@ -58,10 +60,12 @@ CAMPAIGN_COLUMNS = (
     "protocol_version", "protocol_description", "rig_name", "rig_sha256", "root_sha256", "processed_utc",
     "processed_software_version", "processed_rig_name", "processed_rig_sha256", "results_current", "n_series",
     "n_runs", "n_steps", "n_identified", "indexed_utc")
+CONDITION_COLUMNS = ("lubrication", "lubricant", "orientation_deg", "roller_ra_measured_um", "rail_ra_measured_um",
+                     "roundness_um", "cylindricity_um")
 SPECIMEN_COLUMNS = (
     "series", "kind", "label", "roller_type", "ball_diameter_mm", "diameter_mm", "contact_length_mm",
     "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc", "rail_material",
-    "rail_ra_um", "max_load_n", "knob_step_deg")
+    "rail_ra_um", "max_load_n", "knob_step_deg", *CONDITION_COLUMNS)
 STEP_COLUMNS = (
     "run", "step", "run_complete", "step_complete", "knob_angle_deg", "expected_load_n", "load_n", "load_total_n",
     "impacts", "accepted_impacts", "identified", "result_source", "error", "bounce_hz", "bounce_hz_std",
@@ -138,11 +142,26 @@ def connect(db: str | Path) -> sqlite3.Connection:
         conn = sqlite3.connect(p)
         conn.execute("PRAGMA foreign_keys = ON")
         with conn:
+            _upgrade(conn)
             conn.executescript(_TABLES + _VIEWS)
             conn.execute("INSERT OR IGNORE INTO catalogue_info VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
     except sqlite3.DatabaseError as exc:
         raise InputError(f"{p}: not a usable archive catalogue ({exc})") from None
     return conn
+
+
+def _upgrade(conn: sqlite3.Connection) -> None:
+    """Bring an older labctl catalogue to this schema: version 1 lacked the conditions columns, so its views are
+    rebuilt and every file is forgotten (the next ``index`` reads them all again, conditions included)."""
+    row = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'catalogue_info'").fetchone()
+    if row is None:
+        return
+    found = conn.execute("SELECT value FROM catalogue_info WHERE key = 'schema_version'").fetchone()
+    if found is None or int(found[0]) >= SCHEMA_VERSION:
+        return
+    conn.executescript("DROP VIEW IF EXISTS steps; DROP VIEW IF EXISTS campaigns; DELETE FROM step_row; "
+                       "DELETE FROM specimen_row; DELETE FROM campaign_file; DROP TABLE specimen_row;")
+    conn.execute("UPDATE catalogue_info SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
 
 
 @dataclass(frozen=True)
@@ -243,7 +262,10 @@ def _specimen_row(series: int, sp: SpecimenRecord) -> dict[str, Any]:
             "material": sp.material, "youngs_modulus_gpa": edge(sp.youngs_modulus_pa, -9),
             "poisson_ratio": edge(sp.poisson_ratio), "hardness_hrc": edge(sp.hardness_hrc),
             "rail_material": sp.rail_material, "rail_ra_um": edge(sp.rail_ra_m, 6), "max_load_n": edge(sp.max_load_n),
-            "knob_step_deg": edge(sp.knob_step_deg)}
+            "knob_step_deg": edge(sp.knob_step_deg), "lubrication": sp.lubrication, "lubricant": sp.lubricant,
+            "orientation_deg": edge(sp.orientation_deg), "roller_ra_measured_um": edge(sp.roller_ra_m, 6),
+            "rail_ra_measured_um": edge(sp.rail_ra_measured_m, 6), "roundness_um": edge(sp.roundness_m, 6),
+            "cylindricity_um": edge(sp.cylindricity_m, 6)}
 
 
 def _result_columns(result: dict[str, Any] | None) -> dict[str, Any]:

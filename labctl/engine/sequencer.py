@@ -65,7 +65,7 @@ def specimen_record(spec: SpecimenSpec) -> SpecimenRecord:
         material=r.material.name, youngs_modulus_pa=r.material.youngs_modulus_pa,
         poisson_ratio=r.material.poisson_ratio, hardness_hrc=r.material.hardness_hrc,
         rail_material=spec.rail_material, rail_ra_m=spec.rail_ra_m, max_load_n=spec.max_load_n,
-        knob_step_deg=spec.knob_step_deg)
+        knob_step_deg=spec.knob_step_deg, **asdict(spec.conditions))
 
 
 class Engine:

@@ -28,10 +28,12 @@ from labctl.errors import InputError
 from labctl.physics import materials, rollers
 from labctl.processing import CheckConfig
 from labctl.protocol.model import (
+    LUBRICATIONS,
     AcquisitionSpec,
     LoadingSpec,
     Protocol,
     RepetitionSpec,
+    SpecimenConditions,
     SpecimenSpec,
     c0_cap_n,
 )
@@ -49,7 +51,7 @@ LOADING: dict[str, Spec] = {
 }
 REPETITIONS: dict[str, Spec] = {"count": Integer(1, 1000), "rotate_rollers_deg": Number(ge=0, le=180)}
 SPECIMEN_KEYS = {"kind", "label", "roller_type", "ball_diameter_mm", "ball_material", "rail_material", "rail_ra_um",
-                 "max_load_n", "knob_step_deg"}
+                 "max_load_n", "knob_step_deg", "conditions"}
 # bounds of the impact checks that are fractions; every other threshold is a number ≥ 0
 _CHECK_BOUNDS = {"overload_fraction": Number(gt=0, le=1), "double_hit_ratio": Number(gt=0, lt=1),
                  "min_coherence": Number(ge=0, le=1)}
@@ -81,7 +83,7 @@ def _specimen(doc: dict[str, Any], where: Where, loading: LoadingSpec) -> Specim
     known = tuple(sorted(materials()))
     types = sorted(rollers())
     type_names = f"a catalogue roller type ({', '.join(map(str, types))})"
-    t = read(doc, {
+    t = read({k: v for k, v in doc.items() if k != "conditions"}, {
         "kind": Text(("roller", "ball"), default="roller"),
         "label": Text(default=None),
         "roller_type": Integer(default=None),
@@ -115,7 +117,30 @@ def _specimen(doc: dict[str, Any], where: Where, loading: LoadingSpec) -> Specim
         label = t.get("label", f"ball {ball_d * 1e3:g} mm")
     return SpecimenSpec(kind=t["kind"], label=label, roller_type=roller_type, ball_diameter_m=ball_d,
                         ball_material=t["ball_material"], rail_material=t["rail_material"],
-                        rail_ra_m=t["rail_ra_m"], max_load_n=max_load, knob_step_deg=t["knob_step_deg"])
+                        rail_ra_m=t["rail_ra_m"], max_load_n=max_load, knob_step_deg=t["knob_step_deg"],
+                        conditions=_conditions(doc, where))
+
+
+CONDITIONS: dict[str, Spec] = {
+    "lubrication": Text(LUBRICATIONS, default=None),
+    "lubricant": Text(default=None),
+    "orientation_deg": Number(ge=0, le=90, default=None),
+    "roller_ra_um": Number(ge=0, le=50, unit="um", default=None),
+    "rail_ra_measured_um": Number(ge=0, le=50, unit="um", default=None),
+    "roundness_um": Number(ge=0, le=1000, unit="um", default=None),
+    "cylindricity_um": Number(ge=0, le=1000, unit="um", default=None),
+}
+
+
+def _conditions(doc: dict[str, Any], where: Where) -> SpecimenConditions:
+    """The optional ``[specimen.conditions]`` table: lubrication, orientation, measured roughness and form."""
+    table = value(doc, "conditions", Table(default={}), where)
+    inner = where.at("conditions")
+    check_keys(table, set(CONDITIONS), inner)
+    t = read(table, CONDITIONS, inner)
+    if "lubricant" in t and t.get("lubrication") in (None, "dry"):
+        raise inner.bad("lubricant", t["lubricant"], 'a product name only with lubrication = "oil" or "grease"')
+    return SpecimenConditions(**{k: t.get(k) for k in (f.name for f in fields(SpecimenConditions))})
 
 
 def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:

@@ -147,8 +147,8 @@ def _specimens(data: ReportData) -> str:
     for s in data.series:
         r = s.case.roller
         rows.append([s.index, s.label, s.kind, f"{r.diameter_m * 1e3:.3g}", f"{r.contact_length_m * 1e3:.4g}",
-                     r.material.name, f"{s.case.rail_ra_m * 1e6:.3g}", len(s.runs)])
-    return _table(["series", "specimen", "kind", "D [mm]", "L_we [mm]", "material", "rail Ra [µm]",
+                     r.material.name, f"{s.case.rail_ra_m * 1e6:.3g}", s.specimen.conditions_text(), len(s.runs)])
+    return _table(["series", "specimen", "kind", "D [mm]", "L_we [mm]", "material", "rail Ra [µm]", "conditions",
                    "repetitions identified"], rows, left=3)
 
 

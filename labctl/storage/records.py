@@ -381,6 +381,20 @@ class SpecimenRecord(RollerContact):
     """The protocol's largest load per roller for this specimen, N."""
     knob_step_deg: float = NAN
     """Knob turn between load steps, degrees."""
+    lubrication: str | None = None
+    """"dry", "oil" or "grease" (None: not recorded)."""
+    lubricant: str | None = None
+    """The oil's or grease's product name."""
+    orientation_deg: float | None = None
+    """Angle between the roller axis and the rails' grinding direction, degrees."""
+    roller_ra_m: float | None = None
+    """Measured Ra of the rollers, m."""
+    rail_ra_measured_m: float | None = None
+    """Measured Ra of the rails, m (``rail_ra_m`` is the nominal grade the models use)."""
+    roundness_m: float | None = None
+    """Measured roundness deviation of the rollers, m."""
+    cylindricity_m: float | None = None
+    """Measured cylindricity deviation of the rollers, m."""
 
     @classmethod
     def from_attrs(cls, attrs: Mapping[str, Any]) -> SpecimenRecord:
@@ -393,12 +407,25 @@ class SpecimenRecord(RollerContact):
             value = value.item() if isinstance(value, np.generic) else value
             if name == "roller_type":
                 value = int(value)
-            elif name in ("kind", "label", "material", "rail_material"):
+            elif name in ("kind", "label", "material", "rail_material", "lubrication", "lubricant"):
                 value = str(value)
             else:
                 value = float(value)
             values[name] = value
         return cls(**values)
+
+    def conditions_text(self) -> str:
+        """The recorded conditions in words ("not recorded" when none were given)."""
+        parts = []
+        if self.lubrication:
+            parts.append(self.lubrication + (f" ({self.lubricant})" if self.lubricant else ""))
+        if self.orientation_deg is not None:
+            parts.append(f"{self.orientation_deg:g}° to the grinding direction")
+        for label, value in (("roller Ra", self.roller_ra_m), ("rail Ra measured", self.rail_ra_measured_m),
+                             ("roundness", self.roundness_m), ("cylindricity", self.cylindricity_m)):
+            if value is not None:
+                parts.append(f"{label} {value * 1e6:.3g} µm")
+        return ", ".join(parts) or "not recorded"
 
     def attrs(self) -> dict[str, Any]:
         """The stored attributes (None values are not stored)."""
