@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -243,12 +244,15 @@ def _starts(spec: ModelSpec, warm: Fit | None, guess: dict[str, dict[str, float]
 
 
 def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None,
-              guess: dict[str, dict[str, float]] | None = None, seating_sigma: float = 0.0) -> Fit:
+              guess: dict[str, dict[str, float]] | None = None, seating_sigma: float = 0.0,
+              post: Callable[[np.ndarray], np.ndarray] | None = None) -> Fit:
     """Noise-weighted least squares on ln k, started from the warm fit's values, any guessed effect
     parameters, and each remaining effect's start grid.
 
     ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same. ``seating_sigma`` is the
     σ of the offset shared by one seating's points: residuals are whitened for it (generalised least squares).
+    ``post`` maps whitened residuals before the squares are summed (a form discrepancy integrated out); the fit
+    returned keeps the plain whitened residuals.
     """
     measured = data.ln_stiffness
     sig = np.ones(measured.size) if sigma is None else np.asarray(sigma, dtype=float)
@@ -257,13 +261,14 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
     def white(r: np.ndarray) -> np.ndarray:
         return whiten(runs, r, sig, seating_sigma)
 
+    objective = post or (lambda e: e)
     lo, hi = spec.bounds()
     best: tuple[float, np.ndarray] | None = None
     for x0 in _starts(spec, warm, guess or {}):
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = least_squares(lambda x: white(_residuals(data, spec, x, measured)), x0, bounds=(lo, hi),
+        sol = least_squares(lambda x: objective(white(_residuals(data, spec, x, measured))), x0, bounds=(lo, hi),
                             x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7, max_nfev=200)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:
