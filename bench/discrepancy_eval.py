@@ -26,14 +26,28 @@ Suites (``--suite``, default ``acceptance`` = all but ``twin``):
 from __future__ import annotations
 
 import argparse
+import csv
+import importlib.util
 import json
+import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import detail, summarize_calibration, summarize_crowned, summarize_effects, summarize_robust
+from discrepancy_scores import (
+    calibrate,
+    detail,
+    reliability,
+    summarize_blind,
+    summarize_calibration,
+    summarize_crowned,
+    summarize_effects,
+    summarize_robust,
+)
 from discrepancy_worlds import (
     CALIBRATION,
     NONE,
@@ -46,8 +60,10 @@ from discrepancy_worlds import (
     log_uniform,
 )
 
-from labctl.discrepancy import build_dataset, run_discrepancy
+from labctl.discrepancy import build_dataset, load_points, run_discrepancy
+from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import ModelSpec, fit_model
+from labctl.discrepancy.posterior import TEMPERATURE
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import EFFECTS, ContactLaw
@@ -130,6 +146,8 @@ def campaign(task: Task) -> Campaign:
 
 def run_task(task: Task) -> dict[str, Any]:
     """Generate one dataset, run the workflow, score the answer."""
+    if task.suite == "blind":
+        return run_blind(task)
     camp = campaign(task)
     points, effect, rng, size, low = camp.points, camp.effect, camp.rng, camp.size, camp.noise_low
     out: dict[str, Any] = {"suite": task.suite, "truth": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
@@ -147,6 +165,67 @@ def run_task(task: Task) -> dict[str, Any]:
             out["bad"]["named"] == out["named"] and out["bad"]["measurement"] == out["measurement"])
     return out
 
+
+
+BLIND_DIR = Path(__file__).resolve().parent / "blind"
+"""Worlds written blind to the workflow (their brief: ``bench/blind/discrepancy_brief.md``)."""
+CALIBRATION_SEEDS = 100_000
+"""The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
+TEMPERATURES = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+
+
+def blind_worlds() -> Any:
+    """The blind generator, imported under its own name (its siblings on the path)."""
+    if str(BLIND_DIR) not in sys.path:
+        sys.path.insert(0, str(BLIND_DIR))
+    spec = importlib.util.spec_from_file_location("blind_discrepancy_worlds", BLIND_DIR / "discrepancy_worlds.py")
+    if spec is None or spec.loader is None or not (BLIND_DIR / "discrepancy_worlds.py").exists():
+        raise SystemExit(f"{BLIND_DIR / 'discrepancy_worlds.py'} missing: merge the blind worlds' branch first")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def truth_name(truth: dict[str, Any]) -> str:
+    """The blind truth as the workflow names explanations ("unlisted" for an effect outside the library)."""
+    if truth.get("outside_library"):
+        return "unlisted"
+    phys = [n for n in EFFECTS if n in truth.get("effects", [])]
+    meas = [n for n in MEASUREMENT if n in truth.get("measurement_effects", [])]
+    return " + ".join(phys + meas) or "none"
+
+
+def run_blind(task: Task) -> dict[str, Any]:
+    """One blind dataset through the CSV contract and the workflow; the answer with every candidate's evidence."""
+    world = blind_worlds().generate(task.truth, task.seed, task.noise_scale)
+    truth = world.truth
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "blind.csv"
+        columns = list(dict.fromkeys(k for row in world.rows for k in row))
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, columns)
+            writer.writeheader()
+            writer.writerows(world.rows)
+        points = load_points([path])
+    start = time.process_time()
+    try:
+        result = run_discrepancy(points)
+    except InputError as exc:
+        return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
+                "refused": str(exc), "truth_name": truth_name(truth)}
+    cpu = time.process_time() - start
+    physical, chain = _named(result)
+    return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
+            "truth_name": truth_name(truth), "truth_effects": list(truth.get("effects", [])),
+            "truth_measurement": list(truth.get("measurement_effects", [])),
+            "outside_library": bool(truth.get("outside_library")), "size_sigma": float(truth.get("size_sigma", 0.0)),
+            "family": truth.get("family"), "faults": truth.get("faults"), "cpu_seconds": cpu,
+            "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
+            "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
+            "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
+            "candidates": [{"explanation": c.explanation.name, "log_evidence": c.log_evidence,
+                            "log_prior": c.log_prior} for c in result.scored]}
 
 
 def _run_bad(bad: list[Any]) -> dict[str, Any]:
@@ -187,6 +266,13 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
                         for j in range(max(1, seeds // 2))]
     if suite in ("crowned", "acceptance"):
         out += [Task("crowned", NONE, base + 300_000 + j, 1.0) for j in range(seeds)]
+    if suite in ("blind", "blind-calibrate"):
+        first = CALIBRATION_SEEDS if suite == "blind-calibrate" else seed * 1000
+        if suite == "blind" and first + seeds > CALIBRATION_SEEDS:
+            raise SystemExit("--seed/--seeds reach into the calibration seeds: evaluate below "
+                             f"{CALIBRATION_SEEDS}")
+        for scenario in blind_worlds().SCENARIOS:
+            out += [Task("blind", scenario, first + j, scale) for scale in scales for j in range(seeds)]
     if suite in ("robust", "acceptance"):
         for i, variant in enumerate(("duplicate", "outliers", "units")):
             for j in range(max(1, seeds // 2)):
@@ -198,7 +284,8 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suite", default="acceptance",
-                        choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust"))
+                        choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust", "blind",
+                                 "blind-calibrate"))
     parser.add_argument("--seeds", type=int, default=20, help="datasets per scenario and noise scale (default 20)")
     parser.add_argument("--noise", default="0.5,1,2", help="noise scales (default 0.5,1,2)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
@@ -243,10 +330,25 @@ def main() -> None:
         parts.append(summarize_crowned([r for r in results if r["suite"] == "crowned"]))
     if any(r["suite"] == "robust" for r in results):
         parts.append(summarize_robust([r for r in results if r["suite"] == "robust"]))
+    blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
+    if blind:
+        parts.append(f"Blind worlds ({'calibration' if args.suite == 'blind-calibrate' else 'evaluation'} seeds "
+                     f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; temperature "
+                     f"{TEMPERATURE:g})\n\n" + summarize_blind(blind))
+        table, holds = reliability(blind)
+        parts.append("Reliability of the top explanation's stated probability\n\n" + table +
+                     f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
+        if args.suite == "blind-calibrate":
+            table, best = calibrate(blind, TEMPERATURES)
+            parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}")
+    refused = [r for r in results if "refused" in r]
+    if refused:
+        parts.append("Refused blind datasets: " + "; ".join(f"{r['scenario']} seed {r['seed']}: {r['refused']}"
+                                                           for r in refused))
     if args.detail:
-        parts.append(detail(results))
+        parts.append(detail([r for r in results if r["suite"] != "blind"]))
     print("\n\n".join(parts))
-    seconds = [r["seconds"] for r in results]
+    seconds = [r.get("seconds", r.get("cpu_seconds", 0.0)) for r in results]
     where = args.scheduler or f"{args.workers} workers"
     print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {where}; "
           f"workflow time per 231-point dataset: mean {np.mean(seconds):.2f} s, max {np.max(seconds):.2f} s")
