@@ -4,6 +4,7 @@ its stated noise, effects with the load and geometry signature they claim, and a
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -11,10 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench" / "blind"))
+BLIND = Path(__file__).resolve().parents[1] / "bench" / "blind"
+sys.path.insert(0, str(BLIND))
 import blind_contact as bc  # noqa: E402
 import blind_families as bf  # noqa: E402
-import discrepancy_worlds as dw  # noqa: E402
+
+# a unique module name: bench/ holds another discrepancy_worlds.py that other tests may import by that name
+_spec = importlib.util.spec_from_file_location("blind_discrepancy_worlds", BLIND / "discrepancy_worlds.py")
+dw = importlib.util.module_from_spec(_spec)
+sys.modules["blind_discrepancy_worlds"] = dw  # dataclasses resolve their module by name
+_spec.loader.exec_module(dw)
 
 from labctl.physics import TrippContact, material, roller  # noqa: E402
 
