@@ -156,6 +156,9 @@ def test_size_sigma_matches_the_clean_departure_and_spans_three_sigma():
              for seed in range(6)]
     share = np.mean(np.array(sizes) >= 3.0)
     assert 0.5 < share < 1.0  # most effects are >= 3 σ, some are smaller
+    for scenario in (*dw.CALIBRATION, "end_effects"):  # one component: the total is that component's size
+        truth = dw.generate(scenario, 1, 1.0).truth
+        assert truth["size_sigma"] == pytest.approx(truth["size_sigma_by_effect"][scenario], rel=1e-6)
     ds = dw.generate("setup_compliance", 0, 1.0)
     observed = np.concatenate([ln for _, ln in _ratio_by_type(ds).values()])
     # the largest noisy departure is the clean one give or take a few point σ

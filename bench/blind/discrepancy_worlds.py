@@ -159,6 +159,11 @@ def generate(scenario: str, seed: int, noise_scale: float, families: dict[str, s
     offset = cal.get("load_offset", {}).get("offset_n", 0.0)
     faults = _draw_faults(world)
 
+    for name in calib:  # a calibration error alone: the true Tripp read at the reported load (and scale)
+        one = {"load_gain": (1.0, gain, 0.0), "load_offset": (1.0, 1.0, offset),
+               "modulus_scale": (k_scale, 1.0, 0.0)}[name]
+        size_of[name] = max(float(np.max(np.abs(np.log(one[0] * r.tripp() / r.tripp(
+            load_n=one[1] * r.load_n + one[2]))))) for r in rollers) / (sigma_med1 * noise_scale)
     rows, all_ln, sigma_pts = [], [], []
     for i, (t, r) in enumerate(zip(ROLLER_TYPES, rollers, strict=True)):
         k_clean = r.tripp() * np.exp(ln_ratio[i]) * k_scale
