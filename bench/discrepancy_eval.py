@@ -196,18 +196,35 @@ def truth_name(truth: dict[str, Any]) -> str:
     return " + ".join(phys + meas) or "none"
 
 
+def _points(rows: list[dict[str, Any]]) -> list[Any]:
+    """Rows through the CSV contract: written as a stiffness table and read back as the CLI reads it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "blind.csv"
+        columns = list(dict.fromkeys(k for row in rows for k in row))
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, columns)
+            writer.writeheader()
+            writer.writerows(rows)
+        return load_points([path])
+
+
+def visible_size(task: Task, truth: dict[str, Any]) -> float:
+    """What Tripp's depth cannot absorb: the largest |ln k/k_Tripp| of the noise-free world (faults left out)
+    after the depth is refitted, over the median point σ — the blind truth's ``size_sigma`` is before it."""
+    clean = blind_worlds().generate(task.truth, task.seed, 1e-9)
+    fault = (truth.get("faults") or {}).get("outliers")
+    rows = [r for r in clean.rows if not (fault and int(r["roller_type"]) == fault["roller_type"]
+                                          and int(r["repetition"]) in fault["repetitions"])]
+    data = build_dataset(_points(rows))
+    fit = fit_model(data, ModelSpec())
+    return float(np.max(np.abs(fit.residuals))) / float(truth["median_sigma_rel"])
+
+
 def run_blind(task: Task) -> dict[str, Any]:
     """One blind dataset through the CSV contract and the workflow; the answer with every candidate's evidence."""
     world = blind_worlds().generate(task.truth, task.seed, task.noise_scale)
     truth = world.truth
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "blind.csv"
-        columns = list(dict.fromkeys(k for row in world.rows for k in row))
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            writer = csv.DictWriter(fh, columns)
-            writer.writeheader()
-            writer.writerows(world.rows)
-        points = load_points([path])
+    points = _points(world.rows)
     start = time.process_time()
     try:
         result = run_discrepancy(points)
@@ -220,6 +237,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "truth_name": truth_name(truth), "truth_effects": list(truth.get("effects", [])),
             "truth_measurement": list(truth.get("measurement_effects", [])),
             "outside_library": bool(truth.get("outside_library")), "size_sigma": float(truth.get("size_sigma", 0.0)),
+            "visible_sigma": visible_size(task, truth),
             "family": truth.get("family"), "faults": truth.get("faults"), "cpu_seconds": cpu,
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,

@@ -222,6 +222,10 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         lib = [r for r in lib if not r["outside_library"]]
         big = [r for r in lib if r["truth_effects"] and r["size_sigma"] >= 3.0]
         top1 = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in big)
+        vis = [r for r in lib if r["truth_effects"] and r.get("visible_sigma", 0.0) >= 3.0]
+        top1_vis = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in vis)
+        likely = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] or
+                     r["verdict"] == "likely" and r["top"].split(" + ")[0] in r["truth_effects"] for r in vis)
         wrong = sum(any(n not in r["truth_effects"] for n in r["named"]) or
                     any(m not in r["truth_measurement"] for m in r["measurement"]) for r in lib)
         nulls = [r for r in rs if r["truth_name"] == "none"]
@@ -229,10 +233,12 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         outside = [r for r in rs if r["outside_library"]]
         out_named = sum(bool(r["named"] or r["measurement"]) for r in outside)
         seconds = [r["cpu_seconds"] for r in rs]
-        rows.append([f"{scale:g}×", _frac(top1, len(big)), _frac(wrong, len(lib)), _frac(fp, len(nulls)),
+        rows.append([f"{scale:g}×", _frac(top1, len(big)), _frac(top1_vis, len(vis)), _frac(likely, len(vis)),
+                     _frac(wrong, len(lib)), _frac(fp, len(nulls)),
                      _frac(out_named, len(outside)), _frac(sum(r["top"] == r["truth_name"] for r in rs), len(rs)),
                      f"{np.mean(seconds):.2f} / {np.max(seconds):.2f} s"])
-    header = ["noise", "top-1 named (size ≥ 3σ)", "wrong names (phys. or meas.)", "any name on null",
+    header = ["noise", "top-1 named (size ≥ 3σ)", "top-1 named (visible ≥ 3σ)", "named or likely (visible ≥ 3σ)",
+              "wrong names (phys. or meas.)", "any name on null",
               "outside library named", "top explanation = truth (all)", "CPU mean / max"]
     out = [_table(rows, header)]
     scen = []
@@ -247,7 +253,8 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         common = ", ".join(f"{k} {v}" for k, v in sorted(named.items(), key=lambda t: -t[1])[:3])
         scen.append([s, str(len(rs)), rs[0]["truth_name"] if len({r["truth_name"] for r in rs}) == 1 else "mixed",
                      " / ".join(str(verdicts[v]) for v in verdicts), common,
-                     f"{np.median([r['size_sigma'] for r in rs]):.1f}"])
+                     f"{np.median([r['size_sigma'] for r in rs]):.1f} / "
+                     f"{np.median([r.get('visible_sigma', np.nan) for r in rs]):.1f}"])
     out.append(_table(scen, ["scenario", "n", "truth", "consistent / explained / partly / likely / unexplained",
-                             "named (most common)", "median size [σ]"]))
+                             "named (most common)", "median size / visible [σ]"]))
     return "\n\n".join(out)

@@ -47,6 +47,15 @@ rounding of the tilt law's closing (``Misalignment.transition``; 0 is the indepe
 spread over about a decade of load). The search frees one only when the data prefer it decisively (nested BIC)."""
 
 
+SIGNED_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
+    "end_effects": {"edge_length_m": (-0.4e-3, 2e-3)},
+    "material_hardness": {"gain": (-0.5, 2.0)},
+}
+"""Fitted ranges wider than the world ``BOUNDS`` where the physics goes both ways: a negative edge length is a
+length lost at each end (edge relief, unloaded edges); a negative hardness gain is yield softening above the
+onset instead of conformity stiffening. The twin's worlds use only the world ranges."""
+
+
 def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     """Effect names in the registry's order (contact terms first, the measurement chain's setup term last)."""
     unknown = [n for n in names if n not in EFFECTS]
@@ -98,7 +107,7 @@ class ModelSpec:
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
         return [(n, k, lo, hi) for n in self.terms
-                for k, (lo, hi) in {**_terms(n).BOUNDS, **self._shape(n)}.items()]
+                for k, (lo, hi) in {**_terms(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items()]
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
         return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}

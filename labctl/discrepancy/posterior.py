@@ -31,6 +31,7 @@ from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
+from labctl.discrepancy.form import contribution
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor
@@ -41,6 +42,9 @@ PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10,
 TAU_GRID = np.geomspace(3e-4, 0.3, 16)
 """σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
 FORM_DEGREE = 2
+BEND_SIGMA = 0.5
+"""Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
+over all roller cases (the same law for every roller: an approximate form that still generalises)."""
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
 TEMPERATURE = 8.0
 """Evidence is raised to 1/T: calibrated on the blind worlds' calibration seeds (docs/discrepancy.md)."""
@@ -115,22 +119,37 @@ class FormPrior:
 
     u: np.ndarray
     s2: np.ndarray
+    a: np.ndarray | None = None
+    """The whitened basis itself (for the joint marginal with a term's bend columns)."""
 
     @classmethod
     def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
         a = noise.whiten(data, form_basis(data), sigma)
         u, s, _ = np.linalg.svd(a, full_matrices=False)
         keep = s > 1e-9 * s.max()
-        return cls(u[:, keep], s[keep] ** 2)
+        return cls(u[:, keep], s[keep] ** 2, a)
 
-    def log_marginal(self, e: np.ndarray) -> tuple[float, float]:
-        """log ∫ N(e; Aβ, I) N(β; 0, τ²) dβ averaged over TAU_GRID (constants dropped), and the τ it favours."""
-        proj2 = (self.u.T @ e) ** 2
+    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None) -> tuple[float, float]:
+        """log ∫ N(e; Aβ + Bγ, I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants
+        dropped), and the τ it favours. ``bend``: whitened bend columns B of the candidate's terms (or none)."""
         ee = float(e @ e)
         vals = []
-        for tau in TAU_GRID:
-            g = tau**2 * self.s2
-            vals.append(-0.5 * (ee - float(np.sum(g / (1 + g) * proj2))) - 0.5 * float(np.sum(np.log1p(g))))
+        if bend is None or bend.shape[1] == 0 or self.a is None:
+            proj2 = (self.u.T @ e) ** 2
+            for tau in TAU_GRID:
+                g = tau**2 * self.s2
+                vals.append(-0.5 * (ee - float(np.sum(g / (1 + g) * proj2))) - 0.5 * float(np.sum(np.log1p(g))))
+        else:
+            a = np.column_stack([self.a, bend])
+            ata, ate = a.T @ a, a.T @ e
+            m1 = self.a.shape[1]
+            for tau in TAU_GRID:
+                d = np.concatenate([np.full(m1, tau**2), np.full(bend.shape[1], BEND_SIGMA**2)])
+                m = np.diag(1.0 / d) + ata
+                chol = np.linalg.cholesky(m)
+                z = np.linalg.solve(chol, ate)
+                logdet = 2.0 * float(np.sum(np.log(np.diag(chol)))) + float(np.sum(np.log(d)))
+                vals.append(-0.5 * (ee - float(z @ z)) - 0.5 * logdet)
         v = np.array(vals)
         return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
 
@@ -193,14 +212,27 @@ class Evidence:
         return fit_model(self.data, spec, warm=warm, sigma=self.sigma, guess=guess,
                          seating_sigma=self.noise.seating_sigma, post=post)
 
+    def bend(self, fit: Fit) -> np.ndarray:
+        """Whitened columns d_t·u, d_t·u² of every term t of the fit (u = ln(p/p̄), centred over all points)."""
+        u = np.log(self.data.load_per_length_n_per_m)
+        u = u - u.mean()
+        cols = []
+        for name in fit.spec.terms:
+            d = contribution(fit, self.data, name)
+            cols += [d * u, d * u**2]
+        if not cols:
+            return np.zeros((self.n, 0))
+        return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
+
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
-        """Refit at the discrepancy scale the first fit favours, then the evidence of the refit."""
+        """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
+        bend integrated out with the per-case discrepancy)."""
         _, tau = self.form.log_marginal(fit.z)
         if fit.spec.n_params() > 0:
             refit = self.fit(fit.spec, warm=fit, tau=tau)
             if self.form.log_marginal(refit.z)[0] > self.form.log_marginal(fit.z)[0]:
                 fit = refit
-        log_m, tau = self.form.log_marginal(fit.z)
+        log_m, tau = self.form.log_marginal(fit.z, self.bend(fit))
         k = fit.spec.n_params()
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, log_m - 0.5 * k * math.log(self.n), log_prior(expl, candidates), k, tau,
