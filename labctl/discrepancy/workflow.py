@@ -306,7 +306,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     closest = empirical = None
     if not consistent_with_noise(current, noise, data) and discrepancy(current) > 0:
         if not steps:
-            physical = [c for c in search.candidates(current, physical_only=True, shapes=False)
+            physical = [c for c in search.candidates(current, physical_only=True)
                         if c.name in EFFECTS]
             closest = physical[0] if physical else None
         empirical = propose(search, current)
