@@ -42,6 +42,7 @@ from discrepancy_scores import (
     calibrate,
     detail,
     reliability,
+    retemper,
     summarize_blind,
     summarize_calibration,
     summarize_crowned,
@@ -242,6 +243,8 @@ def run_blind(task: Task) -> dict[str, Any]:
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
+            "baseline_lof_p": result.noise.lack_of_fit_p(result.data, result.baseline.residuals,
+                                                         result.baseline.sigma, result.baseline.spec.n_params()),
             "candidates": [{"explanation": c.explanation.name, "log_evidence": c.log_evidence,
                             "log_prior": c.log_prior} for c in result.scored]}
 
@@ -313,6 +316,9 @@ def main() -> None:
     parser.add_argument("--only", help="comma-separated hidden truths to run (e.g. setup_compliance,misalignment/bed)")
     parser.add_argument("--detail", action="store_true", help="list every dataset that misses an acceptance item")
     parser.add_argument("--out", help="write every dataset's result as JSON here")
+    parser.add_argument("--temperature", type=float, default=TEMPERATURE,
+                        help=f"decide the blind datasets at this temperature (default the workflow's, {TEMPERATURE:g})")
+    parser.add_argument("--rescore", metavar="FILE", help="score the results saved with --out instead of running")
     args = parser.parse_args()
     scales = [float(v) for v in args.noise.split(",")]
     tasks = tasks_for(args.suite, args.seeds, scales, args.seed)
@@ -320,7 +326,11 @@ def main() -> None:
         only = args.only.split(",")
         tasks = [t for t in tasks if t.truth in only or f"{t.truth}/{t.variant}" in only]
     start = time.perf_counter()
-    if args.scheduler:
+    if args.rescore:
+        with open(args.rescore, encoding="utf-8") as fh:
+            results = json.load(fh)
+        tasks = []
+    elif args.scheduler:
         import cloudpickle
         import discrepancy_scores
         import discrepancy_worlds
@@ -333,6 +343,7 @@ def main() -> None:
     else:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             results = list(pool.map(run_task, tasks, chunksize=2))
+    results = [retemper(r, args.temperature) if r["suite"] == "blind" and "refused" not in r else r for r in results]
     parts = []
     for suite, law, title in (
             ("independent", "", "Hidden effects in functional forms unlike the library's (the 7 scenarios)"),
@@ -350,13 +361,14 @@ def main() -> None:
         parts.append(summarize_robust([r for r in results if r["suite"] == "robust"]))
     blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
     if blind:
-        parts.append(f"Blind worlds ({'calibration' if args.suite == 'blind-calibrate' else 'evaluation'} seeds "
-                     f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; temperature "
-                     f"{TEMPERATURE:g})\n\n" + summarize_blind(blind))
+        calibrating = min(r["seed"] for r in blind) >= CALIBRATION_SEEDS
+        parts.append(f"Blind worlds ({'calibration' if calibrating else 'evaluation'} seeds "
+                     f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; {len(blind)} datasets; "
+                     f"temperature {args.temperature:g})\n\n" + summarize_blind(blind))
         table, holds = reliability(blind)
         parts.append("Reliability of the top explanation's stated probability\n\n" + table +
                      f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
-        if args.suite == "blind-calibrate":
+        if calibrating:
             table, best = calibrate(blind, TEMPERATURES)
             parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}")
     refused = [r for r in results if "refused" in r]
@@ -366,11 +378,11 @@ def main() -> None:
     if args.detail:
         parts.append(detail([r for r in results if r["suite"] != "blind"]))
     print("\n\n".join(parts))
-    seconds = [r.get("seconds", r.get("cpu_seconds", 0.0)) for r in results]
+    seconds = [r.get("seconds", r.get("cpu_seconds", 0.0)) for r in results] or [0.0]
     where = args.scheduler or f"{args.workers} workers"
     print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {where}; "
           f"workflow time per 231-point dataset: mean {np.mean(seconds):.2f} s, max {np.max(seconds):.2f} s")
-    if args.out:
+    if args.out and not args.rescore:
         with open(args.out, "w", encoding="utf-8") as fh:
             json.dump(results, fh, indent=1, default=str)
 

@@ -173,6 +173,24 @@ def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)), key=lambda t: -t[1])
 
 
+def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
+    """A blind result decided again at another temperature from its stored evidence — the workflow's own rule:
+    name the top explanation at ≥ 0.9, 'likely' at 0.5-0.9, else consistent (baseline passes the lack-of-fit
+    test and nothing is likely) or unexplained."""
+    probs = tempered(r, temperature)
+    top, p = probs[0]
+    terms = [] if top in ("none", "unlisted") else top.split(" + ")
+    named = terms if p >= 0.9 else []
+    if named:
+        verdict = "named"
+    elif terms and p >= 0.5:
+        verdict = "likely"
+    else:
+        verdict = "consistent" if (r.get("baseline_lof_p") or 0.0) >= 0.01 else "unexplained"
+    return {**r, "top": top, "top_probability": p, "verdict": verdict,
+            "named": [n for n in named if n in EFFECTS], "measurement": [n for n in named if n not in EFFECTS]}
+
+
 def reliability(results: list[dict[str, Any]], temperature: float | None = None) -> tuple[str, bool]:
     """Stated probability of the top explanation against the share of datasets where it is the truth, per bin;
     the second value: every bin with ≥ 30 cases within 0.05."""
@@ -244,8 +262,7 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
     scen = []
     for s in sorted({r["scenario"] for r in results}):
         rs = [r for r in results if r["scenario"] == s]
-        verdicts = {v: sum(r["verdict"] == v for r in rs) for v in
-                    ("consistent", "explained", "partly_explained", "likely", "unexplained")}
+        verdicts = {v: sum(r["verdict"] == v for r in rs) for v in ("consistent", "named", "likely", "unexplained")}
         named = {}
         for r in rs:
             key = " + ".join(r["named"] + r["measurement"]) or "-"
@@ -255,6 +272,6 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
                      " / ".join(str(verdicts[v]) for v in verdicts), common,
                      f"{np.median([r['size_sigma'] for r in rs]):.1f} / "
                      f"{np.median([r.get('visible_sigma', np.nan) for r in rs]):.1f}"])
-    out.append(_table(scen, ["scenario", "n", "truth", "consistent / explained / partly / likely / unexplained",
+    out.append(_table(scen, ["scenario", "n", "truth", "consistent / named / likely / unexplained",
                              "named (most common)", "median size / visible [σ]"]))
     return "\n\n".join(out)
