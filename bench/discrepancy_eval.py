@@ -64,7 +64,7 @@ from discrepancy_worlds import (
 from labctl.discrepancy import build_dataset, load_points, run_discrepancy
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import ModelSpec, fit_model
-from labctl.discrepancy.posterior import TEMPERATURE
+from labctl.discrepancy.posterior import TEMPERATURE, TEMPERATURES
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import EFFECTS, ContactLaw
@@ -172,7 +172,6 @@ BLIND_DIR = Path(__file__).resolve().parent / "blind"
 """Worlds written blind to the workflow (their brief: ``bench/blind/discrepancy_brief.md``)."""
 CALIBRATION_SEEDS = 100_000
 """The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
-TEMPERATURES = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
 
 
 def blind_worlds() -> Any:
@@ -245,8 +244,9 @@ def run_blind(task: Task) -> dict[str, Any]:
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
             "baseline_lof_p": result.noise.lack_of_fit_p(result.data, result.baseline.residuals,
                                                          result.baseline.sigma, result.baseline.spec.n_params()),
-            "candidates": [{"explanation": c.explanation.name, "log_evidence": c.log_evidence,
-                            "log_prior": c.log_prior} for c in result.scored]}
+            "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior,
+                            "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
+                           for c in result.scored]}
 
 
 def _run_bad(bad: list[Any]) -> dict[str, Any]:

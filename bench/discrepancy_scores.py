@@ -165,9 +165,10 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
-    """Every candidate's probability at another temperature (from the stored evidence), most probable first."""
+    """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
+    workflow's grid), most probable first."""
     cands = r["candidates"]
-    lp = np.array([c["log_prior"] + c["log_evidence"] / temperature for c in cands])
+    lp = np.array([c["log_prior"] + c["log_evidence_by_temperature"][f"{temperature:g}"] for c in cands])
     p = np.exp(lp - lp.max())
     p /= p.sum()
     return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)), key=lambda t: -t[1])

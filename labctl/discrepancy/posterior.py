@@ -14,9 +14,11 @@ not in others needs a large one and loses to the others.
 
 Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA') (averaged over τ) − ½·k·ln n (Laplace/BIC for
 the k fitted parameters, Tripp's depth included), plus for *unlisted* −ln C(F, m) for choosing m of F features.
-Posterior: p(M|D) ∝ prior(M)·p(D|M)^(1/T); the temperature T (``TEMPERATURE``) is calibrated on blind worlds
-(docs/discrepancy.md says on which seeds); it widens the posterior for the misspecification no finite
-candidate list removes. Priors (``PRIOR_MASS``) are split evenly within each class.
+Posterior: p(M|D) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance of the
+whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
+every library term — is treated as extra scatter, so a fit's gain counts 1/T as much while every Occam factor
+(the −½·k·ln n and the discrepancy's log det) keeps its strength. T is calibrated on the blind worlds'
+calibration seeds (docs/discrepancy.md). Priors (``PRIOR_MASS``) are split evenly within each class.
 """
 
 from __future__ import annotations
@@ -46,8 +48,10 @@ BEND_SIGMA = 0.5
 """Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
 over all roller cases (the same law for every roller: an approximate form that still generalises)."""
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
-TEMPERATURE = 8.0
-"""Evidence is raised to 1/T: calibrated on the blind worlds' calibration seeds (docs/discrepancy.md)."""
+TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
+"""The noise-variance inflations every candidate's evidence is computed at (the calibration's grid)."""
+TEMPERATURE = 4.0
+"""The inflation the decision uses: calibrated on the blind worlds' calibration seeds (docs/discrepancy.md)."""
 NAME_AT = 0.9
 LIKELY_AT = 0.5
 
@@ -129,18 +133,21 @@ class FormPrior:
         keep = s > 1e-9 * s.max()
         return cls(u[:, keep], s[keep] ** 2, a)
 
-    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None) -> tuple[float, float]:
-        """log ∫ N(e; Aβ + Bγ, I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants
-        dropped), and the τ it favours. ``bend``: whitened bend columns B of the candidate's terms (or none)."""
+    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
+                     ) -> tuple[float, float]:
+        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
+        same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
+        candidate's terms (or none); ``inflation``: T."""
+        e = e / math.sqrt(inflation)
         ee = float(e @ e)
         vals = []
         if bend is None or bend.shape[1] == 0 or self.a is None:
             proj2 = (self.u.T @ e) ** 2
             for tau in TAU_GRID:
-                g = tau**2 * self.s2
+                g = tau**2 * self.s2 / inflation
                 vals.append(-0.5 * (ee - float(np.sum(g / (1 + g) * proj2))) - 0.5 * float(np.sum(np.log1p(g))))
         else:
-            a = np.column_stack([self.a, bend])
+            a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
             ata, ate = a.T @ a, a.T @ e
             m1 = self.a.shape[1]
             for tau in TAU_GRID:
@@ -171,7 +178,8 @@ class Scored:
 
     explanation: Explanation
     fit: Fit | None
-    log_evidence: float
+    log_evidence_by_t: dict[float, float]
+    """log p(D | M) at each noise inflation of ``TEMPERATURES``."""
     log_prior: float
     n_params: int
     tau: float
@@ -182,15 +190,21 @@ class Scored:
     probability: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def log_evidence(self) -> float:
+        """log p(D | M) at the decision's inflation."""
+        return self.log_evidence_by_t[TEMPERATURE]
+
     def to_dict(self) -> dict[str, Any]:
         return {"explanation": self.explanation.name, "probability": self.probability,
-                "log_evidence": self.log_evidence, "log_prior": self.log_prior, "n_params": self.n_params,
-                "form_sigma": self.tau, **self.extra}
+                "log_evidence": self.log_evidence, "log_prior": self.log_prior,
+                "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
+                "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
 
 
 def posterior(scored: list[Scored], temperature: float = TEMPERATURE) -> None:
     """Fill in every candidate's probability."""
-    lp = np.array([s.log_prior + s.log_evidence / temperature for s in scored])
+    lp = np.array([s.log_prior + s.log_evidence_by_t[temperature] for s in scored])
     p = np.exp(lp - logsumexp(lp))
     for s, v in zip(scored, p, strict=True):
         s.probability = float(v)
@@ -224,6 +238,14 @@ class Evidence:
             return np.zeros((self.n, 0))
         return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
 
+    def form_evidence(self, e: np.ndarray, bend: np.ndarray, inflation: float) -> float:
+        """The term's form is the library's (probability ½) or bent (½): the evidence averaged over both, so an
+        exact law pays at most ln 2 for the doubt and an approximate one is not judged by its exponent."""
+        exact = self.form.log_marginal(e, None, inflation)[0]
+        if bend.shape[1] == 0:
+            return exact
+        return float(np.logaddexp(exact, self.form.log_marginal(e, bend, inflation)[0]) - math.log(2.0))
+
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
         """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
         bend integrated out with the per-case discrepancy)."""
@@ -232,10 +254,12 @@ class Evidence:
             refit = self.fit(fit.spec, warm=fit, tau=tau)
             if self.form.log_marginal(refit.z)[0] > self.form.log_marginal(fit.z)[0]:
                 fit = refit
-        log_m, tau = self.form.log_marginal(fit.z, self.bend(fit))
+        bend = self.bend(fit)
         k = fit.spec.n_params()
+        by_t = {t: self.form_evidence(fit.z, bend, t) - 0.5 * k * math.log(self.n) for t in TEMPERATURES}
+        tau = self.form.log_marginal(fit.z, bend, TEMPERATURE)[1]
         smooth = self.form.smooth(fit.z, tau)
-        return Scored(expl, fit, log_m - 0.5 * k * math.log(self.n), log_prior(expl, candidates), k, tau,
+        return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
@@ -250,26 +274,30 @@ class Evidence:
         y = base.z
         k0 = base.spec.n_params()
 
-        def evaluate(chosen: list[int]) -> tuple[float, float, np.ndarray]:
+        def evaluate(chosen: list[int], t: float) -> tuple[float, float, np.ndarray]:
             a = np.column_stack([head, xw[:, chosen]])
             coef, *_ = np.linalg.lstsq(a, y, rcond=None)
             e = y - a @ coef
-            log_m, tau = self.form.log_marginal(e)
+            log_m, tau = self.form.log_marginal(e, inflation=t)
             m = len(chosen)
             penalty = 0.5 * (k0 + m) * math.log(self.n) + math.log(math.comb(len(names), m))
             return log_m - penalty, tau, e
 
-        chosen: list[int] = []
-        best = evaluate(chosen)
-        while len(chosen) < min(MAX_FEATURES, len(names)):
-            trial = [(evaluate([*chosen, i]), i) for i in range(len(names)) if i not in chosen]
-            top = max(trial, key=lambda t: t[0][0])
-            if top[0][0] <= best[0]:
-                break
-            best, chosen = top[0], [*chosen, top[1]]
-        log_ev, tau, e = best
+        def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
+            chosen: list[int] = []
+            best = evaluate(chosen, t)
+            while len(chosen) < min(MAX_FEATURES, len(names)):
+                trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
+                top = max(trial, key=lambda r: r[0][0])
+                if top[0][0] <= best[0]:
+                    break
+                best, chosen = top[0], [*chosen, top[1]]
+            return chosen, best
+
+        by_t = {t: select(t)[1][0] for t in TEMPERATURES}
+        chosen, (_, tau, e) = select(TEMPERATURE)
         smooth = self.form.smooth(e, tau)
-        return Scored(expl, None, log_ev, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
+        return Scored(expl, None, by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
