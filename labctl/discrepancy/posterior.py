@@ -50,7 +50,7 @@ over all roller cases (the same law for every roller: an approximate form that s
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 """The noise-variance inflations every candidate's evidence is computed at (the calibration's grid)."""
-TEMPERATURE = 4.0
+TEMPERATURE = 16.0
 """The inflation the decision uses: calibrated on the blind worlds' calibration seeds (docs/discrepancy.md)."""
 NAME_AT = 0.9
 LIKELY_AT = 0.5
