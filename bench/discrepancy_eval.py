@@ -17,10 +17,14 @@ Suites (``--suite``, default ``acceptance`` = all but ``twin``):
 - ``crowned``: crowned, end-relieved rollers on Ra 0.03 µm rails — end_effects or "unexplained" with an
   empirical term, never surface_roughness;
 - ``robust``: one duplicated row with a wrong stiffness, 3 % gross outliers, stiffness given in N/mm — the
-  finding reported and the verdict unchanged (or the input refused).
+  finding reported and the verdict unchanged (or the input refused);
+- ``blind`` / ``blind-calibrate``: the worlds of ``bench/blind/`` written blind to the workflow, on evaluation seeds
+  (below ``CALIBRATION_SEEDS``) or on the calibration seeds; prints the acceptance numbers, a reliability table
+  (stated probability vs share right, Wilson intervals) and, on calibration seeds, the temperature calibration.
 
     python bench/discrepancy_eval.py [--suite acceptance] [--seeds 20] [--noise 0.5,1,2]
                                      [--workers 2 | --scheduler ADDRESS] [--only TRUTHS] [--detail] [--out F]
+                                     [--temperature T] [--rescore F]
 """
 
 from __future__ import annotations
