@@ -17,23 +17,42 @@ Suites (``--suite``, default ``acceptance`` = all but ``twin``):
 - ``crowned``: crowned, end-relieved rollers on Ra 0.03 µm rails — end_effects or "unexplained" with an
   empirical term, never surface_roughness;
 - ``robust``: one duplicated row with a wrong stiffness, 3 % gross outliers, stiffness given in N/mm — the
-  finding reported and the verdict unchanged (or the input refused).
+  finding reported and the verdict unchanged (or the input refused);
+- ``blind`` / ``blind-calibrate``: the worlds of ``bench/blind/`` written blind to the workflow, on evaluation seeds
+  (below ``CALIBRATION_SEEDS``) or on the calibration seeds; prints the acceptance numbers, a reliability table
+  (stated probability vs share right, Wilson intervals) and, on calibration seeds, the temperature calibration.
 
     python bench/discrepancy_eval.py [--suite acceptance] [--seeds 20] [--noise 0.5,1,2]
                                      [--workers 2 | --scheduler ADDRESS] [--only TRUTHS] [--detail] [--out F]
+                                     [--temperature T] [--rescore F]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import importlib.util
 import json
+import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import detail, summarize_calibration, summarize_crowned, summarize_effects, summarize_robust
+from discrepancy_scores import (
+    calibrate,
+    detail,
+    reliability,
+    retemper,
+    summarize_blind,
+    summarize_calibration,
+    summarize_crowned,
+    summarize_effects,
+    summarize_robust,
+)
 from discrepancy_worlds import (
     CALIBRATION,
     NONE,
@@ -46,8 +65,10 @@ from discrepancy_worlds import (
     log_uniform,
 )
 
-from labctl.discrepancy import build_dataset, run_discrepancy
+from labctl.discrepancy import build_dataset, load_points, run_discrepancy
+from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import ModelSpec, fit_model
+from labctl.discrepancy.posterior import TEMPERATURE, TEMPERATURES
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import EFFECTS, ContactLaw
@@ -130,6 +151,8 @@ def campaign(task: Task) -> Campaign:
 
 def run_task(task: Task) -> dict[str, Any]:
     """Generate one dataset, run the workflow, score the answer."""
+    if task.suite == "blind":
+        return run_blind(task)
     camp = campaign(task)
     points, effect, rng, size, low = camp.points, camp.effect, camp.rng, camp.size, camp.noise_low
     out: dict[str, Any] = {"suite": task.suite, "truth": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
@@ -147,6 +170,87 @@ def run_task(task: Task) -> dict[str, Any]:
             out["bad"]["named"] == out["named"] and out["bad"]["measurement"] == out["measurement"])
     return out
 
+
+
+BLIND_DIR = Path(__file__).resolve().parent / "blind"
+"""Worlds written blind to the workflow (their brief: ``bench/blind/discrepancy_brief.md``)."""
+CALIBRATION_SEEDS = 100_000
+"""The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
+
+
+def blind_worlds() -> Any:
+    """The blind generator, imported under its own name (its siblings on the path)."""
+    if str(BLIND_DIR) not in sys.path:
+        sys.path.insert(0, str(BLIND_DIR))
+    spec = importlib.util.spec_from_file_location("blind_discrepancy_worlds", BLIND_DIR / "discrepancy_worlds.py")
+    if spec is None or spec.loader is None or not (BLIND_DIR / "discrepancy_worlds.py").exists():
+        raise SystemExit(f"{BLIND_DIR / 'discrepancy_worlds.py'} missing: merge the blind worlds' branch first")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def truth_name(truth: dict[str, Any]) -> str:
+    """The blind truth as the workflow names explanations ("unlisted" for an effect outside the library)."""
+    if truth.get("outside_library"):
+        return "unlisted"
+    phys = [n for n in EFFECTS if n in truth.get("effects", [])]
+    meas = [n for n in MEASUREMENT if n in truth.get("measurement_effects", [])]
+    return " + ".join(phys + meas) or "none"
+
+
+def _points(rows: list[dict[str, Any]]) -> list[Any]:
+    """Rows through the CSV contract: written as a stiffness table and read back as the CLI reads it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "blind.csv"
+        columns = list(dict.fromkeys(k for row in rows for k in row))
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, columns)
+            writer.writeheader()
+            writer.writerows(rows)
+        return load_points([path])
+
+
+def visible_size(task: Task, truth: dict[str, Any]) -> float:
+    """What Tripp's depth cannot absorb: the largest |ln k/k_Tripp| of the noise-free world (faults left out)
+    after the depth is refitted, over the median point σ — the blind truth's ``size_sigma`` is before it."""
+    clean = blind_worlds().generate(task.truth, task.seed, 1e-9)
+    fault = (truth.get("faults") or {}).get("outliers")
+    rows = [r for r in clean.rows if not (fault and int(r["roller_type"]) == fault["roller_type"]
+                                          and int(r["repetition"]) in fault["repetitions"])]
+    data = build_dataset(_points(rows))
+    fit = fit_model(data, ModelSpec())
+    return float(np.max(np.abs(fit.residuals))) / float(truth["median_sigma_rel"])
+
+
+def run_blind(task: Task) -> dict[str, Any]:
+    """One blind dataset through the CSV contract and the workflow; the answer with every candidate's evidence."""
+    world = blind_worlds().generate(task.truth, task.seed, task.noise_scale)
+    truth = world.truth
+    points = _points(world.rows)
+    start = time.process_time()
+    try:
+        result = run_discrepancy(points)
+    except InputError as exc:
+        return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
+                "refused": str(exc), "truth_name": truth_name(truth)}
+    cpu = time.process_time() - start
+    physical, chain = _named(result)
+    return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
+            "truth_name": truth_name(truth), "truth_effects": list(truth.get("effects", [])),
+            "truth_measurement": list(truth.get("measurement_effects", [])),
+            "outside_library": bool(truth.get("outside_library")), "size_sigma": float(truth.get("size_sigma", 0.0)),
+            "visible_sigma": visible_size(task, truth),
+            "family": truth.get("family"), "faults": truth.get("faults"), "cpu_seconds": cpu,
+            "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
+            "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
+            "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
+            "baseline_lof_p": result.noise.lack_of_fit_p(result.data, result.baseline.residuals,
+                                                         result.baseline.sigma, result.baseline.spec.n_params()),
+            "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior,
+                            "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
+                           for c in result.scored]}
 
 
 def _run_bad(bad: list[Any]) -> dict[str, Any]:
@@ -187,6 +291,13 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
                         for j in range(max(1, seeds // 2))]
     if suite in ("crowned", "acceptance"):
         out += [Task("crowned", NONE, base + 300_000 + j, 1.0) for j in range(seeds)]
+    if suite in ("blind", "blind-calibrate"):
+        first = CALIBRATION_SEEDS if suite == "blind-calibrate" else seed * 1000
+        if suite == "blind" and first + seeds > CALIBRATION_SEEDS:
+            raise SystemExit("--seed/--seeds reach into the calibration seeds: evaluate below "
+                             f"{CALIBRATION_SEEDS}")
+        for scenario in blind_worlds().SCENARIOS:
+            out += [Task("blind", scenario, first + j, scale) for scale in scales for j in range(seeds)]
     if suite in ("robust", "acceptance"):
         for i, variant in enumerate(("duplicate", "outliers", "units")):
             for j in range(max(1, seeds // 2)):
@@ -198,7 +309,8 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suite", default="acceptance",
-                        choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust"))
+                        choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust", "blind",
+                                 "blind-calibrate"))
     parser.add_argument("--seeds", type=int, default=20, help="datasets per scenario and noise scale (default 20)")
     parser.add_argument("--noise", default="0.5,1,2", help="noise scales (default 0.5,1,2)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
@@ -208,6 +320,9 @@ def main() -> None:
     parser.add_argument("--only", help="comma-separated hidden truths to run (e.g. setup_compliance,misalignment/bed)")
     parser.add_argument("--detail", action="store_true", help="list every dataset that misses an acceptance item")
     parser.add_argument("--out", help="write every dataset's result as JSON here")
+    parser.add_argument("--temperature", type=float, default=TEMPERATURE,
+                        help=f"decide the blind datasets at this temperature (default the workflow's, {TEMPERATURE:g})")
+    parser.add_argument("--rescore", metavar="FILE", help="score the results saved with --out instead of running")
     args = parser.parse_args()
     scales = [float(v) for v in args.noise.split(",")]
     tasks = tasks_for(args.suite, args.seeds, scales, args.seed)
@@ -215,7 +330,11 @@ def main() -> None:
         only = args.only.split(",")
         tasks = [t for t in tasks if t.truth in only or f"{t.truth}/{t.variant}" in only]
     start = time.perf_counter()
-    if args.scheduler:
+    if args.rescore:
+        with open(args.rescore, encoding="utf-8") as fh:
+            results = json.load(fh)
+        tasks = []
+    elif args.scheduler:
         import cloudpickle
         import discrepancy_scores
         import discrepancy_worlds
@@ -228,6 +347,7 @@ def main() -> None:
     else:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             results = list(pool.map(run_task, tasks, chunksize=2))
+    results = [retemper(r, args.temperature) if r["suite"] == "blind" and "refused" not in r else r for r in results]
     parts = []
     for suite, law, title in (
             ("independent", "", "Hidden effects in functional forms unlike the library's (the 7 scenarios)"),
@@ -243,14 +363,30 @@ def main() -> None:
         parts.append(summarize_crowned([r for r in results if r["suite"] == "crowned"]))
     if any(r["suite"] == "robust" for r in results):
         parts.append(summarize_robust([r for r in results if r["suite"] == "robust"]))
+    blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
+    if blind:
+        calibrating = min(r["seed"] for r in blind) >= CALIBRATION_SEEDS
+        parts.append(f"Blind worlds ({'calibration' if calibrating else 'evaluation'} seeds "
+                     f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; {len(blind)} datasets; "
+                     f"temperature {args.temperature:g})\n\n" + summarize_blind(blind))
+        table, holds = reliability(blind)
+        parts.append("Reliability of the top explanation's stated probability\n\n" + table +
+                     f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
+        if calibrating:
+            table, best = calibrate(blind, TEMPERATURES)
+            parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}")
+    refused = [r for r in results if "refused" in r]
+    if refused:
+        parts.append("Refused blind datasets: " + "; ".join(f"{r['scenario']} seed {r['seed']}: {r['refused']}"
+                                                           for r in refused))
     if args.detail:
-        parts.append(detail(results))
+        parts.append(detail([r for r in results if r["suite"] != "blind"]))
     print("\n\n".join(parts))
-    seconds = [r["seconds"] for r in results]
+    seconds = [r.get("seconds", r.get("cpu_seconds", 0.0)) for r in results] or [0.0]
     where = args.scheduler or f"{args.workers} workers"
     print(f"\n{len(results)} datasets in {time.perf_counter() - start:.0f} s with {where}; "
           f"workflow time per 231-point dataset: mean {np.mean(seconds):.2f} s, max {np.max(seconds):.2f} s")
-    if args.out:
+    if args.out and not args.rescore:
         with open(args.out, "w", encoding="utf-8") as fh:
             json.dump(results, fh, indent=1, default=str)
 

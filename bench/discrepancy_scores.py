@@ -3,6 +3,7 @@ positives, honest verdicts and gap shrink per suite, as Markdown tables; per-dat
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -145,3 +146,133 @@ def detail(results: list[dict[str, Any]]) -> str:
                      f"size {r['size']:.1f}σ: {'; '.join(found)}; named {r['named']} {r['measurement']}, "
                      f"lack-of-fit p {r['lack_of_fit_p']}, {r['verdict']}")
     return "Datasets that miss an acceptance item\n\n" + ("\n".join(lines) or "none")
+
+
+# --- blind worlds: acceptance numbers and the reliability of the stated probabilities -------------------------
+
+BINS = ((0.0, 0.5), (0.5, 0.7), (0.7, 0.9), (0.9, 0.97), (0.97, 0.995), (0.995, 1.0001))
+"""Stated-probability bins of the reliability table."""
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a share k/n (95 %), clipped to [0, 1]."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
+    """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
+    workflow's grid), most probable first."""
+    cands = r["candidates"]
+    lp = np.array([c["log_prior"] + c["log_evidence_by_temperature"][f"{temperature:g}"] for c in cands])
+    p = np.exp(lp - lp.max())
+    p /= p.sum()
+    return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)), key=lambda t: -t[1])
+
+
+def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
+    """A blind result decided again at another temperature from its stored evidence — the workflow's own rule:
+    name the top explanation at ≥ 0.9, 'likely' at 0.5-0.9, else consistent (baseline passes the lack-of-fit
+    test and nothing is likely) or unexplained."""
+    probs = tempered(r, temperature)
+    top, p = probs[0]
+    terms = [] if top in ("none", "unlisted") else top.split(" + ")
+    named = terms if p >= 0.9 else []
+    if named:
+        verdict = "named"
+    elif terms and p >= 0.5:
+        verdict = "likely"
+    else:
+        verdict = "consistent" if (r.get("baseline_lof_p") or 0.0) >= 0.01 else "unexplained"
+    return {**r, "top": top, "top_probability": p, "verdict": verdict,
+            "named": [n for n in named if n in EFFECTS], "measurement": [n for n in named if n not in EFFECTS]}
+
+
+def reliability(results: list[dict[str, Any]], temperature: float | None = None) -> tuple[str, bool]:
+    """Stated probability of the top explanation against the share of datasets where it is the truth, per bin;
+    the second value: every bin with ≥ 30 cases within 0.05."""
+    rows, ok = [], True
+    stated = []
+    for r in results:
+        top = tempered(r, temperature)[0] if temperature else (r["top"], r["top_probability"])
+        stated.append((top[1], top[0] == r["truth_name"]))
+    for lo, hi in BINS:
+        inside = [(p, right) for p, right in stated if lo <= p < hi]
+        if not inside:
+            rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", "0", "-", "-", "-", ""])
+            continue
+        n, k = len(inside), sum(right for _, right in inside)
+        mean_p = float(np.mean([p for p, _ in inside]))
+        a, b = wilson(k, n)
+        holds = abs(mean_p - k / n) <= 0.05
+        ok = ok and (holds or n < 30)
+        rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", str(n), f"{mean_p:.3f}", f"{k / n:.3f} ({k}/{n})",
+                     f"{a:.3f}-{b:.3f}", ("within 0.05" if holds else "OFF by > 0.05") if n >= 30 else "n < 30"])
+    header = ["stated probability", "n", "mean stated", "share right", "Wilson 95 %", "≥ 30 cases: |stated − right|"]
+    return _table(rows, header), ok
+
+
+def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float]:
+    """The temperature minimising the log loss of the true explanation's probability (and each T's score)."""
+    rows, best = [], (math.inf, grid[0])
+    for t in grid:
+        loss, brier = 0.0, 0.0
+        for r in results:
+            probs = dict(tempered(r, t))
+            pt = probs.get(r["truth_name"], 0.0)
+            loss -= math.log(max(pt, 1e-12))
+            brier += sum((p - (name == r["truth_name"])) ** 2 for name, p in probs.items())
+        _, ok = reliability(results, t)
+        rows.append([f"{t:g}", f"{loss / len(results):.3f}", f"{brier / len(results):.3f}", "yes" if ok else "no"])
+        best = min(best, (loss / len(results), t))
+    return _table(rows, ["temperature", "log loss (truth)", "Brier", "reliability holds"]), best[1]
+
+
+def summarize_blind(results: list[dict[str, Any]]) -> str:
+    """Acceptance numbers on the blind worlds, per noise scale, and what each scenario was answered."""
+    rows = []
+    for scale in sorted({r["noise_scale"] for r in results}):
+        rs = [r for r in results if r["noise_scale"] == scale]
+        lib = [r for r in rs if r["truth_effects"] or r["truth_measurement"]]
+        lib = [r for r in lib if not r["outside_library"]]
+        big = [r for r in lib if r["truth_effects"] and r["size_sigma"] >= 3.0]
+        top1 = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in big)
+        vis = [r for r in lib if r["truth_effects"] and r.get("visible_sigma", 0.0) >= 3.0]
+        top1_vis = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in vis)
+        likely = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] or
+                     r["verdict"] == "likely" and r["top"].split(" + ")[0] in r["truth_effects"] for r in vis)
+        wrong = sum(any(n not in r["truth_effects"] for n in r["named"]) or
+                    any(m not in r["truth_measurement"] for m in r["measurement"]) for r in lib)
+        nulls = [r for r in rs if r["truth_name"] == "none"]
+        fp = sum(bool(r["named"] or r["measurement"]) for r in nulls)
+        outside = [r for r in rs if r["outside_library"]]
+        out_named = sum(bool(r["named"] or r["measurement"]) for r in outside)
+        seconds = [r["cpu_seconds"] for r in rs]
+        rows.append([f"{scale:g}×", _frac(top1, len(big)), _frac(top1_vis, len(vis)), _frac(likely, len(vis)),
+                     _frac(wrong, len(lib)), _frac(fp, len(nulls)),
+                     _frac(out_named, len(outside)), _frac(sum(r["top"] == r["truth_name"] for r in rs), len(rs)),
+                     f"{np.mean(seconds):.2f} / {np.max(seconds):.2f} s"])
+    header = ["noise", "top-1 named (size ≥ 3σ)", "top-1 named (visible ≥ 3σ)", "named or likely (visible ≥ 3σ)",
+              "wrong names (phys. or meas.)", "any name on null",
+              "outside library named", "top explanation = truth (all)", "CPU mean / max"]
+    out = [_table(rows, header)]
+    scen = []
+    for s in sorted({r["scenario"] for r in results}):
+        rs = [r for r in results if r["scenario"] == s]
+        verdicts = {v: sum(r["verdict"] == v for r in rs) for v in ("consistent", "named", "likely", "unexplained")}
+        named = {}
+        for r in rs:
+            key = " + ".join(r["named"] + r["measurement"]) or "-"
+            named[key] = named.get(key, 0) + 1
+        common = ", ".join(f"{k} {v}" for k, v in sorted(named.items(), key=lambda t: -t[1])[:3])
+        scen.append([s, str(len(rs)), rs[0]["truth_name"] if len({r["truth_name"] for r in rs}) == 1 else "mixed",
+                     " / ".join(str(verdicts[v]) for v in verdicts), common,
+                     f"{np.median([r['size_sigma'] for r in rs]):.1f} / "
+                     f"{np.median([r.get('visible_sigma', np.nan) for r in rs]):.1f}"])
+    out.append(_table(scen, ["scenario", "n", "truth", "consistent / named / likely / unexplained",
+                             "named (most common)", "median size / visible [σ]"]))
+    return "\n\n".join(out)

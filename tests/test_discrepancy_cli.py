@@ -6,9 +6,10 @@ from __future__ import annotations
 import pytest
 
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
-from labctl.physics import EQ5, EmpiricalFit
+from labctl.physics import EQ5, EmpiricalFit, SurfaceRoughness
 from labctl.stiffness_table import write_stiffness_table
 from tests.cli_util import assert_one_line_error, labctl, labctl_json
+from tests.discrepancy_util import world
 
 HEADER = "diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m\n"
 
@@ -29,17 +30,30 @@ def eq5_tables(tmp_path_factory):
     return first, second
 
 
-def test_json_names_roughness_and_reports_the_gap_per_step(eq5_tables, tmp_path):
+@pytest.fixture(scope="module")
+def rough_tables(tmp_path_factory):
+    """The twin's roughness (asperity scale 1.5 on Tripp at 1.5 mm) for types 1-7 over two files."""
+    folder = tmp_path_factory.mktemp("rough")
+    points = synthesize(world(SurfaceRoughness(1.5), depth_m=1.5e-3), noise=NoiseModel(0.03, 0.01), seed=21)
+    first, second = folder / "types_1_3.csv", folder / "types_4_7.csv"
+    write_stiffness_table(first, [p for p in points if p.roller_type <= 3])
+    write_stiffness_table(second, [p for p in points if p.roller_type > 3])
+    return first, second
+
+
+def test_json_names_roughness_and_reports_the_gap_per_step(rough_tables, tmp_path):
     report = tmp_path / "report"
-    out = labctl_json("discrepancy", *map(str, eq5_tables), "--report", str(report))
+    out = labctl_json("discrepancy", *map(str, rough_tables), "--report", str(report))
     assert {"baseline", "gap_before", "gap_after", "noise_floor", "effects", "regions"} <= out.keys()
     assert out["baseline"] == "tripp" and out["n_points"] == 231 and out["n_cases"] == 7
     assert [e["name"] for e in out["effects"]] == ["surface_roughness"]
     step = out["effects"][0]
     assert {"name", "parameters", "evidence", "gap_before", "gap_after"} <= step.keys()
     assert step["gap_before"] == out["gap_before"] >= 0.15
-    assert step["gap_after"] == out["gap_after"] <= 0.05
-    assert step["evidence"]["delta_bic"] >= 10 and step["evidence"]["held_out"]["gap_with"] < 0.05
+    assert step["gap_after"] == out["gap_after"] <= 0.02
+    assert step["evidence"]["delta_bic"] >= 10 and step["evidence"]["probability"] >= 0.9
+    assert out["explanations"][0]["explanation"] == "surface_roughness"
+    assert sum(x["probability"] for x in out["explanations"]) == pytest.approx(1.0)
     assert 0.005 < out["noise_floor"] < 0.04
     for name in ("stiffness.png", "residuals.png", "gap.png", "steps.png", "discrepancy.json", "summary.txt"):
         assert (report / name).stat().st_size > 500, name

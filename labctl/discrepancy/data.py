@@ -168,8 +168,21 @@ def load_points(paths: Sequence[str | Path]) -> list[StiffnessPoint]:
         if Path(path).suffix.lower() in HDF5_SUFFIXES:
             points.extend(_campaign_points(Path(path)))
         else:
-            points.extend(read_stiffness_table(path))
+            table = read_stiffness_table(path)
+            for row, p in enumerate(table, 2):
+                if _is_ball(p):
+                    raise InputError(f"{path}: row {row}: diameter_mm = contact_length_mm = roller_length_mm = "
+                                     f"{p.diameter_m * 1e3:g} is a ball (Hertz point contact), not a roller; "
+                                     "labctl discrepancy compares rollers with line-contact models: give the "
+                                     "roller rows alone")
+            points.extend(table)
     return points
+
+
+def _is_ball(p: StiffnessPoint) -> bool:
+    """A ball run as the rig stores it: a 'roller' whose diameter, contact length and length are all the ball's."""
+    return p.roller_type is None and p.roller_length_m is not None and \
+        p.diameter_m == p.contact_length_m == p.roller_length_m
 
 
 def _campaign_points(path: Path) -> list[StiffnessPoint]:
@@ -180,6 +193,16 @@ def _campaign_points(path: Path) -> list[StiffnessPoint]:
                          "this installation; export the campaign as a stiffness-table CSV instead") from None
     if not path.is_file():
         raise InputError(f"{path}: file not found")
+    from labctl.storage import CampaignReader
+
+    with CampaignReader(path) as reader:
+        for series in reader.series_indices():
+            spec = reader.specimen(series)
+            if spec.get("kind") == "ball":
+                raise InputError(f"{path}: series {series} is a ball run ({spec.get('label') or 'ball'}, diameter "
+                                 f"{float(spec.get('ball_diameter_m') or spec['diameter_m']) * 1e3:g} mm): labctl "
+                                 "discrepancy compares rollers with line-contact models, a ball is the rig's Hertz "
+                                 "check (labctl report compares it with Hertz): give the roller campaigns alone")
     points = list(campaign_stiffness_points(path))
     if not points:
         raise InputError(f"{path}: the campaign holds no processed stiffness points")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -44,6 +45,15 @@ FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {"misalignment": {"
 """Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
 rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
 spread over about a decade of load). The search frees one only when the data prefer it decisively (nested BIC)."""
+
+
+SIGNED_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
+    "end_effects": {"edge_length_m": (-0.4e-3, 2e-3)},
+    "material_hardness": {"gain": (-0.5, 2.0)},
+}
+"""Fitted ranges wider than the world ``BOUNDS`` where the physics goes both ways: a negative edge length is a
+length lost at each end (edge relief, unloaded edges); a negative hardness gain is yield softening above the
+onset instead of conformity stiffening. The twin's worlds use only the world ranges."""
 
 
 def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
@@ -97,7 +107,7 @@ class ModelSpec:
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
         return [(n, k, lo, hi) for n in self.terms
-                for k, (lo, hi) in {**_terms(n).BOUNDS, **self._shape(n)}.items()]
+                for k, (lo, hi) in {**_terms(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items()]
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
         return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}
@@ -243,12 +253,15 @@ def _starts(spec: ModelSpec, warm: Fit | None, guess: dict[str, dict[str, float]
 
 
 def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np.ndarray | None = None,
-              guess: dict[str, dict[str, float]] | None = None, seating_sigma: float = 0.0) -> Fit:
+              guess: dict[str, dict[str, float]] | None = None, seating_sigma: float = 0.0,
+              post: Callable[[np.ndarray], np.ndarray] | None = None) -> Fit:
     """Noise-weighted least squares on ln k, started from the warm fit's values, any guessed effect
     parameters, and each remaining effect's start grid.
 
     ``sigma`` is each point's noise (σ of ln k); without it all points weigh the same. ``seating_sigma`` is the
     σ of the offset shared by one seating's points: residuals are whitened for it (generalised least squares).
+    ``post`` maps whitened residuals before the squares are summed (a form discrepancy integrated out); the fit
+    returned keeps the plain whitened residuals.
     """
     measured = data.ln_stiffness
     sig = np.ones(measured.size) if sigma is None else np.asarray(sigma, dtype=float)
@@ -257,13 +270,14 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
     def white(r: np.ndarray) -> np.ndarray:
         return whiten(runs, r, sig, seating_sigma)
 
+    objective = post or (lambda e: e)
     lo, hi = spec.bounds()
     best: tuple[float, np.ndarray] | None = None
     for x0 in _starts(spec, warm, guess or {}):
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = least_squares(lambda x: white(_residuals(data, spec, x, measured)), x0, bounds=(lo, hi),
+        sol = least_squares(lambda x: objective(white(_residuals(data, spec, x, measured))), x0, bounds=(lo, hi),
                             x_scale=1.0, diff_step=1e-6, xtol=1e-7, ftol=1e-7, max_nfev=200)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:

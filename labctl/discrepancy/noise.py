@@ -34,7 +34,7 @@ BAND_DOF = 12
 """Least degrees of freedom pooled in one load band."""
 MAX_BANDS = 4
 OUTLIER_Z = 5.0
-"""A point whose two-way residual exceeds this many robust σ of its load band is a gross outlier."""
+"""A point this many robust σ of its load band off its own seating's neighbours is a gross outlier."""
 MAD_TO_SIGMA = 1.4826
 
 
@@ -226,25 +226,52 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
     return ss, n
 
 
-def _robust_outliers(x: np.ndarray, u: np.ndarray, informative: np.ndarray, groups: list[np.ndarray]
-                     ) -> list[int]:
-    """Worst point of each replicate set whose standardised residual exceeds OUTLIER_Z robust σ of its band."""
-    idx = np.flatnonzero(informative)
-    if idx.size < 2 * BAND_DOF:
+def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> np.ndarray:
+    """Each kept point against the line (in ln F) through its own seating's neighbouring steps, standardised for
+    the neighbours' own noise; NaN where a seating has fewer than three kept points."""
+    y, x, runs = data.ln_stiffness, np.log(data.load_n), data.run_ids()
+    eps = np.full(y.size, np.nan)
+    for run in np.unique(runs):
+        idx = np.flatnonzero((runs == run) & keep)
+        if idx.size < 3:
+            continue
+        idx = idx[np.argsort(x[idx], kind="stable")]
+        for pos, i in enumerate(idx):
+            j, k = (idx[1], idx[2]) if pos == 0 else (idx[-2], idx[-3]) if pos == idx.size - 1 else \
+                (idx[pos - 1], idx[pos + 1])
+            span = x[k] - x[j]
+            t = (x[i] - x[j]) / span if span != 0 else 0.5
+            eps[i] = (y[i] - (1 - t) * y[j] - t * y[k]) / math.sqrt(1 + (1 - t) ** 2 + t**2)
+    return eps
+
+
+def _robust_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray]) -> list[int]:
+    """Gross outliers judged against the local repetition spread: a point more than OUTLIER_Z robust σ (its load
+    band's) off the line through its own seating's neighbours, the worst of its neighbourhood, in a load step
+    where another repetition passes smoothly. A deviation every repetition shares is the contact's (a kink), not
+    an outlier; two bad points of one step never outvote the clean repetition."""
+    eps = _neighbour_residuals(data, keep)
+    ok = np.flatnonzero(np.isfinite(eps))
+    if ok.size < 2 * BAND_DOF:
         return []
-    scale = np.empty(u.size)
-    for part in np.array_split(idx[np.argsort(x[idx])], max(1, min(MAX_BANDS, idx.size // (2 * BAND_DOF)))):
-        s = MAD_TO_SIGMA * float(np.median(np.abs(u[part])))
+    x = np.log(data.load_per_length_n_per_m)
+    scale = np.full(eps.size, np.inf)
+    for part in np.array_split(ok[np.argsort(x[ok])], max(1, min(MAX_BANDS, ok.size // (2 * BAND_DOF)))):
+        s = MAD_TO_SIGMA * float(np.median(np.abs(eps[part])))
         scale[part] = s if s > 0 else np.inf
+    ratio = np.where(np.isfinite(eps), np.abs(np.nan_to_num(eps)) / scale, 0.0)
+    runs, ln_f = data.run_ids(), np.log(data.load_n)
     out = []
     for g in groups:
-        g = g[informative[g]]
-        if g.size == 0:
-            continue
-        ratio = np.abs(u[g]) / scale[g]
-        k = int(np.argmax(ratio))
-        if ratio[k] > OUTLIER_Z:
-            out.append(int(g[k]))
+        g = g[keep[g]]
+        smooth = g[ratio[g] <= OUTLIER_Z / 2]
+        for i in g[ratio[g] > OUTLIER_Z]:
+            if g.size > 1 and smooth.size == 0:
+                continue  # every repetition shares it: the contact's own shape
+            same = np.flatnonzero((runs == runs[i]) & keep)
+            near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
+            if ratio[i] >= ratio[near].max():
+                out.append(int(i))
     return out
 
 
@@ -267,8 +294,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
             resid[sl], lev[sl] = tw.residual, tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
-        u = np.where(informative, np.nan_to_num(resid) / np.sqrt(np.where(informative, dof_pt, 1.0)), 0.0)
-        new = _robust_outliers(x, u, informative, groups)
+        new = _robust_outliers(data, keep, groups)
         if not new:
             break
         keep[new] = False

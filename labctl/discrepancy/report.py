@@ -33,8 +33,10 @@ def _step_line(i: int, e: dict[str, Any]) -> str:
                 f"{held['gap_with']:.3f}") if held else ""
     share = ev.get("explained_share")
     share_txt = f"; explains {share * 100:.0f} % of the discrepancy" if share is not None else ""
+    prob = ev.get("probability")
+    prob_txt = f"; probability {prob:.2f}" if prob is not None else ""
     return (f"step {i}: + {e['name']} ({params}) gap {e['gap_before']:.4f} -> {e['gap_after']:.4f}; "
-            f"dBIC {ev['delta_bic']:.0f}{share_txt}{held_txt}")
+            f"dBIC {ev['delta_bic']:.0f}{share_txt}{held_txt}{prob_txt}")
 
 
 def summary_text(doc: dict[str, Any]) -> str:
@@ -59,7 +61,11 @@ def summary_text(doc: dict[str, Any]) -> str:
     if not steps:
         lines.append("no missing effect named" + (": the data agree with the baseline within the noise"
                                                   if doc["consistent_with_noise"] else
-                                                  ": no candidate's evidence was decisive"))
+                                                  ": no explanation reaches probability 0.9"))
+    top = doc.get("explanations", [])[:4]
+    if top:
+        lines.append("explanations (posterior probability): "
+                     + ", ".join(f"{x['explanation']} {x['probability']:.2f}" for x in top))
     lines.extend(_step_line(i, e) for i, e in enumerate(steps, 1))
     if doc["measurement_effects"]:
         lines.append("measurement side (not physics): " + ", ".join(e["name"] for e in doc["measurement_effects"]))

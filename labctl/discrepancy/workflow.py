@@ -23,8 +23,9 @@ from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
 from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor, estimate_noise
+from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, TEMPERATURE, Evidence, Scored
 from labctl.discrepancy.screen import Screening, check_units, screen_points
-from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, share
+from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, kind, share
 from labctl.errors import InputError
 from labctl.physics.effects import EFFECTS
 from labctl.physics.law import BASELINES
@@ -32,6 +33,9 @@ from labctl.physics.rig_config import load_rig
 from labctl.stiffness_table import StiffnessPoint
 
 MAX_TERMS = len(EFFECTS) + len(MEASUREMENT)
+PINNED_DEPTH_BIC = 10.0
+"""A pinned depth is called a sign of a measurement-side error only when freeing it gains this much BIC (Kass &
+Raftery's "very strong"); below, the warning says the evidence is weak."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,12 @@ class DiscrepancyResult:
     empirical: EmpiricalTerm | None = None
     nuisance: tuple[dict[str, Any], ...] = ()
     trends_after: tuple[dict[str, Any], ...] = ()
+    scored: tuple[Scored, ...] = ()
+    """Every candidate explanation with its posterior probability, most probable first."""
+    likely: Scored | None = None
+    """The most probable explanation when its probability is 0.5-0.9 (not named)."""
+    reasons: tuple[str, ...] = ()
+    """What in the data's design limits which candidates can be told apart."""
 
     @property
     def consistent(self) -> bool:
@@ -69,38 +79,59 @@ class DiscrepancyResult:
 
     @property
     def verdict(self) -> str:
-        """consistent | explained | partly_explained | unexplained."""
-        if self.consistent:
-            return "explained" if self.steps else "consistent"
-        return "partly_explained" if self.steps else "unexplained"
+        """consistent | explained | partly_explained | likely | unexplained."""
+        if self.steps:
+            return "explained" if self.consistent else "partly_explained"
+        if self.likely is not None:
+            return "likely"
+        top = self.scored[0] if self.scored else None
+        if self.consistent and (top is None or top.explanation.name == "none" or top.probability < LIKELY_AT):
+            return "consistent"
+        return "unexplained"
+
+    def _top(self, k: int = 3) -> str:
+        return ", ".join(f"{s.explanation.name} {s.probability:.2f}" for s in self.scored[:k])
 
     def verdict_text(self) -> str:
-        """The verdict in words, stating any structure the named terms leave."""
-        named = ", ".join(s.name for s in self.physical_steps) or "no physical effect"
-        chain = ", ".join(s.name for s in self.measurement_steps)
-        chain_txt = f"; measurement side: {chain}" if chain else ""
+        """The verdict in words: the explanation and its probability, the structure it leaves, what the data
+        cannot separate."""
         level = f"lack-of-fit test at level {CONSISTENT_P:g}"
-        if self.verdict == "consistent":
-            return f"the baseline agrees with the data within the noise ({level})"
-        if self.verdict == "explained":
-            return f"{named}{chain_txt}: residuals consistent with the noise ({level})"
         residual = _residual_words(list(self.trends_after))
+        top = self.scored[0] if self.scored else None
         parts = []
-        if self.steps:
-            last = self.steps[-1]
-            parts.append(f"closest library term {last.name} explains {_pct(share(self.baseline, self.final))} "
-                         f"of the discrepancy{chain_txt}")
-        elif self.closest is not None:
-            parts.append(f"no library term earns a name; closest library term {self.closest.name} would explain "
-                         f"{_pct(self.closest.share)} of the discrepancy")
+        if self.verdict == "consistent":
+            parts.append(f"the baseline agrees with the data within the noise ({level})")
+            if top is not None:
+                parts.append(f"most probable explanations: {self._top()}")
+        elif self.steps:
+            assert top is not None
+            parts.append(f"{top.explanation.name} (probability {top.probability:.2f})")
+            if self.consistent:
+                parts.append(f"residuals consistent with the noise ({level})")
+            else:
+                parts.append(f"form differs: the residual is NOT consistent with the noise ({level}) and still "
+                             f"{residual}")
         else:
-            parts.append("no library term earns a name")
-        parts.append(f"the residual is NOT consistent with the noise ({level}) and still {residual}")
-        if self.empirical is not None:
-            gen = "generalises to left-out roller types" if self.empirical.generalises else \
-                "does not generalise on held-out data"
-            parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
-                         f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+            if self.likely is not None:
+                parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
+                             f"below the {NAME_AT:g} needed to name it); candidates: {self._top()}")
+            else:
+                parts.append(f"unexplained: no explanation reaches probability {LIKELY_AT:g}; candidates: "
+                             f"{self._top()}")
+            if not self.consistent:
+                parts.append(f"the residual is NOT consistent with the noise ({level}) and still {residual}")
+            if len(self.scored) > 1 and self.scored[0].probability + self.scored[1].probability >= 0.6 and \
+                    self.scored[1].probability >= 0.15:
+                why = "; ".join(self.reasons) or "their signatures are alike over these loads and rollers"
+                parts.append(f"the data cannot separate {self.scored[0].explanation.name} from "
+                             f"{self.scored[1].explanation.name}: {why}")
+            if self.empirical is not None:
+                held = self.empirical.held_out
+                gen = ("generalises to left-out roller types" if self.empirical.generalises else
+                       "does not generalise on held-out data") if held is None or not held.get("weak") else \
+                    f"held-out check weak: left out {held['by']}s, not roller types"
+                parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
+                             f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
         return "; ".join(parts)
 
     def _step_doc(self, s: Step) -> dict[str, Any]:
@@ -134,6 +165,11 @@ class DiscrepancyResult:
             "lack_of_fit_p": None if lof is None else lof.p,
             "effects": [self._step_doc(s) for s in self.physical_steps],
             "measurement_effects": [self._step_doc(s) for s in self.measurement_steps],
+            "explanations": [x.to_dict() for x in self.scored],
+            "decision": {"named_at": NAME_AT, "likely_at": LIKELY_AT, "temperature": TEMPERATURE,
+                         "top": self.scored[0].to_dict() if self.scored else None,
+                         "likely": None if self.likely is None else self.likely.to_dict(),
+                         "identifiability": list(self.reasons)},
             "closest_library_term": None if self.closest is None else
             {"name": self.closest.name, "explained_share": self.closest.share, "delta_bic": self.closest.delta_bic},
             "empirical_term": None if self.empirical is None else self.empirical.to_dict(),
@@ -194,13 +230,51 @@ def _nuisance(search: Search, fits: list[Fit]) -> list[dict[str, Any]]:
             continue
         free = search.fit(replace(fit.spec, depth_bounds_m=DEPTH_BOUNDS_M), warm=fit)
         lo, hi = TRIPP_DEPTH_RANGE_M
+        gain = fit.bic - free.bic
+        where = (f"Tripp's evaluation depth is pinned at {fit.depth_m * 1e3:.3g} mm, the end of its physical range "
+                 f"{lo * 1e3:g}-{hi * 1e3:g} mm (a free fit wants {free.depth_m * 1e3:.3g} mm, ΔBIC {gain:.1f})")
+        meaning = (": a sign of a measurement-side error (Young's modulus or its unit, load-cell gain), not of a "
+                   "physical effect; check the inputs" if gain >= PINNED_DEPTH_BIC else
+                   ": the data barely prefer the free depth, so this is no evidence of a measurement-side error")
         out.append({
             "parameter": "depth_m", "model": fit.spec.terms, "value": fit.depth_m, "free_fit_value": free.depth_m,
-            "physical_range": [lo, hi], "free_fit_delta_bic": fit.bic - free.bic,
-            "message": f"Tripp's evaluation depth is pinned at {fit.depth_m * 1e3:.3g} mm, the end of its physical "
-                       f"range {lo * 1e3:g}-{hi * 1e3:g} mm (a free fit wants {free.depth_m * 1e3:.3g} mm): a sign "
-                       "of a measurement-side error (Young's modulus or its unit, load-cell gain), not of a "
-                       "physical effect"})
+            "physical_range": [lo, hi], "free_fit_delta_bic": gain, "message": where + meaning})
+    return out
+
+
+def _steps(scored: list[Scored], top: Scored, base: Fit, fits: dict[tuple[str, ...], Fit]) -> list[Step]:
+    """The named explanation as steps: each term against the model before it, every step carrying the decision."""
+    steps, before = [], base
+    terms = top.explanation.terms
+    for i, name in enumerate(terms):
+        fit = top.fit if i == len(terms) - 1 else fits.get(terms[: i + 1], top.fit)
+        assert fit is not None
+        evidence = {
+            "kind": kind(name), "explanation": top.explanation.name, "probability": top.probability,
+            "delta_bic": before.bic - fit.bic, "explained_share": share(before, fit),
+            "explained_share_of_baseline": share(base, fit), "form_sigma": top.tau,
+            "candidates": {s.explanation.name: s.probability for s in scored[:6]},
+        }
+        if len(terms) > 1:
+            evidence["named_with"] = [t for t in terms if t != name]
+        steps.append(Step(name, fit, before, evidence))
+        before = fit
+    return steps
+
+
+def unidentifiable_reasons(data: Dataset) -> list[str]:
+    """Why the data's design may not separate candidates (few geometries, one rail roughness, few loads)."""
+    out = []
+    if len(data.roller_keys()) < 3:
+        out.append(f"{len(data.roller_keys())} roller geometr{'y' if len(data.roller_keys()) == 1 else 'ies'}: "
+                   "terms that differ by how they scale with length and diameter (end_effects, misalignment) "
+                   "cannot be told from load-only ones")
+    if len({round(c.case.rail_ra_m * 1e9) for c in data.cases}) < 2:
+        out.append("one rail roughness: a term's dependence on Ra (surface_roughness, material_hardness) is not "
+                   "tested")
+    steps = min(np.unique(np.round(np.log(c.load_n), 2)).size for c in data.cases)
+    if steps < 5:
+        out.append(f"{steps} load steps per roller: load laws cannot be told apart")
     return out
 
 
@@ -217,20 +291,23 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
     spec = ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
     search = Search(data, noise)
-    base = search.fit(spec)
-    current, steps = base, []
-    ranked: list[Candidate] = []
-    while len(steps) < max_effects and not consistent_with_noise(current, noise, data):
-        new, ranked = search.select(current, base)
-        if not new:
-            break
-        steps.extend(new[: max_effects - len(steps)])
-        current = steps[-1].fit
+    evidence = Evidence(data, noise, search.sigma)
+    base, scored = evidence.all(spec, max_terms=max_effects)
+    scored.sort(key=lambda s: -s.probability)
+    top = scored[0]
+    steps: list[Step] = []
+    likely = None
+    if top.explanation.terms and top.probability >= NAME_AT:
+        steps = _steps(scored, top, base, evidence.fits)
+    elif top.explanation.terms and top.probability >= LIKELY_AT:
+        likely = top
+    current = steps[-1].fit if steps else base
     nuisance = _nuisance(search, [base, current])
     closest = empirical = None
     if not consistent_with_noise(current, noise, data) and discrepancy(current) > 0:
         if not steps:
-            physical = [c for c in (ranked or search.candidates(current, physical_only=True)) if c.name in EFFECTS]
+            physical = [c for c in search.candidates(current, physical_only=True)
+                        if c.name in EFFECTS]
             closest = physical[0] if physical else None
         empirical = propose(search, current)
     sigma = noise.sigma
@@ -239,6 +316,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
+        scored=tuple(scored), likely=likely, reasons=tuple(unidentifiable_reasons(data)),
     )
 
 

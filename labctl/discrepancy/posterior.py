@@ -1,0 +1,326 @@
+"""One decision procedure: every candidate explanation scored by an approximate marginal likelihood.
+
+Candidates (``explanations``): none; each physical term; each pair of physical terms; each measurement-side term
+alone or with one physical term; and *unlisted* — an effect outside the library, stood in for by the unnamed
+empirical basis (``labctl.discrepancy.empirical.BASIS``, at most ``MAX_FEATURES`` features). Each is fitted on
+the data's own structure (residuals whitened for the seating random effect and the load-dependent point noise).
+
+The *form* of every term is uncertain: each candidate carries a smooth discrepancy per roller case in the spirit
+of Kennedy–O'Hagan, δ_c(ln p) = Σ_j β_cj·P_j(u) (Legendre P_0..P_2 of ln p scaled to [−1, 1] over the case's
+loads), β ~ N(0, τ²), τ log-uniform on ``TAU_GRID``; it is integrated out exactly (linear Gaussian), and the
+term's parameters are refitted with it. A term whose law differs from the truth but explains most of the
+structure across roller types then needs only a small δ; a term that absorbs another effect in some cases and
+not in others needs a large one and loses to the others.
+
+Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA') (averaged over τ) − ½·k·ln n (Laplace/BIC for
+the k fitted parameters, Tripp's depth included), plus for *unlisted* −ln C(F, m) for choosing m of F features.
+Posterior: p(M|D) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance of the
+whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
+every library term — is treated as extra scatter, so a fit's gain counts 1/T as much while every Occam factor
+(the −½·k·ln n and the discrepancy's log det) keeps its strength. T is calibrated on the blind worlds'
+calibration seeds (docs/discrepancy.md). Priors (``PRIOR_MASS``) are split evenly within each class.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.special import logsumexp
+
+from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.empirical import MAX_FEATURES, features
+from labctl.discrepancy.form import contribution
+from labctl.discrepancy.measurement import MEASUREMENT
+from labctl.discrepancy.model import Fit, ModelSpec, depth_column, fit_model
+from labctl.discrepancy.noise import NoiseFloor
+from labctl.physics.effects import EFFECTS
+
+PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10, "mixed": 0.10, "unlisted": 0.10}
+"""Prior probability of each class of explanation, split evenly among its members."""
+TAU_GRID = np.geomspace(3e-4, 0.3, 16)
+"""σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
+FORM_DEGREE = 2
+BEND_SIGMA = 0.5
+"""Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
+over all roller cases (the same law for every roller: an approximate form that still generalises)."""
+"""Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
+TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
+"""The noise-variance inflations every candidate's evidence is computed at (the calibration's grid)."""
+TEMPERATURE = 16.0
+"""The inflation the decision uses: calibrated on the blind worlds' calibration seeds (docs/discrepancy.md)."""
+NAME_AT = 0.9
+LIKELY_AT = 0.5
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """A candidate explanation: physical terms, measurement-side terms, or an effect outside the library."""
+
+    physical: tuple[str, ...] = ()
+    measurement: tuple[str, ...] = ()
+    unlisted: bool = False
+
+    @property
+    def name(self) -> str:
+        if self.unlisted:
+            return "unlisted"
+        return " + ".join((*self.physical, *self.measurement)) or "none"
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        return (*self.physical, *self.measurement)
+
+    @property
+    def kind(self) -> str:
+        if self.unlisted:
+            return "unlisted"
+        if not self.terms:
+            return "none"
+        if not self.measurement:
+            return "physical" if len(self.physical) == 1 else "pair"
+        return "measurement" if not self.physical else "mixed"
+
+
+def explanations() -> list[Explanation]:
+    """Every candidate: none, each physical term, pairs, each measurement term alone or with one physical term,
+    unlisted."""
+    phys, meas = list(EFFECTS), list(MEASUREMENT)
+    out = [Explanation()] + [Explanation((p,)) for p in phys]
+    out += [Explanation(pair) for pair in itertools.combinations(phys, 2)]
+    out += [Explanation((), (m,)) for m in meas]
+    out += [Explanation((p,), (m,)) for m in meas for p in phys]
+    return out + [Explanation(unlisted=True)]
+
+
+def log_prior(expl: Explanation, candidates: list[Explanation]) -> float:
+    members = sum(1 for c in candidates if c.kind == expl.kind)
+    return math.log(PRIOR_MASS[expl.kind] / members)
+
+
+def form_basis(data: Dataset) -> np.ndarray:
+    """Legendre P_0..P_FORM_DEGREE of ln(load per length) per roller case (columns zero outside the case)."""
+    x = np.log(data.load_per_length_n_per_m)
+    cols = []
+    for sl in data.case_slices():
+        u = x[sl]
+        span = float(np.ptp(u))
+        u = (u - u.min()) / span * 2 - 1 if span > 0 else np.zeros_like(u)
+        degree = min(FORM_DEGREE, max(0, np.unique(np.round(u, 6)).size - 1))
+        for j in range(degree + 1):
+            col = np.zeros(x.size)
+            col[sl] = np.polynomial.legendre.legval(u, [0] * j + [1])
+            cols.append(col)
+    return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class FormPrior:
+    """The whitened form basis's SVD: what integrating the discrepancy out needs."""
+
+    u: np.ndarray
+    s2: np.ndarray
+    a: np.ndarray | None = None
+    """The whitened basis itself (for the joint marginal with a term's bend columns)."""
+
+    @classmethod
+    def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
+        a = noise.whiten(data, form_basis(data), sigma)
+        u, s, _ = np.linalg.svd(a, full_matrices=False)
+        keep = s > 1e-9 * s.max()
+        return cls(u[:, keep], s[keep] ** 2, a)
+
+    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
+                     ) -> tuple[float, float]:
+        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
+        same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
+        candidate's terms (or none); ``inflation``: T."""
+        e = e / math.sqrt(inflation)
+        ee = float(e @ e)
+        vals = []
+        if bend is None or bend.shape[1] == 0 or self.a is None:
+            proj2 = (self.u.T @ e) ** 2
+            for tau in TAU_GRID:
+                g = tau**2 * self.s2 / inflation
+                vals.append(-0.5 * (ee - float(np.sum(g / (1 + g) * proj2))) - 0.5 * float(np.sum(np.log1p(g))))
+        else:
+            a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
+            ata, ate = a.T @ a, a.T @ e
+            m1 = self.a.shape[1]
+            for tau in TAU_GRID:
+                d = np.concatenate([np.full(m1, tau**2), np.full(bend.shape[1], BEND_SIGMA**2)])
+                m = np.diag(1.0 / d) + ata
+                chol = np.linalg.cholesky(m)
+                z = np.linalg.solve(chol, ate)
+                logdet = 2.0 * float(np.sum(np.log(np.diag(chol)))) + float(np.sum(np.log(d)))
+                vals.append(-0.5 * (ee - float(z @ z)) - 0.5 * logdet)
+        v = np.array(vals)
+        return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
+
+    def transform(self, tau: float):  # noqa: ANN201
+        """e → (I + τ²AA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""
+        d = 1.0 - 1.0 / np.sqrt(1.0 + tau**2 * self.s2)
+        u = self.u
+        return lambda e: e - u @ (d * (u.T @ e))
+
+    def smooth(self, e: np.ndarray, tau: float) -> np.ndarray:
+        """The posterior mean of the discrepancy (whitened units) at scale τ."""
+        g = tau**2 * self.s2
+        return self.u @ (g / (1 + g) * (self.u.T @ e))
+
+
+@dataclass
+class Scored:
+    """One candidate explanation with its fit, evidence and posterior probability."""
+
+    explanation: Explanation
+    fit: Fit | None
+    log_evidence_by_t: dict[float, float]
+    """log p(D | M) at each noise inflation of ``TEMPERATURES``."""
+    log_prior: float
+    n_params: int
+    tau: float
+    chi2: float
+    """Whitened sum of squares of the parametric fit alone."""
+    form_chi2: float
+    """… after the posterior-mean form discrepancy is taken off: what neither explains."""
+    probability: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def log_evidence(self) -> float:
+        """log p(D | M) at the decision's inflation."""
+        return self.log_evidence_by_t[TEMPERATURE]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"explanation": self.explanation.name, "probability": self.probability,
+                "log_evidence": self.log_evidence, "log_prior": self.log_prior,
+                "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
+                "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
+
+
+def posterior(scored: list[Scored], temperature: float = TEMPERATURE) -> None:
+    """Fill in every candidate's probability."""
+    lp = np.array([s.log_prior + s.log_evidence_by_t[temperature] for s in scored])
+    p = np.exp(lp - logsumexp(lp))
+    for s, v in zip(scored, p, strict=True):
+        s.probability = float(v)
+
+
+class Evidence:
+    """Fits and scores every candidate explanation on one dataset."""
+
+    def __init__(self, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> None:
+        self.data, self.noise, self.sigma = data, noise, sigma
+        self.form = FormPrior.of(data, noise, sigma)
+        self.n = data.n_points
+        self.fits: dict[tuple[str, ...], Fit] = {}
+        """Fitted models by their terms (each with the plain whitened least squares)."""
+
+    def fit(self, spec: ModelSpec, warm: Fit | None = None, guess: dict[str, dict[str, float]] | None = None,
+            tau: float | None = None) -> Fit:
+        post = None if tau is None else self.form.transform(tau)
+        return fit_model(self.data, spec, warm=warm, sigma=self.sigma, guess=guess,
+                         seating_sigma=self.noise.seating_sigma, post=post)
+
+    def bend(self, fit: Fit) -> np.ndarray:
+        """Whitened columns d_t·u, d_t·u² of every term t of the fit (u = ln(p/p̄), centred over all points)."""
+        u = np.log(self.data.load_per_length_n_per_m)
+        u = u - u.mean()
+        cols = []
+        for name in fit.spec.terms:
+            d = contribution(fit, self.data, name)
+            cols += [d * u, d * u**2]
+        if not cols:
+            return np.zeros((self.n, 0))
+        return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
+
+    def form_evidence(self, e: np.ndarray, bend: np.ndarray, inflation: float) -> float:
+        """The term's form is the library's (probability ½) or bent (½): the evidence averaged over both, so an
+        exact law pays at most ln 2 for the doubt and an approximate one is not judged by its exponent."""
+        exact = self.form.log_marginal(e, None, inflation)[0]
+        if bend.shape[1] == 0:
+            return exact
+        return float(np.logaddexp(exact, self.form.log_marginal(e, bend, inflation)[0]) - math.log(2.0))
+
+    def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
+        """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
+        bend integrated out with the per-case discrepancy)."""
+        _, tau = self.form.log_marginal(fit.z)
+        if fit.spec.n_params() > 0:
+            refit = self.fit(fit.spec, warm=fit, tau=tau)
+            if self.form.log_marginal(refit.z)[0] > self.form.log_marginal(fit.z)[0]:
+                fit = refit
+        bend = self.bend(fit)
+        k = fit.spec.n_params()
+        by_t = {t: self.form_evidence(fit.z, bend, t) - 0.5 * k * math.log(self.n) for t in TEMPERATURES}
+        tau = self.form.log_marginal(fit.z, bend, TEMPERATURE)[1]
+        smooth = self.form.smooth(fit.z, tau)
+        return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
+                      float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
+
+    def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
+        """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
+        names, x = features(self.data)
+        if len(self.data.roller_keys()) < 3:  # a per-geometry feature cannot be told from the seating offsets
+            keep = [i for i, n in enumerate(names) if np.unique(x[:, i]).size > len(self.data.cases)]
+            names, x = [names[i] for i in keep], x[:, keep]
+        j = depth_column(base, self.data)
+        head = np.zeros((self.n, 0)) if j is None else self.noise.whiten(self.data, j[:, None], self.sigma)
+        xw = self.noise.whiten(self.data, x, self.sigma)
+        y = base.z
+        k0 = base.spec.n_params()
+
+        def evaluate(chosen: list[int], t: float) -> tuple[float, float, np.ndarray]:
+            a = np.column_stack([head, xw[:, chosen]])
+            coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+            e = y - a @ coef
+            log_m, tau = self.form.log_marginal(e, inflation=t)
+            m = len(chosen)
+            penalty = 0.5 * (k0 + m) * math.log(self.n) + math.log(math.comb(len(names), m))
+            return log_m - penalty, tau, e
+
+        def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
+            chosen: list[int] = []
+            best = evaluate(chosen, t)
+            while len(chosen) < min(MAX_FEATURES, len(names)):
+                trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
+                top = max(trial, key=lambda r: r[0][0])
+                if top[0][0] <= best[0]:
+                    break
+                best, chosen = top[0], [*chosen, top[1]]
+            return chosen, best
+
+        by_t = {t: select(t)[1][0] for t in TEMPERATURES}
+        chosen, (_, tau, e) = select(TEMPERATURE)
+        smooth = self.form.smooth(e, tau)
+        return Scored(expl, None, by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
+                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})
+
+    def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
+        """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""
+        candidates = [c for c in explanations() if len(c.terms) <= max_terms and (max_terms > 0 or not c.unlisted)]
+        base = self.fit(base_spec)
+        fits = self.fits
+        fits[()] = base
+        for name in [c.terms[0] for c in candidates if len(c.terms) == 1]:
+            fits[(name,)] = self.fit(base_spec.with_effects(name), warm=base)
+        scored = []
+        for expl in candidates:
+            if expl.unlisted:
+                scored.append(self.unlisted(base, expl, candidates))
+                continue
+            key = expl.terms
+            if key not in fits:
+                a, b = key
+                one = self.fit(base_spec.with_effects(a, b), warm=fits[(a,)], guess=fits[(b,)].spec.decode(
+                    fits[(b,)].x))
+                two = self.fit(base_spec.with_effects(a, b), warm=fits[(b,)], guess=fits[(a,)].spec.decode(
+                    fits[(a,)].x))
+                fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
+            scored.append(self.score(expl, fits[key], candidates))
+        posterior(scored)
+        return base, scored

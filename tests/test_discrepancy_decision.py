@@ -1,0 +1,114 @@
+"""The decision procedure: candidate explanations with posterior probabilities, the form discrepancy integrated
+out exactly, outliers judged against the local repetition spread, ball runs refused."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+
+from labctl.discrepancy import load_points, run_discrepancy
+from labctl.discrepancy.posterior import PRIOR_MASS, TAU_GRID, FormPrior, explanations, log_prior
+from labctl.discrepancy.synthetic import NoiseModel, synthesize
+from labctl.errors import InputError
+from labctl.physics import EndEffects
+from labctl.stiffness_table import write_stiffness_table
+from tests.discrepancy_util import GENERATOR_NOISE, world
+
+
+def test_form_discrepancy_marginal_is_the_dense_gaussian_integral():
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(40, 6))
+    e = rng.normal(size=40) + a @ rng.normal(scale=0.05, size=6)
+    u, s, _ = np.linalg.svd(a, full_matrices=False)
+    form = FormPrior(u, s**2)
+    dense = []
+    for tau in TAU_GRID:
+        cov = np.eye(40) + tau**2 * a @ a.T
+        dense.append(-0.5 * e @ np.linalg.solve(cov, e) - 0.5 * np.linalg.slogdet(cov)[1])
+    expected = logsumexp(dense) - math.log(len(TAU_GRID))
+    assert form.log_marginal(e)[0] == pytest.approx(expected, rel=1e-10, abs=1e-8)
+    # The transform is Σ^(-1/2): its squared norm is the quadratic form at that τ.
+    tau = TAU_GRID[7]
+    t = form.transform(tau)(e)
+    assert t @ t == pytest.approx(e @ np.linalg.solve(np.eye(40) + tau**2 * a @ a.T, e), rel=1e-10)
+
+
+def test_the_prior_is_a_distribution_split_evenly_within_each_class():
+    cands = explanations()
+    assert len(cands) == 1 + 5 + 10 + 3 + 15 + 1
+    total = sum(math.exp(log_prior(c, cands)) for c in cands)
+    assert total == pytest.approx(1.0)
+    assert sum(PRIOR_MASS.values()) == pytest.approx(1.0)
+    singles = {math.exp(log_prior(c, cands)) for c in cands if c.kind == "physical"}
+    assert len(singles) == 1 and singles.pop() == pytest.approx(PRIOR_MASS["physical"] / 5)
+
+
+@pytest.fixture(scope="module")
+def null_points():
+    return synthesize(world(), noise=GENERATOR_NOISE, seating_rel=0.004, seed=11)
+
+
+def _with_two_outliers(points, factor):
+    """Two of the three repetitions of type 3 at its sixth load step off by the same factor."""
+    steps = sorted({p.load_n for p in points if p.roller_type == 3 and p.repetition == 1})
+    out, bad = [], []
+    for p in points:
+        if p.roller_type == 3 and p.repetition in (1, 2):
+            own = sorted(q.load_n for q in points if q.roller_type == 3 and q.repetition == p.repetition)
+            if p.load_n == own[5]:
+                p = dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * factor)
+                bad.append((p.repetition, p.load_n))
+        out.append(p)
+    assert len(bad) == 2 and len(steps) == 11
+    return out, bad
+
+
+@pytest.mark.parametrize("factor", [1.12, 0.9])
+def test_two_outliers_in_one_step_are_set_aside_and_the_clean_repetition_kept(null_points, factor):
+    points, bad = _with_two_outliers(null_points, factor)
+    result = run_discrepancy(points)
+    found = sorted((o["repetition"], o["load_n"]) for o in result.screening.outliers)
+    assert found == sorted(bad)
+    assert result.verdict == "consistent" and not result.steps
+    assert result.verdict == run_discrepancy(null_points).verdict
+
+
+def test_a_deviation_every_repetition_shares_is_no_outlier(null_points):
+    points = [dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * 1.1)
+              if p.roller_type == 3 and p.load_n == sorted(q.load_n for q in null_points if q.roller_type == 3
+                                                            and q.repetition == p.repetition)[5] else p
+              for p in null_points]
+    assert run_discrepancy(points).screening.outliers == []
+
+
+def test_every_candidate_has_a_probability_and_a_name_needs_nine_tenths(null_points):
+    doc = run_discrepancy(synthesize(world(EndEffects(0.1e-3)), noise=NoiseModel(0.01, 0.004), seating_rel=0.002,
+                                     seed=3)).to_dict()
+    probs = [c["probability"] for c in doc["explanations"]]
+    assert sum(probs) == pytest.approx(1.0) and probs == sorted(probs, reverse=True)
+    assert doc["decision"]["top"]["explanation"] == doc["explanations"][0]["explanation"]
+    for step in doc["effects"] + doc["measurement_effects"]:
+        assert step["evidence"]["probability"] >= 0.9
+    if doc["verdict"] in ("likely", "unexplained"):
+        assert doc["explanations"][0]["explanation"] in doc["verdict_text"]
+
+
+def test_one_roller_type_says_what_the_data_cannot_separate():
+    points = synthesize(world(EndEffects(0.3e-3)), types=[1], noise=NoiseModel(0.01, 0.004), seed=5)
+    result = run_discrepancy(points)
+    assert any("1 roller geometry" in r for r in result.reasons)
+    assert "identifiability" in result.to_dict()["decision"]
+
+
+def test_ball_rows_are_refused_with_one_line(tmp_path, null_points):
+    p = null_points[0]
+    ball = dataclasses.replace(p, diameter_m=8e-3, contact_length_m=8e-3, roller_length_m=8e-3, roller_type=None)
+    path = tmp_path / "mixed.csv"
+    write_stiffness_table(path, [p, ball])
+    with pytest.raises(InputError, match=r"row 3: .* is a ball .*Hertz") as exc:
+        load_points([path])
+    assert "\n" not in str(exc.value)
