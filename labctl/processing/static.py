@@ -1,13 +1,13 @@
 """Static stiffness from the load–displacement curve (the paper's §2.5): the local slope, the rig removed.
 
 At each load step the engine stores the mean of a few paired readings of the load cell and the displacement
-sensor. The local slope dδ/dP at a step is the derivative of the parabola through that step and its neighbours
-(the nearest three at the ends); 1/slope is a roller path's stiffness, and ``labctl.physics`` removes the setup
-compliance (1/k = 1/k_path − 3/K_setup), exactly as the rig model does for the hammer. The slope is a difference
-quotient: its uncertainty comes from the noise of the loads and displacements of the three steps (each step's
-read-to-read scatter, pooled over the repetition) the sensor's drift over the time between them, and the parabola's truncation error (from the
-third divided difference with the next step outward) — which is
-why the static method scatters more than the hammer, whose error is tied to the absolute load.
+sensor. The local slope dδ/dP at a step is that of the curve δ = δ0 + c·P^a through the step and its neighbours
+(the nearest three at the ends: a contact's stiffness goes as a power of its load); 1/slope is a roller path's
+stiffness, and ``labctl.physics`` removes the setup compliance (1/k = 1/k_path − 3/K_setup), as the rig model does
+for the hammer. The slope is a difference quotient: its σ comes from the noise of the three steps' loads and
+displacements (each step's read-to-read scatter pooled over the repetition, over √reads), the sensor's drift
+over the time between them, and the local shape (how far a parabola through the same readings differs) —
+which is why the static method scatters more than the hammer, whose error is tied to the absolute load.
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import brentq
 
 from labctl.errors import ModelDomainError
 from labctl.physics.rig import roller_stiffness_from_path
 
-BUDGET = ("load", "displacement", "drift", "truncation", "setup_stiffness")
+BUDGET = ("load", "displacement", "drift", "shape", "setup_stiffness")
 
 
 @dataclass(frozen=True)
@@ -67,12 +68,44 @@ def _window(i: int, n: int) -> slice:
     return slice(start, start + 3)
 
 
-def truncation_m_per_n(x: np.ndarray, y: np.ndarray, i: int, x4: float, y4: float) -> float:
-    """The parabola's slope error at node x[i]: f'''/6 times the product over j != i of (x_i - x_j), with
-    f'''/6 the third divided difference of the three points and a fourth (the next step outward)."""
-    xs, ys = np.append(x, x4), np.append(y, y4)
-    third = sum(ys[j] / np.prod([xs[j] - xs[m] for m in range(4) if m != j]) for j in range(4))
-    return float(third * np.prod([x[i] - x[j] for j in range(3) if j != i]))
+def power_slope(x: np.ndarray, y: np.ndarray, at: float) -> float | None:
+    """dδ/dP at ``at`` of δ = δ0 + c·P^a through the three points (a contact's local shape: its stiffness goes
+    as a power of the load), or None when no exponent in 0.05..5 fits them (noise larger than the curvature)."""
+    rise = (y[2] - y[1]) / (y[1] - y[0]) if y[1] != y[0] else math.nan
+    if not (math.isfinite(rise) and rise > 0):
+        return None
+
+    def gap(a: float) -> float:
+        return (x[2] ** a - x[1] ** a) / (x[1] ** a - x[0] ** a) - rise
+
+    lo, hi = 0.05, 5.0
+    if gap(lo) * gap(hi) > 0:
+        return None
+    a = brentq(gap, lo, hi, xtol=1e-12)
+    c = (y[1] - y[0]) / (x[1] ** a - x[0] ** a)
+    return float(c * a * at ** (a - 1.0))
+
+
+def local_slope(x: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
+    """The slope at node ``i`` of three readings and its shape uncertainty: the power-law slope (the parabola's
+    when no power law fits), and how far the parabola through the same points differs from it."""
+    quad = float(slope_weights(x, x[i]) @ y)
+    power = power_slope(x, y, x[i])
+    return (quad, 0.0) if power is None else (power, abs(power - quad))
+
+
+def _gradient(x: np.ndarray, y: np.ndarray, i: int, slope: float) -> tuple[np.ndarray, np.ndarray]:
+    """d slope / d P_j and d slope / d δ_j by central differences (the evaluation point moves with P_i)."""
+    d_load, d_disp = np.zeros(3), np.zeros(3)
+    for j in range(3):
+        for arr, out, scale in ((x, d_load, max(abs(x[j]), 1.0) * 1e-5), (y, d_disp, abs(y[2] - y[0]) * 1e-4)):
+            up, down = arr.copy(), arr.copy()
+            up[j] += scale
+            down[j] -= scale
+            xu, yu = (up, y) if arr is x else (x, up)
+            xd, yd = (down, y) if arr is x else (x, down)
+            out[j] = (local_slope(xu, yu, i)[0] - local_slope(xd, yd, i)[0]) / (2 * scale)
+    return d_load, d_disp
 
 
 def _pooled_sd(values: Sequence[float]) -> float:
@@ -101,27 +134,15 @@ def static_stiffness(points: Sequence[StaticPoint], setup_stiffness_n_per_m: flo
         if len(set(x.tolist())) < 3:
             raise ModelDomainError(f"step {p.step}: the loads of steps {pts[win.start].step}..{pts[win.stop - 1].step}"
                                    " are not distinct; no slope")
-        w = slope_weights(x, load[i])
-        slope = float(w @ y)
+        slope, shape = local_slope(x, y, i - win.start)
         if not slope > 0:
             raise ModelDomainError(f"step {p.step}: the displacement does not rise with the load "
                                    f"(slope {slope:.3e} m/N); check the sensor's sign and mounting")
-        # d slope / d P_j by central differences of the closed form (the evaluation point moves with P_i)
-        d_load = np.zeros(3)
-        for j in range(3):
-            h = 1e-4 * max(abs(x[j]), 1.0)
-            xp, xm = x.copy(), x.copy()
-            xp[j] += h
-            xm[j] -= h
-            at_p = xp[i - win.start] if i - win.start == j else load[i]
-            at_m = xm[i - win.start] if i - win.start == j else load[i]
-            d_load[j] = (slope_weights(xp, at_p) @ y - slope_weights(xm, at_m) @ y) / (2 * h)
-        outer = win.stop if win.stop < len(pts) else win.start - 1
-        trunc = truncation_m_per_n(x, y, i - win.start, load[outer], disp[outer]) if 0 <= outer < len(pts) else 0.0
+        d_load, d_disp = _gradient(x, y, i - win.start, slope)
         var_slope = {"load": float(np.sum((d_load * sem_load[win]) ** 2)),
-                     "displacement": float(np.sum((w * sem_disp[win]) ** 2)),
-                     "drift": float((w @ times[win]) ** 2 * drift_m_per_s**2),
-                     "truncation": trunc**2}
+                     "displacement": float(np.sum((d_disp * sem_disp[win]) ** 2)),
+                     "drift": float((d_disp @ times[win]) ** 2 * drift_m_per_s**2),
+                     "shape": shape**2}
         k_path = 1.0 / slope
         k = float(roller_stiffness_from_path(k_path, setup_stiffness_n_per_m))
         if not math.isfinite(k):
