@@ -116,3 +116,26 @@ def test_mcc_failures_are_typed() -> None:
         DaqDisplacementSensor(reader, sensitivity_um_per_v=50.0).read()
     with pytest.raises(ValueError, match="inputs 0-7"):
         MccVoltageWindow(8)
+
+
+def test_devices_file_builds_the_sensor(tmp_path: Any) -> None:
+    from labctl.errors import InputError
+    from labctl.hardware import example_path, make_hw_rig
+
+    text = example_path().read_text(encoding="utf-8")
+    good = tmp_path / "devices.toml"
+    good.write_text(text + '\n[displacement]\ntype = "mcc_usb"\ninput = "3"\nsensitivity_um_per_v = 50.0\n'
+                    "range_v = 2.5\nwindow_ms = 50\n", encoding="utf-8")
+    source = PlaybackSource(noise_v=1e-3)
+    level = np.zeros((8, 100_000))
+    level[3] = 0.5
+    source.play(level, delay_scans=0)
+    rig = make_hw_rig(good, usb_backend=FakeUsbBackend(FakeMcc1608(source)))
+    assert rig.displacement is not None
+    with rig.displacement as sensor:
+        assert sensor.read() == pytest.approx(25e-6, abs=0.05e-6)
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text + '\n[displacement]\ntype = "mcc_usb"\ninput = "cDAQ1Mod2/ai0"\nsensitivity_um_per_v = 50\n',
+                   encoding="utf-8")
+    with pytest.raises(InputError, match="displacement.*input"):
+        make_hw_rig(bad)

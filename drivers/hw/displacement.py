@@ -65,6 +65,10 @@ class DaqDisplacementSensor(Lifecycle):
     def close(self) -> None:
         self.reader.close()
 
+    def probe(self) -> str:
+        """One reading, said plainly (``labctl devices check``)."""
+        return f"{self.reader.name}: reads {self.read() * 1e6:.3f} µm ({self.samples} samples per window)"
+
     def read(self) -> float:
         w = self.reader.window(self.samples, self.sample_rate_hz)
         if w.volts.size == 0:
