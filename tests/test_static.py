@@ -151,3 +151,19 @@ def test_static_protocol_needs_a_sensor(tmp_path: Path) -> None:
 
     outcome = Engine(proto, load_rig(None), factory, MemoryStore()).run()
     assert outcome.status == "failed" and "no displacement sensor" in outcome.message
+
+
+def test_static_only_campaign_takes_no_impacts(tmp_path: Path) -> None:
+    from labctl.storage.reader import CampaignReader
+
+    out = tmp_path / "s.h5"
+    proto = parse_protocol(SMALL + "[static]\nmethod = 'static'\n", "static_only.toml")
+    assert run_campaign(proto, out=out, seed=2).status == "complete"
+    (c,) = compare(out)
+    assert np.all(np.isnan(c.hammer_n_per_m)) and np.all(np.isfinite(c.static_n_per_m))
+    with CampaignReader(out) as reader:
+        steps = [st for run in reader.runs(1) for st in run.steps]
+        assert steps and all(st.complete and not st.impacts for st in steps)
+    from labctl.report.static_figure import static_figure
+
+    assert static_figure([c], simulated=True).axes  # the figure draws the static method alone

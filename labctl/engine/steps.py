@@ -149,6 +149,9 @@ class StepRunner:
                 "load_stable": stable, "expected_load_n": expected, **static_reading(self, pos), **(attrs or {})})
         step_load = e.store.step_load(self.series, self.run, step)
         assert step_load is not None
+        if e.protocol.static is not None and not e.protocol.static.hammer:  # the static method alone
+            e.store.complete_step(self.series, self.run, step)
+            return step_load
         self._take_impacts(step, step_load)
         load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
         trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)

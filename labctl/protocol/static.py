@@ -17,7 +17,8 @@ StaticMethod = Literal["combined", "static"]
 NM_PER_MIN = 1e-9 / 60.0
 
 STATIC: dict[str, Spec] = {
-    "method": Text({"combined": "hammer and static at each step", "static": "static only"}, default="combined"),
+    "method": Text({"combined": "hammer and static at each step", "static": "static only, no hammer"},
+                   default="combined"),
     "reads": Integer(2, 100, default=5),
     "drift_nm_per_min": Number(ge=0, le=1e4, default=10.0),
 }

@@ -8,10 +8,12 @@ step (their difference over the quadrature of the two independent σ), and the s
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from labctl.engine.static import stored_static_curve
@@ -42,46 +44,51 @@ class MethodComparison:
                                                                         self.hammer_std_n_per_m)
 
     def spread(self, values: np.ndarray) -> np.ndarray:
-        """Per step: the repetitions' sample standard deviation."""
-        return np.nanstd(values, axis=1, ddof=1)
+        """Per step: the repetitions' sample standard deviation (NaN with fewer than two values)."""
+        finite = np.isfinite(values)
+        count = finite.sum(axis=1)
+        mean = np.where(finite, values, 0.0).sum(axis=1, keepdims=True) / np.maximum(count, 1)[:, None]
+        squares = np.where(finite, (values - mean) ** 2, 0.0).sum(axis=1)
+        return np.where(count >= 2, np.sqrt(squares / np.maximum(count - 1, 1)), np.nan)
 
     def upper_half_ratio(self) -> float:
         """Static over hammer spread over the upper half of the loads (root mean square of the steps' spreads)."""
         upper = self.load_n.mean(axis=1) >= np.median(self.load_n.mean(axis=1))
         s, h = self.spread(self.static_n_per_m)[upper], self.spread(self.hammer_n_per_m)[upper]
-        return float(np.sqrt(np.nanmean(s**2)) / np.sqrt(np.nanmean(h**2)))
+        s, h = s[np.isfinite(s)], h[np.isfinite(h)]
+        if not (s.size and h.size):
+            return float("nan")
+        return float(np.sqrt(np.mean(s**2)) / np.sqrt(np.mean(h**2)))
 
 
 def compare(path: str | Path) -> list[MethodComparison]:
-    """The series of a campaign that have static curves, with the hammer's results at the same steps."""
+    """The series of a campaign that have static curves, with the hammer's results at the same steps (NaN where
+    a step has none, as in a static-only campaign)."""
+    nan5 = (np.nan,) * 5
     out = []
     with CampaignReader(path) as reader:
         for series in reader.series_indices():
             rows: dict[int, dict[int, tuple[float, ...]]] = {}
             reps = []
-            for curve in reader.curves():
-                if curve.series != series:
-                    continue
-                static = {s.step: s for s in stored_static_curve(reader.run_attrs(series, curve.run))}
+            for info in reader.runs(series):
+                static = stored_static_curve(reader.run_attrs(series, info.run))
                 if not static:
                     continue
-                reps.append(curve.run)
-                for i, step in enumerate(curve.step.tolist()):
-                    st = static.get(step)
-                    if st is not None:
-                        rows.setdefault(step, {})[curve.run] = (
-                            float(curve.load_n[i]), float(curve.stiffness_n_per_m[i]),
-                            float(curve.stiffness_std_n_per_m[i]), st.stiffness_n_per_m, st.std_independent_n_per_m)
+                reps.append(info.run)
+                curve = reader.curve(series, info.run)
+                hammer = {} if curve is None else {
+                    int(n): (float(k), float(sd)) for n, k, sd in
+                    zip(curve.step, curve.stiffness_n_per_m, curve.stiffness_std_n_per_m, strict=True)}
+                for st in static:
+                    k, sd = hammer.get(st.step, (np.nan, np.nan))
+                    rows.setdefault(st.step, {})[info.run] = (st.load_n, k, sd, st.stiffness_n_per_m,
+                                                              st.std_independent_n_per_m)
             if not rows:
                 continue
             steps = sorted(rows)
-            table = np.full((len(steps), len(reps), 5), np.nan)
-            for a, step in enumerate(steps):
-                for b, run in enumerate(reps):
-                    if run in rows[step]:
-                        table[a, b] = rows[step][run]
-            out.append(MethodComparison(series, reader.specimen(series).label, np.array(steps), *np.moveaxis(table,
-                                                                                                              2, 0)))
+            table = np.array([[rows[step].get(run, nan5) for run in reps] for step in steps], dtype=float)
+            out.append(MethodComparison(series, reader.specimen(series).label, np.array(steps),
+                                        *np.moveaxis(table, 2, 0)))
     return out
 
 
@@ -90,20 +97,27 @@ def static_figure(comparisons: list[MethodComparison], simulated: bool) -> Figur
     fig = Figure(figsize=(10.0, 3.8 * len(comparisons) + 0.4), layout="constrained")
     axes = fig.subplots(len(comparisons), 2, squeeze=False)
     for (left, right), c in zip(axes, comparisons, strict=True):
+        _panels(left, right, c)
+    fig.suptitle(("SIMULATED — " if simulated else "") + "Static vs hammer stiffness (cf. Fig. 8, §2.5)")
+    return fig
+
+
+def _panels(left: Axes, right: Axes, c: MethodComparison) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a step no repetition identified is left blank
         load = np.nanmean(c.load_n, axis=1)
-        for values, name, marker, shift in ((c.hammer_n_per_m, "hammer impact", "o", -0.6),
-                                            (c.static_n_per_m, "static displacement", "s", 0.6)):
+        methods = [(c.hammer_n_per_m, "hammer impact", "o", -0.6), (c.static_n_per_m, "static displacement", "s", 0.6)]
+        for values, name, marker, shift in [m for m in methods if np.isfinite(m[0]).any()]:
             mean = np.nanmean(values, axis=1)
             err = np.array([mean - np.nanmin(values, axis=1), np.nanmax(values, axis=1) - mean]).clip(min=0)
             left.errorbar(load + shift, mean * N_PER_UM, yerr=err * N_PER_UM, fmt=marker, ms=4, capsize=3,
                           label=f"{name} (mean, min–max of {values.shape[1]})")
             right.plot(load, c.spread(values) * N_PER_UM, marker=marker, label=name)
         left.set(xlabel="load per roller (N)", ylabel="stiffness (N/µm)", title=c.label)
+        ratio = c.upper_half_ratio()
         right.set(xlabel="load per roller (N)", ylabel="spread over repetitions, σ (N/µm)",
-                  title=f"static / hammer spread, upper half: {c.upper_half_ratio():.1f}×")
+                  title=f"static / hammer spread, upper half: {ratio:.1f}×" if np.isfinite(ratio) else "static spread")
         left.legend(fontsize="small")
         right.legend(fontsize="small")
         left.grid(alpha=0.3)
         right.grid(alpha=0.3)
-    fig.suptitle(("SIMULATED — " if simulated else "") + "Static vs hammer stiffness (cf. Fig. 8, §2.5)")
-    return fig

@@ -310,6 +310,11 @@ class CampaignWriter:
         stg.attrs[s.COMPLETE] = True
         self.h5.flush()
 
+    def complete_step(self, series: int, run: int, step: int) -> None:
+        """Mark a step complete without a hammer result (a static-only step)."""
+        self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].attrs[s.COMPLETE] = True
+        self.h5.flush()
+
     def step_results(self, series: int, run: int) -> list[tuple[int, float, float, StepResult]]:
         """(step, load, knob angle, result) of a repetition's processed steps, in step order."""
         rg = self.h5[s.series_name(series)][s.run_name(run)]
