@@ -167,3 +167,16 @@ def test_static_only_campaign_takes_no_impacts(tmp_path: Path) -> None:
     from labctl.report.static_figure import static_figure
 
     assert static_figure([c], simulated=True).axes  # the figure draws the static method alone
+
+
+@pytest.mark.slow
+def test_acceptance_static_combined_on_the_twin(tmp_path: Path) -> None:
+    """Issue #29: the shipped combined protocol (type 1, Ra 0.2, 3 repetitions): the methods agree at every step
+    and repetition (|Δ| < 2 σ of the difference) and the static spread over the upper half of the loads is at
+    least twice the hammer's — from the sensor's noise and drift and the load noise in the slope."""
+    out = tmp_path / "c.h5"
+    assert run_campaign(ROOT / "protocols" / "static_combined.toml", out=out, seed=1).status == "complete"
+    (c,) = compare(out)
+    assert c.hammer_n_per_m.shape[1] == 3 and c.step.size >= 10
+    assert np.max(np.abs(c.z)) < 2.0
+    assert c.upper_half_ratio() >= 2.0
