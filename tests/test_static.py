@@ -180,3 +180,27 @@ def test_acceptance_static_combined_on_the_twin(tmp_path: Path) -> None:
     assert c.hammer_n_per_m.shape[1] == 3 and c.step.size >= 10
     assert np.max(np.abs(c.z)) < 2.0
     assert c.upper_half_ratio() >= 2.0
+
+
+def test_resumed_campaign_keeps_the_static_readings(tmp_path: Path) -> None:
+    from labctl import events as ev
+    from labctl.engine import RunControl
+    from labctl.storage.reader import CampaignReader
+
+    proto = tmp_path / "p.toml"
+    proto.write_text(SMALL + "[static]\n", encoding="utf-8")
+    out, control = tmp_path / "c.h5", RunControl()
+
+    def stop_after_step_2(event: ev.Event) -> None:
+        if isinstance(event, ev.StepProcessed) and event.position.step == 2:
+            control.stop()
+
+    assert run_campaign(proto, out=out, seed=4, control=control, subscribers=[stop_after_step_2]).status != "complete"
+    with CampaignReader(out) as reader:
+        before = {st.step: st.attrs["static_displacement_m"] for st in reader.runs(1)[0].steps}
+    assert run_campaign(proto, out=out, resume=True).status == "complete"
+    (c,) = compare(out)
+    assert np.all(np.isfinite(c.static_n_per_m))
+    with CampaignReader(out) as reader:
+        after = {st.step: st.attrs["static_displacement_m"] for st in reader.runs(1)[0].steps}
+    assert {k: after[k] for k in before} == before
