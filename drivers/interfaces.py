@@ -103,6 +103,14 @@ class LoadCell(Instrument, Protocol):
 
 
 @runtime_checkable
+class DisplacementSensor(Instrument, Protocol):
+    """The upper disc's displacement towards the lower one (m, positive closing), a DC average over the sensor's
+    window: what the static load–displacement method reads at each load step."""
+
+    def read(self) -> float: ...
+
+
+@runtime_checkable
 class LoadActuator(Instrument, Protocol):
     """Turns all star knobs together; ``knob_angle_deg`` is the total turned since the preload."""
 
@@ -199,3 +207,4 @@ class Rig:
     backend: str = "sim"
     description: dict[str, str] = field(default_factory=dict)
     clock: Clock = field(default_factory=SystemClock)  # real time unless the backend keeps its own
+    displacement: DisplacementSensor | None = None  # only rigs that run the static method have one

@@ -11,10 +11,11 @@ from pathlib import Path
 
 from drivers.interfaces import Operator, Rig
 from drivers.sim import FaultSettings, RigTwin, SimSettings, build_sim_rig
+from drivers.sim.displacement import SimDisplacementSensor
 from labctl.errors import InputError
 from labctl.physics.contact import swing_stiffness_n_per_m
 from labctl.physics.effects import ContactCase
-from labctl.physics.rig import rig_modes
+from labctl.physics.rig import rig_modes, roller_path_stiffness
 from labctl.physics.rig_config import RigConfig, load_rig
 from labctl.physics.world import World, load_world
 
@@ -47,7 +48,9 @@ def make_rig(
         "specimen": _specimen(case),
         "rail_ra_um": f"{case.rail_ra_m * 1e6:g}",
     }
-    return build_sim_rig(twin, operator, description)
+    built = build_sim_rig(twin, operator, description)
+    built.displacement = SimDisplacementSensor(twin, roller_path_stiffness)  # read only by static protocols
+    return built
 
 
 def make_twin(world: World, case: ContactCase, rig: RigConfig, *, seed: int | None = None) -> RigTwin:

@@ -29,6 +29,7 @@ from labctl.errors import InputError, LabctlError
 
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
+OPTIONAL_SECTIONS = ("displacement",)  # the static method's sensor (docs/static.md)
 ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # docs/contracts.md: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
 EXAMPLE = "the output of 'labctl devices example'"
 
@@ -90,17 +91,22 @@ def load_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
     path = find_devices_file(devices)
     top = Where(str(path))
     doc = read_toml(path)
-    check_keys(doc, SECTIONS, top)
+    check_keys(doc, SECTIONS + OPTIONAL_SECTIONS, top)
     missing = [s for s in SECTIONS if s not in doc]
     if missing:
         raise top.problem(f"missing section(s) [{'], ['.join(missing)}]; see {EXAMPLE}")
-    tables = read(doc, dict.fromkeys(SECTIONS, Table()), top)
-    return {
+    tables = read(doc, dict.fromkeys(SECTIONS, Table()), top, unknown_ok=True)
+    specs = {
         "load_cell": _load_cell(tables["load_cell"], top.at("load_cell")),
         "daq": _daq(tables["daq"], top.at("daq"), usb_backend, nidaqmx_module),
         "hammer": _hammer(tables["hammer"], top.at("hammer")),
         "actuator": _actuator(tables["actuator"], top.at("actuator")),
     }
+    if "displacement" in doc:
+        where = top.at("displacement")
+        specs["displacement"] = _displacement(value(doc, "displacement", Table(), top), where, usb_backend,
+                                              nidaqmx_module)
+    return specs
 
 
 def make_hw_rig(devices: str | Path | None, operator: Operator | None = None, *, usb_backend: Any = None,
@@ -115,7 +121,7 @@ def make_hw_rig(devices: str | Path | None, operator: Operator | None = None, *,
     description = {"devices": str(find_devices_file(devices)),
                    **{role: f"{spec.kind} {spec.address}" for role, spec in specs.items()}}
     return Rig(daq=built["daq"], hammer=built["hammer"], load_cell=built["load_cell"], actuator=built["actuator"],
-               operator=operator, backend="hw", description=description)
+               operator=operator, backend="hw", description=description, displacement=built.get("displacement"))
 
 
 def check_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
@@ -264,6 +270,34 @@ def _channel(row: dict[str, Any], where: Where, daq_kind: str, conditioner_gain:
     sensitivity = t[sens_key] * MV / per_unit * conditioner_gain
     channel = Channel(name, kind, "N" if force else "m/s^2", sensitivity, t[range_key] * per_unit)
     return InputWiring(channel, str(t["input"]), t.get("adc_range_v"))
+
+
+DISPLACEMENT: dict[str, Spec] = {
+    "type": Text(("nidaqmx", "mcc_usb")), "input": Text(), "sensitivity_um_per_v": Number(gt=0),
+    "range_v": Number(gt=0, le=10, default=10.0), "window_ms": Number(gt=0, unit="ms", default=100.0),
+    "sample_rate_hz": Number(gt=0, le=100e3, default=1000.0), "serial": Text(default=""),
+}
+
+
+def _displacement(t: dict[str, Any], where: Where, usb_backend: Any, nidaqmx_module: Any) -> DeviceSpec:
+    """The static method's sensor: a conditioner's voltage on an NI terminal or an MCC input (``input = "3"``)."""
+    from drivers.hw.displacement import DaqDisplacementSensor, MccVoltageWindow, NiVoltageWindow
+
+    o = read(t, DISPLACEMENT, where)
+    kind, terminal = o["type"], o["input"]
+
+    def reader() -> Any:
+        if kind == "nidaqmx":
+            return NiVoltageWindow(terminal, range_v=o["range_v"], nidaqmx_module=nidaqmx_module)
+        return MccVoltageWindow(int(terminal), range_v=o["range_v"], serial=o["serial"] or None, backend=usb_backend)
+
+    try:
+        reader()
+    except ValueError as exc:
+        raise where.problem(f"input = {terminal!r}: {exc}") from None
+    return DeviceSpec("displacement", kind, terminal, lambda _op: DaqDisplacementSensor(
+        reader(), sensitivity_um_per_v=o["sensitivity_um_per_v"], window_s=o["window_s"],
+        sample_rate_hz=o["sample_rate_hz"]))
 
 
 def _hammer(t: dict[str, Any], where: Where) -> DeviceSpec:

@@ -40,6 +40,7 @@ class RigLike(Protocol):
     loading: LoadingLike
     hammer_xy_m: tuple[float, float]
     flexible_modes: Sequence[FlexibleModeLike]
+    setup_stiffness_n_per_m: float  # K_setup: the rig's own deflection, which the displacement sensor reads too
 
     @property
     def channels(self) -> tuple[str, ...]: ...

@@ -22,6 +22,7 @@ from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
 from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
 from labctl.engine.runlog import RunLog
+from labctl.engine.static import open_sensor, store_static_curve
 from labctl.engine.steps import Interlock, StepProcessor, StepRunner
 from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
@@ -179,6 +180,7 @@ class Engine:
                                ("actuator", rig.actuator)):
                 self.call(f"{what} (open)", inst.__enter__)
                 stack.callback(inst.__exit__, None, None, None)
+            open_sensor(self, rig, stack)
             acq = self.protocol.acquisition
             fs = self.call("daq", rig.daq.configure, acq.sample_rate_hz, acq.samples)
             if abs(fs - acq.sample_rate_hz) > RATE_TOLERANCE * acq.sample_rate_hz:
@@ -227,6 +229,7 @@ class Engine:
         if self.advisor is not None:
             step = self._added_steps(steps, series, run, spec, step)
         held = [steps.rows.get(n) for n in range(1, step + 1)]
+        store_static_curve(self, series, run, step)
         return self._store_curve(series, run, spec, None if None in held else held)  # type: ignore[arg-type]
 
     def _added_steps(self, steps: StepRunner, series: int, run: int, spec: SpecimenSpec, base_steps: int) -> int:

@@ -17,6 +17,7 @@ from drivers.interfaces import REVIEW_CHOICES, ImpactReview, Record, Rig
 from labctl import events as ev
 from labctl.engine.conditions import Condition, SafePoint, Trip, Where
 from labctl.engine.control import RunControl
+from labctl.engine.static import static_reading
 from labctl.errors import LabctlError
 from labctl.physics.rig_config import RigConfig
 from labctl.processing import CheckConfig
@@ -148,9 +149,12 @@ class StepRunner:
         if e.store.step_load(self.series, self.run, step) is None:
             e.store.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
-                "load_stable": stable, "expected_load_n": expected, **(attrs or {})})
+                "load_stable": stable, "expected_load_n": expected, **static_reading(self, pos), **(attrs or {})})
         step_load = e.store.step_load(self.series, self.run, step)
         assert step_load is not None
+        if e.protocol.static is not None and not e.protocol.static.hammer:  # the static method alone
+            e.store.complete_step(self.series, self.run, step)
+            return step_load
         self._take_impacts(step, step_load)
         load_after, _ = self.read_load_once(pos)  # no waiting for stability: drift shows as it is
         trips = self.safe_point("after_step", pos, load_n=load_after, step_load_n=step_load)

@@ -28,6 +28,14 @@ def roller_path_stiffness(roller_stiffness_n_per_m: ArrayLike, setup_stiffness_n
     return 1.0 / (1.0 / k + 3.0 / setup_stiffness_n_per_m)
 
 
+def roller_stiffness_from_path(path_stiffness_n_per_m: ArrayLike, setup_stiffness_n_per_m: float) -> np.ndarray:
+    """The inverse of ``roller_path_stiffness``: a roller path's stiffness (a static slope dP/dδ per roller) with
+    its share of the setup compliance removed, 1/k = 1/k_path − 3/K_setup; NaN where nothing is left."""
+    remaining = 1.0 / np.asarray(path_stiffness_n_per_m, dtype=float) - 3.0 / setup_stiffness_n_per_m
+    with np.errstate(divide="ignore"):
+        return np.where(remaining > 0, 1.0 / np.where(remaining > 0, remaining, 1.0), np.nan)
+
+
 def apparent_roller_stiffness(
     roller_stiffness_n_per_m: ArrayLike, true_setup_n_per_m: float, assumed_setup_n_per_m: float
 ) -> np.ndarray:

@@ -8,6 +8,7 @@ from typing import Literal
 from labctl.data.units import UM
 from labctl.physics import ContactCase, Roller, material, roller, static_load_rating_n
 from labctl.processing import CheckConfig
+from labctl.protocol.static import StaticSpec
 
 SpecimenKind = Literal["roller", "ball"]
 
@@ -110,6 +111,7 @@ class Protocol:
     checks: CheckConfig = field(default_factory=CheckConfig)
     source_path: str = ""
     source_text: str = ""
+    static: StaticSpec | None = None  # the static load–displacement method (§2.5), when the protocol asks for it
 
     @property
     def duration_s(self) -> float:

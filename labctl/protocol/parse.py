@@ -37,8 +37,10 @@ from labctl.protocol.model import (
     SpecimenSpec,
     c0_cap_n,
 )
+from labctl.protocol.static import parse_static
 
 TOP_KEYS = {"protocol", "specimen", "specimens", "loading", "acquisition", "repetitions", "checks"}
+TOP_KEYS |= {"static"}  # the static load–displacement method (labctl.protocol.static)
 HEAD = {"name": Text(default=None), "description": Text(default=""), "version": Anything(default=None)}
 LOADING: dict[str, Spec] = {
     "knob_step_deg": Number(gt=0, le=3600),
@@ -176,6 +178,7 @@ def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
         checks=checks,
         source_path=path,
         source_text=text,
+        static=parse_static(doc, top),
     )
 
 

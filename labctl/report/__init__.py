@@ -48,6 +48,14 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     for plot in make_figures(data):
         png, svg = save(plot, folder)
         written.append((plot.name, plot.title, png, svg))
+    from labctl.report.figures import Plot
+    from labctl.report.static_figure import compare, static_figure
+
+    methods = compare(path)  # a combined campaign: the static method against the hammer (§2.5)
+    if methods:
+        plot = Plot("fig08_static_vs_hammer", "Static vs hammer stiffness (cf. Fig. 8, §2.5)",
+                    static_figure(methods, is_simulated(data)))
+        written.append((plot.name, plot.title, *save(plot, folder)))
     points = campaign_stiffness_points(path)
     csv = folder / "stiffness.csv" if points else None
     if csv is not None:

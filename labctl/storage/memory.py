@@ -31,9 +31,11 @@ class _Step:
     impacts: dict[int, ImpactRecord] = field(default_factory=dict)
     result: StepResult | None = None
 
+    static_only: bool = False  # completed without a hammer result (the static method alone)
+
     @property
     def complete(self) -> bool:
-        return self.result is not None
+        return self.result is not None or self.static_only
 
 
 @dataclass
@@ -144,6 +146,11 @@ class MemoryStore:
         st.result = result
         if result.error:
             st.attrs["failed"] = result.error
+
+    def complete_step(self, series: int, run: int, step: int) -> None:
+        st = self._step(series, run, step)
+        assert st is not None, f"step {series}/{run}/{step} was never created"
+        st.static_only = True
 
     def step_results(self, series: int, run: int) -> list[StepRow]:
         r = self._series[series].runs[run]

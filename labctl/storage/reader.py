@@ -274,6 +274,10 @@ class CampaignReader:
             out.append(run)
         return out
 
+    def run_attrs(self, series: int, run: int) -> dict[str, Any]:
+        """A repetition's attributes (e.g. its stored static stiffness curve)."""
+        return attrs_of(self.h5[s.series_name(series)][s.run_name(run)])
+
     def step_count(self) -> int:
         return sum(1 for _ in s.all_steps(self.h5))
 

@@ -226,6 +226,11 @@ class CampaignWriter:
         _attrs(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)], attrs)
         self.h5.flush()
 
+    def step_attrs(self, series: int, run: int, step: int) -> dict[str, Any]:
+        """A stored step's attributes (empty when the step is not stored)."""
+        g = self._step_group(series, run, step)
+        return {} if g is None else attrs_of(g)
+
     def impact_infos(self, series: int, run: int, step: int) -> list[ImpactInfo]:
         g = self._step_group(series, run, step)
         return [] if g is None else [impact_info(ig) for ig in complete_impacts(g)]
@@ -303,6 +308,11 @@ class CampaignWriter:
             stg.attrs["failed"] = result.error
         g.attrs[s.COMPLETE] = True
         stg.attrs[s.COMPLETE] = True
+        self.h5.flush()
+
+    def complete_step(self, series: int, run: int, step: int) -> None:
+        """Mark a step complete without a hammer result (a static-only step)."""
+        self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].attrs[s.COMPLETE] = True
         self.h5.flush()
 
     def step_results(self, series: int, run: int) -> list[tuple[int, float, float, StepResult]]:
