@@ -24,7 +24,7 @@ from labctl.engine.steps import calibration_of
 from labctl.protocol import load_protocol
 from labctl.recording import check_record
 from labctl.storage import CampaignWriter
-from labctl.storage.records import SpecimenRecord
+from labctl.storage.specimen import SpecimenRecord
 
 
 def records(n: int) -> tuple[list, object]:

@@ -108,7 +108,7 @@ def test_a_file_that_is_no_campaign_is_a_one_line_error(tmp_path):
 def _campaign(path, points, rig_text):
     """A campaign file holding only processed step results (as the engine stores them) and its rig."""
     from labctl.storage import CampaignWriter, StepResult
-    from labctl.storage.records import SpecimenRecord
+    from labctl.storage.specimen import SpecimenRecord
 
     types = sorted({p.roller_type for p in points})
     with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=1, config_files={"rig.toml": rig_text},

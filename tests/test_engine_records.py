@@ -8,7 +8,8 @@ import pytest
 
 from labctl.recording import check_record, process_step
 from labctl.storage import CampaignReader, CampaignWriter, ImpactRecord
-from labctl.storage.records import Calibration, CheckSummary, ImpactInfo, SpecimenRecord, Verdict
+from labctl.storage.records import Calibration, CheckSummary, ImpactInfo, Verdict
+from labctl.storage.specimen import SpecimenRecord
 from tests.engine_util import run_engine, short_protocol
 
 

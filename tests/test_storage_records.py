@@ -17,11 +17,11 @@ from labctl.storage.records import (
     ImpactOutcome,
     ImpactRecord,
     ModeResult,
-    SpecimenRecord,
     StepFrf,
     Verdict,
 )
 from labctl.storage.runlog import summarize
+from labctl.storage.specimen import SpecimenRecord
 from tests.cli_util import assert_one_line_error, labctl_here, labctl_here_json
 
 V1 = Path(__file__).parent / "fixtures" / "campaign_v1.h5"  # written by labctl's schema-1 writer (see its toml)

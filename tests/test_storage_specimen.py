@@ -12,7 +12,7 @@ from labctl.engine.sequencer import specimen_record
 from labctl.protocol import parse_protocol
 from labctl.storage import CampaignReader, CampaignWriter
 from labctl.storage.memory import MemoryStore
-from labctl.storage.records import SpecimenRecord
+from labctl.storage.specimen import SpecimenRecord
 
 V1 = Path(__file__).parent / "fixtures" / "campaign_v1.h5"  # written by an earlier labctl (schema 1)
 

@@ -18,8 +18,9 @@ from typing import Any
 
 from labctl.archive.source import CampaignRecord, read_campaign, root_sha256
 from labctl.errors import InputError
-from labctl.storage.records import SpecimenRecord, result_from_mapping
+from labctl.storage.records import result_from_mapping
 from labctl.storage.results import read_results, results_path
+from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.writer import utc_now
 
 SCHEMA_VERSION = 2  # 2: the specimen's conditions (lubrication, orientation, measured roughness and form)

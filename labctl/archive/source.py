@@ -16,8 +16,8 @@ from labctl.physics.rig_config import DEFAULT_RIG
 from labctl.reprocess import process_campaign, rig_of
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import CampaignReader, result_summary
-from labctl.storage.records import SpecimenRecord
 from labctl.storage.results import attrs_sha256
+from labctl.storage.specimen import SpecimenRecord
 
 
 @dataclass(frozen=True)

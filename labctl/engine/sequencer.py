@@ -29,7 +29,8 @@ from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 from labctl.recording import process_step
-from labctl.storage.records import RepetitionCurve, SpecimenRecord
+from labctl.storage.records import RepetitionCurve
+from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.store import CampaignStore, StepRow
 
 RigFactory = Callable[[SpecimenSpec, int], Rig]

@@ -16,12 +16,12 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
-    SpecimenRecord,
     StepResult,
     Verdict,
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry
+from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.store import StepRow, StepStamp, first_impact_s
 
 

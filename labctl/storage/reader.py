@@ -25,7 +25,6 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
-    SpecimenRecord,
     StepFrf,
     StepResult,
     Verdict,
@@ -34,6 +33,7 @@ from labctl.storage.records import (
     result_from_mapping,
 )
 from labctl.storage.runlog import LogEntry, read_entries
+from labctl.storage.specimen import SpecimenRecord
 
 OPERATOR_REASONS = ("operator_accepted", "operator_rejected")
 

@@ -13,8 +13,9 @@ from datetime import datetime
 from typing import Any, Protocol, runtime_checkable
 
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage.records import ImpactInfo, ImpactRecord, RepetitionCurve, SpecimenRecord, StepResult, Verdict
+from labctl.storage.records import ImpactInfo, ImpactRecord, RepetitionCurve, StepResult, Verdict
 from labctl.storage.runlog import LogEntry
+from labctl.storage.specimen import SpecimenRecord
 
 
 @dataclass(frozen=True)

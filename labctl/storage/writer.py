@@ -26,12 +26,12 @@ from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
     RepetitionCurve,
-    SpecimenRecord,
     StepResult,
     Verdict,
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
+from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.store import StepRow, StepStamp, first_impact_s
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.storage import CampaignReader
-from labctl.storage.records import SpecimenRecord
+from labctl.storage.specimen import SpecimenRecord
 from labctl.uff import mapping as m
 from labctl.uff.manifest import MANIFEST_COLUMNS, format_load_cases
 
