@@ -312,7 +312,8 @@ def solve_rollers(
             joint = np.vstack([np.column_stack([log_eq, a0 * circle]),
                                np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
             ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
-            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
+            tries = [_gauss_newton(residuals, best_try[0], max_iter=JOINT_ITER),
+                     *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
             best_try = min(tries, key=cost)
         u, jac_all = best_try
         jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
