@@ -24,6 +24,7 @@ from scipy.special import ndtri
 from labctl.errors import ModelDomainError
 from labctl.physics import RigConfig
 from labctl.physics.rig import ContactModeModel, contact_modes_hz, point_displacement
+from labctl.processing.cross_axis import cross_axis_variance
 from labctl.processing.search import ContactModes
 from labctl.processing.stiffness import Stiffness
 
@@ -92,38 +93,6 @@ def _build_sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
         for ch, row in zip(s.channels, cols, strict=True):
             by_channel[ch] = row
     return np.array([by_channel[c] for c in names])
-
-
-def _cross_axis_std(rig: RigConfig, names: Sequence[str]) -> dict[str, tuple[float, tuple[str, str]]]:
-    """Per channel: the 1-σ of its coupling to each of its sensor's two other axes, and their channel names.
-
-    A transverse sensitivity T (the sensor class's data-sheet maximum, at an unknown angle) and a mounting turn
-    θ (about an unknown axis) each give a perpendicular axis a coefficient of RMS T/√2 and sin θ/√2."""
-    u = rig.uncertainty
-    out: dict[str, tuple[float, tuple[str, str]]] = {}
-    for s in rig.sensors:
-        t = u.transverse_sensitivity if s.transverse_sensitivity is None else s.transverse_sensitivity
-        theta = u.mounting_angle_rad if s.mounting_angle_rad is None else s.mounting_angle_rad
-        sigma = math.hypot(t, math.sin(theta)) / math.sqrt(2.0)
-        chans = s.channels
-        for i, ch in enumerate(chans):
-            if ch in names:
-                out[ch] = (sigma, (chans[(i + 1) % 3], chans[(i + 2) % 3]))
-    return out
-
-
-def cross_axis_variance(rig: RigConfig, names: Sequence[str], constants: np.ndarray) -> np.ndarray:
-    """(m, n_ch) variance each channel's modal constant gets from its sensor's cross-axis coupling: the other
-    axes' constants of the same mode times the coupling's σ (systematic: the impacts do not average it)."""
-    info = _cross_axis_std(rig, names)
-    index = {c: i for i, c in enumerate(names)}
-    out = np.zeros_like(constants, dtype=float)
-    for c, (sigma, others) in info.items():
-        j = index[c]
-        for o in others:
-            if o in index:
-                out[:, j] += (sigma * constants[:, index[o]]) ** 2
-    return out
 
 
 def _tilt_basis(model: ContactModeModel, sensors: np.ndarray, k: float) -> np.ndarray:
@@ -312,7 +281,8 @@ def solve_rollers(
             joint = np.vstack([np.column_stack([log_eq, a0 * circle]),
                                np.column_stack([0.5 * (starts + log_eq), 0.5 * a0 * circle])])
             ranked = np.argsort(np.sum(residuals(joint) ** 2, axis=1))[:JOINT_DESCENTS]
-            tries = [best_try, *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
+            tries = [_gauss_newton(residuals, best_try[0], max_iter=JOINT_ITER),
+                     *(_gauss_newton(residuals, joint[i], max_iter=JOINT_ITER) for i in ranked)]
             best_try = min(tries, key=cost)
         u, jac_all = best_try
         jac = jac_all[:-2, :3]  # symmetric discs: the data's rows, the rollers' columns
