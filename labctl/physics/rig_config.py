@@ -11,6 +11,7 @@ import numpy as np
 
 from labctl.data import data_path, read_toml
 from labctl.data.schema import Integer, Number, Numbers, Spec, Table, Tables, Text, Where, build, parse_toml, read
+from labctl.physics.springs import SpringCurve
 
 DEFAULT_RIG = "rigs/paper_rig.toml"
 AXES = ("X", "Y", "Z")
@@ -91,6 +92,7 @@ class RigConfig:
     source: str = ""
     uncertainty: RigUncertainty = RigUncertainty()
     calibration: dict[str, Any] = field(default_factory=dict)  # provenance of a calibrated rig (empty: nominal)
+    springs: SpringCurve | None = None  # the characterised knob-angle → load curve (``[springs]``), if measured
 
     @property
     def contact_xy_m(self) -> np.ndarray:
@@ -134,6 +136,12 @@ LOADING: dict[str, Spec] = {"rods": Integer(ge=1), "thread_pitch_mm": Number(gt=
                             "spring_rate_n_per_m": _POSITIVE, "gravity_m_per_s2": _POSITIVE}
 UNCERTAINTY: dict[str, Spec] = {"mass_std_kg": Number(ge=0), "setup_stiffness_std_n_per_m": Number(ge=0),
                                 "mass_setup_correlation": Number(ge=-1, le=1), "model_rel": Number(ge=0)}
+SPRINGS: dict[str, Spec] = {
+    "preload_n": Number(ge=0), "rate_n_per_deg": _POSITIVE, "curvature_n_per_deg2": Number(),
+    "hysteresis_n": Number(ge=0), "slack_deg": Number(ge=0), "preload_std_n": Number(ge=0),
+    "residual_std_n": Number(ge=0), "covariance": Numbers(Number(), 16), "max_angle_deg": _POSITIVE,
+    "source": Text(default=""),
+}
 POINT: dict[str, Spec] = {"radius_mm": Number(ge=0, unit="mm"), "angle_deg": Number(unit="deg")}
 SENSOR: dict[str, Spec] = {"name": Text(), "disc": Text(("upper", "lower")), **POINT}
 FLEXIBLE_MODE: dict[str, Spec] = {"frequency_hz": _POSITIVE, "damping_ratio": _POSITIVE, "modal_mass_kg": _POSITIVE,
@@ -142,7 +150,7 @@ TOP: dict[str, Spec] = {
     "name": Text(default=None), "description": Text(default=None), "upper_disc": Table(), "lower_disc": Table(),
     "contacts": Table(), "uncertainty": Table(default={}), "support": Table(), "damping": Table(),
     "loading": Table(), "hammer": Table(), "sensors": Tables(), "flexible_modes": Tables(default=[]),
-    "calibration": Table(default={}),
+    "calibration": Table(default={}), "springs": Table(default=None),
 }
 
 
@@ -205,4 +213,5 @@ def rig_from_doc(doc: dict[str, Any], p: str) -> RigConfig:
         source=p,
         uncertainty=build(RigUncertainty, t["uncertainty"], UNCERTAINTY, top.at("uncertainty")),
         calibration=dict(t["calibration"]),
+        springs=None if t.get("springs") is None else build(SpringCurve, t["springs"], SPRINGS, top.at("springs")),
     )

@@ -122,6 +122,8 @@ def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
     """Validate protocol TOML text."""
     doc = parse_toml(text, path)
     top = Where(path)
+    if "characterisation" in doc:
+        raise top.problem("a spring characterisation protocol: run it with `labctl springs characterise`")
     check_keys(doc, TOP_KEYS, top)
     head = read(value(doc, "protocol", Table(default={}), top), HEAD, top.at("protocol"))
     loading = build(LoadingSpec, value(doc, "loading", Table(default={}), top), LOADING, top.at("loading"))
