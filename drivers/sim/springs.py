@@ -4,8 +4,9 @@ Each rod compresses its spring pair by ``pitch × (angle − slack) / 360`` once
 of the first turn. The pair's force is ``k x (1 + c x / x_ref)`` (a mild progressive nonlinearity, ``c`` at
 ``x_ref``), and friction in the thread and the spring seats makes a hysteresis band of width ``h``: the force
 follows a play operator, so after a reversal it stays put until the knob has crossed the band. Rods differ:
-each rod's rate, slack and band are drawn once per twin from the nominal rig-file rate (the rig is built once;
-re-seating the rollers does not change its springs). The load per roller is the sum over rods shared by the
+each rod's rate, slack and band are drawn from the nominal rig-file rate with the world's own spring seed (the
+rig is built once: every run of a world, whatever its seed, has the same springs; re-seating does not change
+them). The load per roller is the sum over rods shared by the
 rollers; the twin adds the preload (the upper disc's weight). Loading from zero, each rod sits on the lower
 edge of its band (``f0 − h/2``); unloading, on the upper edge.
 """
@@ -36,7 +37,7 @@ class SpringStacks:
     def __init__(self, rods: int, rate_n_per_m: float, pitch_m: float, rollers: int, *, seed: int,
                  scale: float = 1.0, imperfections: SpringImperfections | None = None) -> None:
         imp = imperfections or SpringImperfections()
-        rng = np.random.default_rng([seed, 0x5B1]) if seed is not None else np.random.default_rng()
+        rng = np.random.default_rng([seed, 0x5B1])
         self.pitch_m, self.rollers = pitch_m, rollers
         self.rates = rate_n_per_m * (1.0 + scale * imp.rate_spread * rng.standard_normal(rods))
         self.slack_deg = scale * rng.uniform(imp.slack_min_deg, imp.slack_max_deg, rods)

@@ -92,7 +92,8 @@ class RigTwin:
         self.rollers: list[SeatedRoller] = self._seat()
         lo = rig.loading
         self.springs: SpringStacks | None = (  # None: the rig file's linear nominal springs
-            SpringStacks(lo.rods, lo.spring_rate_n_per_m, lo.thread_pitch_m, rig.roller_count, seed=self.seed,
+            SpringStacks(lo.rods, lo.spring_rate_n_per_m, lo.thread_pitch_m, rig.roller_count,
+                         seed=self.settings.spring_stack_seed,
                          scale=self.settings.spring_imperfection) if self.settings.spring_imperfection > 0 else None)
 
     # --- loading -------------------------------------------------------------------------------------

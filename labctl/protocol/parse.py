@@ -46,6 +46,7 @@ LOADING: dict[str, Spec] = {
     "settle_timeout_s": Number(gt=0),
     "settle_poll_s": Number(ge=0),
     "load_tolerance_fraction": Number(gt=0, le=1),
+    "load_source": Text(("load_cell", "springs")),
 }
 REPETITIONS: dict[str, Spec] = {"count": Integer(1, 1000), "rotate_rollers_deg": Number(ge=0, le=180)}
 SPECIMEN_KEYS = {"kind", "label", "roller_type", "ball_diameter_mm", "ball_material", "rail_material", "rail_ra_um",
