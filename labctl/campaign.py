@@ -177,7 +177,9 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
             from labctl.hardware import find_devices_file, load_devices
 
             devices = find_devices_file(devices)
-            load_devices(devices)
+            if load_devices(devices)["load_cell"].kind == "none" and proto.loading.load_source != "springs":
+                raise InputError(f"{devices}: no [load_cell]: a rig without one runs only protocols with [loading] "
+                                 f"load_source = \"springs\" ({proto.source_path} reads a load cell)")
     except BaseException:
         if resume:
             writer.close()

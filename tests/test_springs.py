@@ -195,3 +195,24 @@ def test_cli_characterise_fit_and_a_springs_campaign_file(tmp_path, capsys):
     assert points and all(0 < p.load_std_n < 2.0 for p in points)
     assert main(["springs", "fit", str(out)]) == 2
     assert "not a spring characterisation file" in capsys.readouterr().err
+
+
+def test_a_devices_file_without_a_load_cell_runs_springs_campaigns_only(tmp_path):
+    import re
+
+    from drivers.errors import DeviceError
+    from labctl.campaign import run_campaign
+    from labctl.hardware import load_devices
+
+    example = Path("labctl/data/devices.example.toml").read_text(encoding="utf-8")
+    devices = tmp_path / "devices.toml"
+    devices.write_text(re.sub(r"\[load_cell\].*?\n\n", "", example, count=1, flags=re.S), encoding="utf-8")
+    specs = load_devices(devices)
+    assert specs["load_cell"].kind == "none"
+    cell = specs["load_cell"].build(None)
+    with pytest.raises(DeviceError, match="no \\[load_cell\\]"):
+        cell.read()
+    out = tmp_path / "c.h5"
+    with pytest.raises(InputError, match="no \\[load_cell\\]"):
+        run_campaign(parse_protocol(PROTOCOL.format(extra=""), "p.toml"), out=out, backend="hw", devices=devices)
+    assert not out.exists()
