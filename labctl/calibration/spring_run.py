@@ -22,8 +22,8 @@ from drivers.interfaces import Rig
 from labctl.calibration.springs import SpringData
 from labctl.data.schema import Flag, Integer, Number, Spec, Table, Text, Where, check_keys, parse_toml, read, value
 from labctl.errors import InputError
+from labctl.storage.springs import read_spring_file, write_spring_file
 
-KIND = "spring_characterisation"
 HEAD: dict[str, Spec] = {"name": Text(default="spring_characterisation"), "description": Text(default=""),
                          "version": Integer(default=1)}
 CHARACTERISATION: dict[str, Spec] = {
@@ -112,32 +112,12 @@ def characterise(rig: Rig, proto: SpringProtocol, rollers: int, source: str = ""
 
 def write_characterisation(path: str | Path, data: SpringData, proto: SpringProtocol, rig_text: str,
                            description: dict[str, Any]) -> None:
-    """Store a characterisation's readings; never overwrites an existing file."""
-    import h5py
-
-    p = Path(path)
-    if p.exists():
-        raise InputError(f"{p}: exists; a characterisation never overwrites a file (choose another --out)")
-    with h5py.File(p, "x") as f:
-        f.attrs.update({"kind": KIND, "protocol_text": proto.source_text, "rig_text": rig_text,
-                        "backend": json.dumps(description)})
-        for name in ("angle_deg", "load_n", "direction"):
-            f.create_dataset(name, data=getattr(data, name))
+    """Store a characterisation's readings with its protocol and rig text; never overwrites an existing file."""
+    write_spring_file(path, {"angle_deg": data.angle_deg, "load_n": data.load_n, "direction": data.direction},
+                      {"protocol_text": proto.source_text, "rig_text": rig_text, "backend": json.dumps(description)})
 
 
 def read_characterisation(path: str | Path) -> tuple[SpringData, str]:
     """The readings of a characterisation file and the rig text stored with them."""
-    import h5py
-
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: spring characterisation file not found")
-    try:
-        with h5py.File(p, "r") as f:
-            if f.attrs.get("kind") != KIND:
-                raise InputError(f"{p}: not a spring characterisation file (kind {f.attrs.get('kind')!r}, "
-                                 f"expected {KIND!r})")
-            data = SpringData(f["angle_deg"][()], f["load_n"][()], f["direction"][()], str(p))
-            return data, str(f.attrs["rig_text"])
-    except OSError as exc:
-        raise InputError(f"{p}: cannot read as HDF5 ({exc})") from None
+    arrays, attrs = read_spring_file(path)
+    return SpringData(arrays["angle_deg"], arrays["load_n"], arrays["direction"], str(path)), attrs["rig_text"]
