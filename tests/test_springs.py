@@ -216,3 +216,18 @@ def test_a_devices_file_without_a_load_cell_runs_springs_campaigns_only(tmp_path
     with pytest.raises(InputError, match="no \\[load_cell\\]"):
         run_campaign(parse_protocol(PROTOCOL.format(extra=""), "p.toml"), out=out, backend="hw", devices=devices)
     assert not out.exists()
+
+
+def test_the_report_shows_the_spring_loads_sigma(tmp_path, curve):
+    from labctl.campaign import run_campaign
+    from labctl.report import build_report
+
+    rig = tmp_path / "rig.toml"
+    rig.write_text(rig_text_with_springs(PAPER_RIG, "rig.toml", curve, "s.h5"), encoding="utf-8")
+    proto = parse_protocol(PROTOCOL.format(extra='load_source = "springs"').replace("count = 2", "count = 1"),
+                           "p.toml")
+    run_campaign(proto, out=tmp_path / "c.h5", world=WORLD, seed=5, rig=rig)
+    result = build_report(tmp_path / "c.h5", tmp_path / "report")
+    page = Path(result.html).read_text(encoding="utf-8")
+    assert "load ± 1-σ (spring curve) [N]" in page and f"± {curve.load_std_n(360.0):.1f}" in page
+    assert "load_std_n" in Path(result.csv).read_text(encoding="utf-8").splitlines()[0]
