@@ -231,3 +231,31 @@ def test_the_report_shows_the_spring_loads_sigma(tmp_path, curve):
     page = Path(result.html).read_text(encoding="utf-8")
     assert "load ± 1-σ (spring curve) [N]" in page and f"± {curve.load_std_n(360.0):.1f}" in page
     assert "load_std_n" in Path(result.csv).read_text(encoding="utf-8").splitlines()[0]
+
+
+def test_a_springs_campaign_on_hardware_drivers_without_a_load_cell(tmp_path, curve, monkeypatch):
+    """The MCC DAQ and serial hammer of the hardware path (emulated, fed by the twin), no [load_cell] at all."""
+    import re
+
+    from labctl import campaign
+    from tests.test_hw_engine import TwinBench
+
+    bench = TwinBench(tmp_path)
+    try:
+        text = bench.devices.read_text(encoding="utf-8")
+        bench.devices = tmp_path / "no_cell.toml"
+        bench.devices.write_text(re.sub(r"\[load_cell\].*?\n\n", "", text, count=1, flags=re.S), encoding="utf-8")
+        rig = tmp_path / "rig.toml"
+        rig.write_text(rig_text_with_springs(PAPER_RIG, "rig.toml", curve, "s.h5"), encoding="utf-8")
+        proto = parse_protocol(Path("protocols/quick_check.toml").read_text(encoding="utf-8")
+                               + '\n[loading]\nload_source = "springs"\n', "qs.toml")
+        sim = campaign.run_campaign(proto, out=tmp_path / "sim.h5", backend="sim", seed=11, rig=rig)
+        monkeypatch.setattr(campaign, "make_rig", bench.make_rig)
+        hw = campaign.run_campaign(proto, out=tmp_path / "hw.h5", backend="hw", seed=11, rig=rig,
+                                   devices=bench.devices)
+        assert sim.status == "complete" and hw.status == "complete", (sim.message, hw.message)
+        s, h = sim.curves[0], hw.curves[0]
+        np.testing.assert_allclose(h["load_n"], s["load_n"], rtol=1e-12)  # both from the spring curve
+        np.testing.assert_allclose(h["stiffness_n_per_m"], s["stiffness_n_per_m"], rtol=2e-4)
+    finally:
+        bench.stop()
