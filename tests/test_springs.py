@@ -75,6 +75,8 @@ def test_twin_springs_have_slack_nonlinearity_hysteresis_and_rod_differences():
     # the springs belong to the rig: another seed of the same world has the same ones; the default world none
     assert np.array_equal(twin(seed=99).springs.rates, s.rates)
     assert twin(world="default").springs is None
+    t.set_load_per_roller(300.0)  # a test hook puts the rig at a load through the same springs (loading branch)
+    assert t.load_per_roller_n() == pytest.approx(300.0)
 
 
 def test_fit_recovers_the_twins_springs_and_its_sigma_covers_the_truth(curve):
