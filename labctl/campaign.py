@@ -221,7 +221,9 @@ def _checked_inputs(request: CampaignRequest) -> tuple[RigConfig, str | Path | N
         from labctl.hardware import find_devices_file, load_devices
 
         devices = find_devices_file(devices)
-        load_devices(devices)
+        if load_devices(devices)["load_cell"].kind == "none" and proto.loading.load_source != "springs":
+            raise InputError(f"{devices}: no [load_cell]: a rig without one runs only protocols with [loading] "
+                             f"load_source = \"springs\" ({proto.source_path} reads a load cell)")
     return rig_config, devices
 
 

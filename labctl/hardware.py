@@ -30,6 +30,25 @@ from labctl.errors import InputError, LabctlError
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
 OPTIONAL_SECTIONS = ("displacement",)  # the static method's sensor (docs/static.md)
+ABSENT_OK = ("load_cell",)  # a rig without one runs load_source = "springs" campaigns only
+
+
+class AbsentLoadCell:
+    """The load cell of a devices file without ``[load_cell]``: using it is a clear error, never a reading."""
+
+    name = "no load cell"
+
+    def _absent(self, *_: object) -> Any:
+        raise DeviceError(self.name, "use", "the devices file has no [load_cell]: only protocols with "
+                          "[loading] load_source = \"springs\" can run on this rig")
+
+    open = close = probe = read = tare = _absent
+
+    def __enter__(self) -> AbsentLoadCell:
+        return self._absent()
+
+    def __exit__(self, *exc: object) -> None:
+        return None
 ACCEL_NAME = re.compile(r"^A[1-4][XYZ]$")  # docs/contracts.md: A1-A3 above rollers 1-3, A4 bottom centre; X, Y, Z
 EXAMPLE = "the output of 'labctl devices example'"
 
@@ -92,12 +111,14 @@ def load_devices(devices: str | Path | None = None, *, usb_backend: Any = None,
     top = Where(str(path))
     doc = read_toml(path)
     check_keys(doc, SECTIONS + OPTIONAL_SECTIONS, top)
-    missing = [s for s in SECTIONS if s not in doc]
+    missing = [s for s in SECTIONS if s not in doc and s not in ABSENT_OK]
     if missing:
         raise top.problem(f"missing section(s) [{'], ['.join(missing)}]; see {EXAMPLE}")
-    tables = read(doc, dict.fromkeys(SECTIONS, Table()), top, unknown_ok=True)
+    tables = read(doc, {s: Table(default=None) if s in ABSENT_OK else Table() for s in SECTIONS}, top,
+                  unknown_ok=True)
     specs = {
-        "load_cell": _load_cell(tables["load_cell"], top.at("load_cell")),
+        "load_cell": (_load_cell(tables["load_cell"], top.at("load_cell")) if tables.get("load_cell") is not None
+                      else DeviceSpec("load_cell", "none", "", lambda _op: AbsentLoadCell())),
         "daq": _daq(tables["daq"], top.at("daq"), usb_backend, nidaqmx_module),
         "hammer": _hammer(tables["hammer"], top.at("hammer")),
         "actuator": _actuator(tables["actuator"], top.at("actuator")),

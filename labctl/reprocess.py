@@ -66,5 +66,6 @@ def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None
                     out.rows.append(StepRow(series, spec.label, run.run, step.step, step.load_n,
                                             step.knob_angle_deg, result))
                     if result.identified:
-                        out.points.append(spec.point(run.run, step.load_n, result.roller_stiffness_n_per_m, result))
+                        out.points.append(spec.point(run.run, step.load_n, result.roller_stiffness_n_per_m, result,
+                                                     step.attrs.get("load_std_n")))
     return out

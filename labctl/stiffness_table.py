@@ -28,7 +28,7 @@ REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffne
 BUDGET_COLUMNS = {"modal_fit": "stiffness_std_fit_n_per_m", "disc_mass": "stiffness_std_mass_n_per_m",
                   "setup_stiffness": "stiffness_std_setup_n_per_m", "rig_model": "stiffness_std_model_n_per_m"}
 OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
-            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values())
+            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values(), "load_std_n")
 COLUMNS = REQUIRED + OPTIONAL
 
 
@@ -116,6 +116,9 @@ class StiffnessPoint(RollerContact):
     """Its K_setup share (common to every point of one rig, larger for stiffer contacts), N/m."""
     stiffness_std_model_n_per_m: float | None = None
     """Its rig-model share (the 6-DOF idealisation), N/m."""
+    load_std_n: float | None = None
+    """1-σ of the load per roller when it came from the characterised spring curve (``load_source = "springs"``),
+    N; None: read from a load cell (its noise is negligible against the stiffness scatter)."""
 
 
 def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:
@@ -174,6 +177,7 @@ _SPECS: dict[str, _Spec] = {
     "rail_material": ("rail_material", 0, str, None, "a rail material name"),
     **{c: (c, 0, _number, _non_negative, "a stiffness uncertainty ≥ 0 in N/m")
        for c in ("stiffness_std_n_per_m", *BUDGET_COLUMNS.values())},
+    "load_std_n": ("load_std_n", 0, _number, _non_negative, "a load uncertainty ≥ 0 in N"),
 }
 
 

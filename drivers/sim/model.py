@@ -126,6 +126,8 @@ class SimSettings:
     stable_rate_n_per_s: float = 0.5
     knob_turn_s_per_deg: float = 0.01
     knob_slack_deg: float = 0.0  # after re-seating, the nuts turn up to this far (uniform) before the springs bite
+    spring_imperfection: float = 0.0  # > 0: real spring stacks (drivers.sim.springs) at this scale; 0: linear nominal
+    spring_stack_seed: int = 1  # which springs the rig has: the same in every run of a world, whatever its seed
     contact_nonlinearity: float = 1.0  # 1: a blow's force swing shifts the contact stiffness (first order); 0: off
 
     def __post_init__(self) -> None:

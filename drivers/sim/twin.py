@@ -30,6 +30,7 @@ from drivers.sim.model import (
     SwingStiffnessFunction,
 )
 from drivers.sim.response import Blow, digitise, modal_model, response
+from drivers.sim.springs import SpringStacks
 
 SETTLE_OVERSHOOT = 0.03  # fraction of a load step the load cell overshoots right after a knob turn
 
@@ -89,6 +90,11 @@ class RigTwin:
         self._next_peak_n: float | None = None
         self._modes_cache: tuple[tuple[float, ...], ModesLike] | None = None
         self.rollers: list[SeatedRoller] = self._seat()
+        lo = rig.loading
+        self.springs: SpringStacks | None = (  # None: the rig file's linear nominal springs
+            SpringStacks(lo.rods, lo.spring_rate_n_per_m, lo.thread_pitch_m, rig.roller_count,
+                         seed=self.settings.spring_stack_seed,
+                         scale=self.settings.spring_imperfection) if self.settings.spring_imperfection > 0 else None)
 
     # --- loading -------------------------------------------------------------------------------------
     @property
@@ -97,7 +103,10 @@ class RigTwin:
 
     def load_per_roller_n(self) -> float:
         """Load on each roller now: preload + spring force (the nut takes up slack first) + creep since the turn."""
-        spring = max(0.0, self.knob_angle_deg - self.slack_deg) * self.rig.load_per_knob_degree_n
+        if self.springs is not None:
+            spring = self.springs.load_per_roller_n()
+        else:
+            spring = max(0.0, self.knob_angle_deg - self.slack_deg) * self.rig.load_per_knob_degree_n
         creep = self._creep_n + self.creep_n_per_s * (self.time_s - self._creep_since_s)
         return max(self.preload_n, self.preload_n + spring + creep)
 
@@ -107,6 +116,8 @@ class RigTwin:
             raise ValueError(f"knob angle must be a finite number of degrees, got {angle_deg!r}")
         before = self.load_per_roller_n()
         self.knob_angle_deg += angle_deg
+        if self.springs is not None:
+            self.springs.move_to(self.knob_angle_deg - self.slack_deg)
         self.time_s += abs(angle_deg) * self.settings.knob_turn_s_per_deg
         self._creep_n, self._creep_since_s = 0.0, self.time_s
         if self.faults.creep_rate and angle_deg > 0:
@@ -121,7 +132,11 @@ class RigTwin:
             raise ValueError(
                 f"load {load_n!r} N per roller is below the preload {self.preload_n:.1f} N (the upper disc's weight)"
             )
-        self.knob_angle_deg = self.slack_deg + (load_n - self.preload_n) / self.rig.load_per_knob_degree_n
+        if self.springs is not None:
+            self.knob_angle_deg = self.slack_deg + self.springs.angle_for_load(load_n - self.preload_n)
+            self.springs.reset_to(self.knob_angle_deg - self.slack_deg)
+        else:
+            self.knob_angle_deg = self.slack_deg + (load_n - self.preload_n) / self.rig.load_per_knob_degree_n
         self._creep_n, self._creep_since_s = 0.0, self.time_s
         self._overshoot_n = 0.0
         self._reads_since_turn = self.settings.load_cell_settle_reads

@@ -24,7 +24,7 @@ from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, pl
 from labctl.engine.runlog import RunLog
 from labctl.engine.static import open_sensor, store_static_curve
 from labctl.engine.steps import Interlock, StepProcessor, StepRunner
-from labctl.errors import LabctlError
+from labctl.errors import InputError, LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
@@ -70,6 +70,19 @@ def specimen_record(spec: SpecimenSpec) -> SpecimenRecord:
         knob_step_deg=spec.knob_step_deg, **asdict(spec.conditions))
 
 
+def check_spring_curve(protocol: Protocol, rig_config: RigConfig, plans: Sequence[StepPlan]) -> None:
+    """A ``load_source = "springs"`` campaign needs the rig's characterised curve over every planned knob angle."""
+    curve = rig_config.springs
+    if curve is None:
+        raise InputError(f"{protocol.source_path}: loading.load_source = \"springs\" but the rig file "
+                         f"{rig_config.source} has no [springs] table: characterise the springs and write it with "
+                         "`labctl springs fit` (docs/springs.md)")
+    top = max((p.steps_estimate - 1) * p.step_angle_deg for p in plans)
+    if top > curve.max_angle_deg * (1 + 1e-9):
+        raise InputError(f"{protocol.source_path}: the plan turns the knobs to {top:g}°, beyond the spring curve's "
+                         f"characterised {curve.max_angle_deg:g}° ({rig_config.source}): characterise further")
+
+
 class Engine:
     """Runs a protocol on instruments from ``rig_factory`` and writes everything to ``store`` (an HDF5 file
     through ``CampaignWriter``, or memory)."""
@@ -97,6 +110,8 @@ class Engine:
                                   on_retry=lambda m: self.notify("warning", m, kind="retry"))
         self.advisor, self.budget_steps = advisor, budget_steps if advisor is not None else 0
         self.plans = [plan_steps(protocol, s, rig_config) for s in protocol.specimens]
+        if protocol.loading.load_source == "springs":
+            check_spring_curve(protocol, rig_config, self.plans)
         steps = sum(p.steps_estimate + self.budget_steps for p in self.plans)
         self.impacts_total = steps * protocol.repetitions.count * acq.impacts_per_step
         self.eta = campaign_estimator(store.completed_steps(), steps * protocol.repetitions.count, acq.impacts_per_step,
@@ -177,8 +192,8 @@ class Engine:
             return
         with ExitStack() as stack:
             rig = self.rig_factory(spec, index)
-            for what, inst in (("daq", rig.daq), ("hammer", rig.hammer), ("load cell", rig.load_cell),
-                               ("actuator", rig.actuator)):
+            cell = () if self.protocol.loading.load_source == "springs" else (("load cell", rig.load_cell),)
+            for what, inst in (("daq", rig.daq), ("hammer", rig.hammer), *cell, ("actuator", rig.actuator)):
                 self.call(f"{what} (open)", inst.__enter__)
                 stack.callback(inst.__exit__, None, None, None)
             open_sensor(self, rig, stack)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 
@@ -82,17 +82,36 @@ class StepRunner:
         self.checks = services.protocol.checks
         self.rows: dict[int, StepRow] = {}  # the steps identified in this session: what the curve is built from
         self._held: dict[int, ImpactRecord] = {}  # the current step's impacts as stored, by attempt
+        self._branch: Literal["loading", "unloading"] = "loading"  # of the spring curve: the last turn's sense
 
     def completed_load(self, step: int) -> float | None:
         """The recorded load of a step already finished in the file, identified or not (None: still to run)."""
         return self.e.store.step_load(self.series, self.run, step, complete_only=True)
 
     def read_load_once(self, pos: ev.Position) -> tuple[float, bool]:
-        """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable."""
+        """One load-cell reading as load per roller (the cell carries all rollers), and whether it was stable.
+
+        With ``load_source = "springs"`` the load comes from the knob angle through the rig file's spring curve
+        (no load cell is touched): always stable, its 1-σ in ``spring_load``."""
+        if self.e.protocol.loading.load_source == "springs":
+            load, _ = self.spring_load(pos)
+            self.e.emit(ev.LoadMeasured(self.e.now(), pos, load, True))
+            return load, True
         reading = self.e.call("load cell", self.rig.load_cell.read)
         load = reading.force_n / self.e.rig_config.roller_count
         self.e.emit(ev.LoadMeasured(self.e.now(), pos, load, reading.stable))
         return load, reading.stable
+
+    def spring_load(self, pos: ev.Position) -> tuple[float, float]:
+        """The load per roller at the knob angle now and its 1-σ, from the characterised spring curve."""
+        curve = self.e.rig_config.springs
+        if curve is None:
+            raise LabctlError(f"{self.e.rig_config.source}: no [springs] table for load_source = \"springs\"")
+        angle = self.rig.actuator.knob_angle_deg
+        problem = curve.check_range(angle)
+        if problem:
+            raise LabctlError(f"step {pos.step}: {problem}; characterise the springs further or lower the load")
+        return curve.load_n(angle, self._branch), curve.load_std_n(angle, self._branch)
 
     def read_load(self, pos: ev.Position) -> tuple[float, bool]:
         """Poll the load cell until it reports a stable value (or the settle time runs out)."""
@@ -144,12 +163,17 @@ class StepRunner:
         e.emit(ev.StepStarted(e.now(), pos, steps_estimate, angle_deg, expected))
         if abs(delta) > KNOB_TOLERANCE_DEG:  # a manual actuator asks the technician, who may take as long as needed
             e.call("actuator", self.rig.actuator.turn_knobs, delta, timeout_s=None, retries=0)
+            self._branch = "loading" if delta > 0 else "unloading"
         load, stable = self.read_load(pos)
         self.safe_point("before_step", pos, load_n=load)
         if e.store.step_load(self.series, self.run, step) is None:
+            source: dict[str, object] = {"load_source": e.protocol.loading.load_source}
+            if e.protocol.loading.load_source == "springs":
+                source.update(load_std_n=self.spring_load(pos)[1], spring_branch=self._branch)
             e.store.step(self.series, self.run, step, {
                 "knob_angle_deg": angle_deg, "load_n": load, "load_total_n": load * e.rig_config.roller_count,
-                "load_stable": stable, "expected_load_n": expected, **static_reading(self, pos), **(attrs or {})})
+                "load_stable": stable, "expected_load_n": expected, **static_reading(self, pos), **source,
+                **(attrs or {})})
         step_load = e.store.step_load(self.series, self.run, step)
         assert step_load is not None
         if e.protocol.static is not None and not e.protocol.static.hammer:  # the static method alone

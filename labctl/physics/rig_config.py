@@ -11,6 +11,7 @@ import numpy as np
 
 from labctl.data import data_path, read_toml
 from labctl.data.schema import Integer, Number, Numbers, Spec, Table, Tables, Text, Where, build, parse_toml, read
+from labctl.physics.springs import SpringCurve
 
 DEFAULT_RIG = "rigs/paper_rig.toml"
 AXES = ("X", "Y", "Z")
@@ -105,6 +106,7 @@ class RigConfig:
     source: str = ""
     uncertainty: RigUncertainty = RigUncertainty()
     calibration: dict[str, Any] = field(default_factory=dict)  # provenance of a calibrated rig (empty: nominal)
+    springs: SpringCurve | None = None  # the characterised knob-angle → load curve (``[springs]``), if measured
 
     @property
     def contact_xy_m(self) -> np.ndarray:
@@ -151,6 +153,12 @@ UNCERTAINTY: dict[str, Spec] = {"mass_std_kg": Number(ge=0), "setup_stiffness_st
                                 "inertia_asymmetry_rel": Number(ge=0, le=0.5),
                                 "transverse_sensitivity": Number(ge=0, le=0.5),
                                 "mounting_angle_deg": Number(ge=0, le=30, unit="deg")}
+SPRINGS: dict[str, Spec] = {
+    "preload_n": Number(ge=0), "rate_n_per_deg": _POSITIVE, "curvature_n_per_deg2": Number(),
+    "hysteresis_n": Number(ge=0), "slack_deg": Number(ge=0), "preload_std_n": Number(ge=0),
+    "residual_std_n": Number(ge=0), "covariance": Numbers(Number(), 16), "max_angle_deg": _POSITIVE,
+    "source": Text(default=""),
+}
 POINT: dict[str, Spec] = {"radius_mm": Number(ge=0, unit="mm"), "angle_deg": Number(unit="deg")}
 SENSOR: dict[str, Spec] = {"name": Text(), "disc": Text(("upper", "lower")), **POINT,
                            "transverse_sensitivity": Number(ge=0, le=0.5, default=None),
@@ -161,7 +169,7 @@ TOP: dict[str, Spec] = {
     "name": Text(default=None), "description": Text(default=None), "upper_disc": Table(), "lower_disc": Table(),
     "contacts": Table(), "uncertainty": Table(default={}), "support": Table(), "damping": Table(),
     "loading": Table(), "hammer": Table(), "sensors": Tables(), "flexible_modes": Tables(default=[]),
-    "calibration": Table(default={}),
+    "calibration": Table(default={}), "springs": Table(default=None),
 }
 
 
@@ -225,4 +233,5 @@ def rig_from_doc(doc: dict[str, Any], p: str) -> RigConfig:
         source=p,
         uncertainty=build(RigUncertainty, t["uncertainty"], UNCERTAINTY, top.at("uncertainty")),
         calibration=dict(t["calibration"]),
+        springs=None if t.get("springs") is None else build(SpringCurve, t["springs"], SPRINGS, top.at("springs")),
     )

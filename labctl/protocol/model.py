@@ -78,6 +78,7 @@ class LoadingSpec:
     settle_timeout_s: float = 30.0
     settle_poll_s: float = 0.1
     load_tolerance_fraction: float = 0.05
+    load_source: Literal["load_cell", "springs"] = "load_cell"  # springs: the rig file's [springs] curve, no cell
 
 
 @dataclass(frozen=True)

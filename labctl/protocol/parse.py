@@ -50,6 +50,7 @@ LOADING: dict[str, Spec] = {
     "settle_timeout_s": Number(gt=0),
     "settle_poll_s": Number(ge=0),
     "load_tolerance_fraction": Number(gt=0, le=1),
+    "load_source": Text(("load_cell", "springs")),
 }
 REPETITIONS: dict[str, Spec] = {"count": Integer(1, 1000), "rotate_rollers_deg": Number(ge=0, le=180)}
 SPECIMEN_KEYS = {"kind", "label", "roller_type", "ball_diameter_mm", "ball_material", "rail_material", "rail_ra_um",
@@ -149,6 +150,8 @@ def parse_protocol(text: str, path: str = "<protocol>") -> Protocol:
     """Validate protocol TOML text."""
     doc = parse_toml(text, path)
     top = Where(path)
+    if "characterisation" in doc:
+        raise top.problem("a spring characterisation protocol: run it with `labctl springs characterise`")
     check_keys(doc, TOP_KEYS, top)
     head = read(value(doc, "protocol", Table(default={}), top), HEAD, top.at("protocol"))
     loading = build(LoadingSpec, value(doc, "loading", Table(default={}), top), LOADING, top.at("loading"))

@@ -6,6 +6,7 @@ model curves come from ``labctl.physics``.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,7 @@ class RunCurve:
     stiffness_n_per_m: np.ndarray
     bounce_hz: np.ndarray
     tilt_hz: np.ndarray  # (n, 2)
+    load_std_n: np.ndarray | None = None  # 1-σ of each load from the spring curve (None: a load cell read it)
 
 
 @dataclass
@@ -42,6 +44,7 @@ class StepStat:
     k_min: float
     k_max: float
     repetitions: int
+    load_std_n: float = math.nan  # one setting's load 1-σ from the spring curve, mean over repetitions
 
     @property
     def spread(self) -> float:
@@ -59,14 +62,17 @@ class SeriesData:
 
     def step_stats(self) -> list[StepStat]:
         """Statistics per step number over the repetitions that identified it."""
-        by_step: dict[int, list[tuple[float, float]]] = {}
+        by_step: dict[int, list[tuple[float, float, float]]] = {}
         for r in self.runs:
-            for s, f, k in zip(r.steps, r.load_n, r.stiffness_n_per_m, strict=True):
-                by_step.setdefault(int(s), []).append((float(f), float(k)))
+            stds = r.load_std_n if r.load_std_n is not None else np.full(len(r.steps), np.nan)
+            for s, f, k, sf in zip(r.steps, r.load_n, r.stiffness_n_per_m, stds, strict=True):
+                by_step.setdefault(int(s), []).append((float(f), float(k), float(sf)))
         out = []
         for s in sorted(by_step):
-            f, k = np.array(by_step[s]).T
-            out.append(StepStat(s, float(f.mean()), float(k.mean()), float(k.min()), float(k.max()), len(k)))
+            f, k, sf = np.array(by_step[s]).T
+            load_std = float(np.nanmean(sf)) if np.isfinite(sf).any() else math.nan
+            out.append(StepStat(s, float(f.mean()), float(k.mean()), float(k.min()), float(k.max()), len(k),
+                                load_std))
         return out
 
     @property
@@ -153,8 +159,10 @@ def _run_curve(run: RunInfo) -> RunCurve | None:
                          [(s.step, s.load_n, s.knob_angle_deg, s.result) for s in run.steps if s.result is not None])
     if not len(c):
         return None
+    by_step = {s.step: float(s.attrs.get("load_std_n", np.nan)) for s in run.steps}
+    load_std = np.array([by_step.get(int(n), np.nan) for n in c.step])
     return RunCurve(run.run, c.step, c.load_n, c.stiffness_n_per_m, c.bounce_hz,
-                    np.column_stack([c.tilt_a_hz, c.tilt_b_hz]))
+                    np.column_stack([c.tilt_a_hz, c.tilt_b_hz]), load_std if np.isfinite(load_std).any() else None)
 
 
 def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int, int] | None) -> FrfStep | None:

@@ -62,12 +62,15 @@ def _stiffness_table(s: SeriesData) -> str:
     tripp = model_curve("tripp", s.case, loads) if s.kind != "ball" else np.full(len(loads), np.nan)
     ref_name = {"hertz": "Hertz", "fit-ra0.2": "Eq. 5", "fit-ra0.03": "Eq. 6"}[ref]
     rows = []
+    springs = any(np.isfinite(st.load_std_n) for st in stats)  # loads from the spring curve: show their σ
     for st, k_ref, k_t in zip(stats, ref_k, tripp, strict=True):
-        rows.append([st.step, f"{st.load_n:.1f}", f"{st.stiffness_n_per_m * 1e-6:.2f}", f"{st.spread:.2%}",
+        load = f"{st.load_n:.1f}" + (f" ± {st.load_std_n:.1f}" if springs and np.isfinite(st.load_std_n) else "")
+        rows.append([st.step, load, f"{st.stiffness_n_per_m * 1e-6:.2f}", f"{st.spread:.2%}",
                      st.repetitions, "–" if not np.isfinite(k_t) else f"{k_t * 1e-6:.2f}",
                      "–" if not np.isfinite(k_ref) else f"{k_ref * 1e-6:.2f}",
                      "–" if not np.isfinite(k_ref) else f"{st.stiffness_n_per_m / k_ref - 1:+.2%}"])
-    head = ["step", "load [N]", "k mean [N/µm]", "spread", "repetitions", "Tripp [N/µm]", f"{ref_name} [N/µm]",
+    load_head = "load ± 1-σ (spring curve) [N]" if springs else "load [N]"
+    head = ["step", load_head, "k mean [N/µm]", "spread", "repetitions", "Tripp [N/µm]", f"{ref_name} [N/µm]",
             f"k/{ref_name} − 1"]
     return f"<h3>{_e(s.label)}</h3>" + _table(head, rows)
 

@@ -158,9 +158,10 @@ class MemoryStore:
                  st.result) for n, st in sorted(r.steps.items()) if st.result is not None]
 
     def stiffness_points(self) -> list[StiffnessPoint]:
-        return [sg.specimen.point(run, load, result.roller_stiffness_n_per_m, result)
+        return [sg.specimen.point(run, load, result.roller_stiffness_n_per_m, result,
+                                  sg.runs[run].steps[step].attrs.get("load_std_n"))
                 for sg_n, sg in sorted(self._series.items()) for run in sorted(sg.runs)
-                for _, load, _, result in self.step_results(sg_n, run) if result.identified]
+                for step, load, _, result in self.step_results(sg_n, run) if result.identified]
 
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
         sg = self._series[series]

@@ -341,9 +341,11 @@ class CampaignWriter:
         for sg in s.children(self.h5, "series_"):
             spec = SpecimenRecord.from_attrs(attrs_of(sg))
             for rg in s.children(sg, "run_"):
-                for _, load, _, result in self.step_results(s.number(sg), s.number(rg)):
+                for step, load, _, result in self.step_results(s.number(sg), s.number(rg)):
                     if result.identified:
-                        points.append(spec.point(s.number(rg), load, result.roller_stiffness_n_per_m, result))
+                        load_std = attrs_of(rg[s.step_name(step)]).get("load_std_n")
+                        points.append(spec.point(s.number(rg), load, result.roller_stiffness_n_per_m, result,
+                                                 load_std))
         return points
 
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
