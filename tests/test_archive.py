@@ -117,8 +117,10 @@ def test_query_a_subset_export_its_table_and_run_discrepancy(catalogue, archive,
     found = labctl_here_json(capsys, "discrepancy", str(csv))
     assert found["n_points"] == 30 and found["n_cases"] == 5
     assert found["noise_floor"] > 0  # repetitions were recognised
-    assert found["gap_after"] < found["gap_before"]
-    assert "surface_roughness" in [e["name"] for e in found["effects"]]  # the simulated world's roughness
+    # the simulated world's roughness: among the most probable explanations, and nothing else named (three loads
+    # per roller leave it unnamed: the unnamed empirical basis fits three points per seating as well)
+    assert any("surface_roughness" in x["explanation"] for x in found["explanations"][:3])
+    assert {e["name"] for e in found["effects"]} <= {"surface_roughness"} and found["measurement_effects"] == []
 
 
 def test_campaign_view_dates_and_python_api(catalogue):

@@ -83,7 +83,11 @@ def test_hidden_world_effect_is_named_from_raw_impacts(tmp_path, capsys, world, 
         if effect is None:
             assert names == [], out["effects"]
         else:
-            assert names[:1] == [effect], out["effects"]
-            assert out["gap_after"] < out["gap_before"]
-            edge = out["effects"][0]["parameters"]["edge_length_m"]
-            assert edge == pytest.approx(EDGE_M, rel=0.3), out["effects"]  # the size the table hides
+            assert set(names) <= {effect}, out["effects"]
+            assert any(x["explanation"] == effect for x in out["explanations"][:3]), out["explanations"][:3]
+            if names:
+                assert out["gap_after"] < out["gap_before"]
+                edge = out["effects"][0]["parameters"]["edge_length_m"]
+                assert edge == pytest.approx(EDGE_M, rel=0.3), out["effects"]  # the size the table hides
+            else:  # two roller geometries: the verdict says what the design cannot separate
+                assert any("2 roller geometries" in r for r in out["decision"]["identifiability"])
