@@ -103,8 +103,8 @@ class SpecimenRecord(RollerContact):
         """The stored attributes (None values are not stored)."""
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
 
-    def point(self, repetition: int, load_n: float, stiffness_n_per_m: float, result: StepResult | None = None
-              ) -> StiffnessPoint:
+    def point(self, repetition: int, load_n: float, stiffness_n_per_m: float, result: StepResult | None = None,
+              load_std_n: float | None = None) -> StiffnessPoint:
         """A stiffness-table row for a measured point of this specimen (with the result's uncertainty budget)."""
         budget = result.roller_stiffness_budget_n_per_m if result is not None else {}
         std = result.roller_stiffness_std_n_per_m if result is not None else None
@@ -115,4 +115,5 @@ class SpecimenRecord(RollerContact):
             poisson_ratio=self.poisson_ratio, hardness_hrc=self.hardness_hrc, repetition=int(repetition),
             rail_material=self.rail_material or None,
             stiffness_std_n_per_m=std if std is not None and math.isfinite(std) else None,
+            load_std_n=float(load_std_n) if load_std_n is not None and math.isfinite(load_std_n) else None,
             **{column: float(budget[key]) for key, column in BUDGET_COLUMNS.items() if key in budget})
