@@ -98,11 +98,11 @@ def test_mcc_window_reads_one_input_with_the_units_calibration() -> None:
     level = np.zeros((8, 200_000))
     level[3] = -1.25  # the conditioner's output on input 3
     source.play(level, delay_scans=0)
-    reader = MccVoltageWindow(3, range_v=2.5, backend=FakeUsbBackend(device))
+    reader = MccVoltageWindow(3, range_v=2.0, backend=FakeUsbBackend(device))
     with DaqDisplacementSensor(reader, sensitivity_um_per_v=50.0, window_s=0.2, sample_rate_hz=1000.0) as sensor:
         value = sensor.read()
-    assert value == pytest.approx(-62.5e-6, abs=0.05e-6)  # one code at ±2.5 V is 76 µV = 3.8 nm
-    assert "START" in device.log and device.log[-1] == "CLEAR_FIFO" and device.ranges[3] == 2  # ±2.5 V range
+    assert value == pytest.approx(-62.5e-6, abs=0.05e-6)  # one code at ±2 V is 61 µV = 3.1 nm
+    assert "START" in device.log and device.log[-1] == "CLEAR_FIFO" and device.ranges[3] == 3  # ±2 V: code 3 of the USB-1608FS-Plus
 
 
 def test_mcc_failures_are_typed() -> None:
@@ -125,7 +125,7 @@ def test_devices_file_builds_the_sensor(tmp_path: Any) -> None:
     text = example_path().read_text(encoding="utf-8")
     good = tmp_path / "devices.toml"
     good.write_text(text + '\n[displacement]\ntype = "mcc_usb"\ninput = "3"\nsensitivity_um_per_v = 50.0\n'
-                    "range_v = 2.5\nwindow_ms = 50\n", encoding="utf-8")
+                    "range_v = 2.0\nwindow_ms = 50\n", encoding="utf-8")
     source = PlaybackSource(noise_v=1e-3)
     level = np.zeros((8, 100_000))
     level[3] = 0.5
