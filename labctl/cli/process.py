@@ -17,6 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.report.notes import step_events
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
     from labctl.storage.runlog import summarize
@@ -41,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
                          "coherence_at_bounce": res.coherence_at_bounce, "warnings": list(res.warnings)})
         else:
             item["error"] = res.error
+        if r.info is not None:  # what happened at the rig: drift, channels left out, overrides with reasons
+            item.update(step_events(r.info, res).to_dict())
         steps.append(item)
     log = summarize(done.log)
     result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
@@ -63,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
                              f"   {s['roller_stiffness_n_per_m']:.4e}   {s['roller_stiffness_std_n_per_m']:.2e}"
                              + (f"   rollers {', '.join(map(str, s['rollers_differing']))} differ"
                                 if s["rollers_differing"] else ""))
+            lines += [f"             note: {n}" for n in s.get("notes", [])]
         return "\n".join(lines)
 
     emit(result, args.json, text)

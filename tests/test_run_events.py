@@ -1,0 +1,97 @@
+"""What happened at the rig reaches every reader: a load drift answered "continue", a pulled cable (dead channel)
+and an operator's override with its reason are stored with the step and shown by ``process --json``, the
+report (run events, per-step notes, the verdict) and ``labctl run``'s live output.
+
+One small simulated campaign (one repetition, 2 blows a step) is run once for the module: the springs creep
+from the first blow (the drift condition trips after step 1 and the scripted operator continues), A3X's cable
+is pulled from the first blow, and the operator rejects the clean first blow of step 1 with a reason.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from drivers.operators import ScriptedOperator
+from drivers.sim import RigTwin
+from labctl import events as ev
+from labctl.cli import main
+from labctl.cli.progress import ProgressPrinter
+from labctl.report.notes import step_events
+from labctl.storage import CampaignReader
+from tests.engine_util import Recorder, short_protocol
+
+REASON = "hammer slipped off the disc edge"
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, Recorder]:
+    from labctl.campaign import run_campaign
+
+    out = tmp_path_factory.mktemp("events") / "events.h5"
+    original = RigTwin.strike
+    seen: list[RigTwin] = []
+
+    def strike(self: RigTwin):  # noqa: ANN202
+        if not seen:
+            seen.append(self)
+            self.set_creep(30.0)
+            self.pulled_channel = "A3X"  # the cable pulled: the channel reads flat 0
+        return original(self)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(RigTwin, "strike", strike)
+    operator = ScriptedOperator(reviews={(1, 1, 1, 1): ("reject", REASON)})
+
+    def retighten(message: str, choices: tuple[str, ...]) -> str:  # the technician sets the knobs again
+        seen[0].set_creep(0.0)
+        return choices[0]
+
+    operator.on("confirm", retighten)
+    events = Recorder()
+    live = io.StringIO()
+    try:
+        outcome = run_campaign(short_protocol(max_load=120.0, samples=8192, impacts=2, reps=1), out=out,
+                               backend="sim", seed=3, operator=operator, subscribers=(events, ProgressPrinter(live)))
+    finally:
+        mp.undo()
+    assert outcome.status == "complete", outcome.message
+    return out, live.getvalue(), events
+
+
+def test_the_step_record_holds_drift_channels_and_override(campaign):
+    path, _, _ = campaign
+    with CampaignReader(path) as reader:
+        steps = reader.runs(1)[0].steps
+    first = step_events(steps[0])
+    assert first.drift_continued and first.load_after_n > first.load_before_n * 1.05  # the springs crept
+    assert first.channels_dropped == {"A3X": "dead (no signal in the step's FRF)"}
+    assert "A3X" not in first.channels_used and "A3Z" in first.channels_used
+    assert [(o.attempt, o.accepted, o.checks, o.reason) for o in first.overrides] == [(1, False, "clean", REASON)]
+    notes = " | ".join(first.notes())
+    assert "load drifted from" in notes and "the operator continued" in notes
+    assert "channel A3X left out" in notes and REASON in notes
+
+
+def test_process_json_reports_what_happened(campaign, capsys):
+    path, _, _ = campaign
+    assert main(["process", str(path), "--json"]) == 0
+    step1 = json.loads(capsys.readouterr().out)["steps"][0]
+    assert step1["load_drifted"] and step1["drift_continued_by_operator"]
+    assert step1["load_after_n"] > step1["load_before_n"]
+    assert step1["channels_dropped"] == {"A3X": "dead (no signal in the step's FRF)"}
+    assert step1["overrides"] == [{"impact": 1, "accepted": False, "checks": "clean", "reason": REASON}]
+    assert any("load drifted" in n for n in step1["notes"])
+
+
+def test_labctl_run_output_says_it_live(campaign):
+    _, live, events = campaign
+    assert "A3X" in live and "dead" in live  # the pulled cable, not only in the file
+    assert "load drifted" in live
+    assert REASON in live
+    # said when it arose: the drift before the step's result line
+    assert live.index("load drifted") < live.index("step 1:")
+    assert events.of(ev.Suspended)
