@@ -95,3 +95,31 @@ def test_labctl_run_output_says_it_live(campaign):
     # said when it arose: the drift before the step's result line
     assert live.index("load drifted") < live.index("step 1:")
     assert events.of(ev.Suspended)
+
+
+def test_the_report_shows_run_events_and_disowns_the_drifted_step(campaign, tmp_path):
+    import html as html_lib
+    import re
+
+    from labctl.report import build_report
+
+    path, _, _ = campaign
+    res = build_report(path, tmp_path / "report")
+    page = Path(res.html).read_text(encoding="utf-8")
+    text = html_lib.unescape(re.sub(r"<[^>]+>", " ", page))
+    assert "Run events" in text and "load drifted from" in text and "the operator continued" in text
+    assert "channel A3X left out: dead" in text
+    assert REASON in text and "rejected by the operator against the checks" in text
+    step1 = next(v for v in res.verdicts if v["step"] == 1)
+    assert step1["verdict"] == "cannot tell"  # never a plain pass (nor fail) at a load that did not hold
+    assert "load drifted" in next(v.note for v in _verdicts(path) if v.step == 1)
+    assert "rails Ra 0.2 µm" in text  # the series is named by specimen and rail
+    assert "<thead>" in page and "@media print" in page and "spread" in text and "(largest − smallest)" in text
+
+
+def _verdicts(path: Path):  # noqa: ANN202
+    from labctl.report.data import load_report_data
+    from labctl.report.verdict import series_verdicts
+
+    data = load_report_data(path)
+    return [v for s in data.series for v in series_verdicts(s, data.rig)]
