@@ -123,3 +123,25 @@ def _verdicts(path: Path):  # noqa: ANN202
 
     data = load_report_data(path)
     return [v for s in data.series for v in series_verdicts(s, data.rig)]
+
+
+async def test_the_browser_shows_the_drift_the_dead_channel_and_the_override(campaign):
+    from labctl.tui import LabApp, TuiSettings
+    from labctl.tui.browser import BrowserScreen
+    from tests.test_tui import SIZE, wait_for
+    from tests.test_tui_browse import tree_nodes
+
+    path, _, _ = campaign
+    app = LabApp(TuiSettings(), open_path=path)
+    async with app.run_test(size=SIZE) as pilot:
+        screen = await wait_for(pilot, lambda: isinstance(app.screen, BrowserScreen) and app.screen)
+        await pilot.pause(0.1)
+        tree = screen.query_one("#tree")
+        nodes = tree_nodes(tree.root)
+        labels = {n.data: str(n.label) for n in nodes if n.data}
+        assert "LOAD DRIFTED" in labels[("step", 1, 1, 1)] and "A3X left out" in labels[("step", 1, 1, 1)]
+        assert labels[("impact", 1, 1, 1, 1)].endswith(f"REJECTED by the operator, checks said clean: {REASON}")
+        tree.move_cursor(next(n for n in nodes if n.data == ("step", 1, 1, 1)))
+        await pilot.pause(0.2)
+        detail = str(screen.query_one("#detail").render())
+        assert "load drifted from" in detail and "channel A3X left out: dead" in detail and REASON in detail

@@ -20,7 +20,7 @@ from labctl.engine import StopRequested
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
-from labctl.tui.dialogs import PromptDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot
 from tests.engine_util import Recorder, short_protocol
 
@@ -160,7 +160,10 @@ async def test_quit_with_a_prompt_open_stops_cleanly_and_the_file_resumes(tmp_pa
     app = LabApp(quick_settings(tmp_path, autostart=True))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog))
-        await pilot.press("q")  # with the mount dialog open: the prompt is withdrawn, the engine stops
+        await pilot.press("q")  # with the mount dialog open: quitting mid-run asks first
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the quit question")
+        assert "QUESTION: Quit mid-run?" in app.monitor.state.header_text()
+        await pilot.press("q")  # q again: the prompt is withdrawn, the engine stops
         await wait_for(pilot, lambda: not app.is_running or app.outcome, what="exit")
     assert app.outcome is not None and app.outcome.status == "interrupted"
     with CampaignReader(tmp_path / "qc.h5") as r:
@@ -181,13 +184,12 @@ def _hold_after_step_1() -> tuple[threading.Event, threading.Event, Callable[[ev
     return hold, release, hold_after_step_1
 
 
-@pytest.mark.parametrize("answer", ["n", "y"])
+@pytest.mark.parametrize("answer", ["n", "x"])
 async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(tmp_path, answer):
     """A prompt the engine asked just before the technician pressed abort may reach the screen after the
     question: it must not cover it (the next key would answer the wrong dialog); it opens once the question
     is answered, and on abort it is withdrawn unseen. The engine is held after step 1 and the late prompt is
     asked from another thread through the operator, as the engine asks."""
-    from labctl.tui.dialogs import ConfirmDialog
 
     hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
@@ -218,7 +220,7 @@ async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(t
         asker.join(10)
         release.set()
         if answer == "n":
-            await pilot.press("q")
+            await pilot.press("q", "q")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     if answer == "n":
         assert answers == ["done"] and app.outcome.status == "interrupted"
@@ -231,7 +233,7 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, hold.is_set)
-        await pilot.press("q")
+        await pilot.press("q", "q")
         assert app.monitor.state.status == "stopping" and app.is_running  # waits for the engine's safe point
         release.set()
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
@@ -284,9 +286,8 @@ def app_event(event: ev.Event):
     return EngineEvent(event)
 
 
-@pytest.mark.parametrize("answer", ["n", "y"])
+@pytest.mark.parametrize("answer", ["n", "x"])
 async def test_abort_dialog_pauses_acquisition_until_answered(tmp_path, answer):
-    from labctl.tui.dialogs import ConfirmDialog
 
     hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))

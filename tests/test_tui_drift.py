@@ -1,6 +1,6 @@
 """The load-drift prompt in the TUI, driven with Pilot on the simulated rig: the springs creep during step 1,
-the engine asks whether to continue, and the technician's `y` answers that question (not a stale verdict
-override on the step's latest impact, which would be applied to the next step with the wrong index).
+the engine asks whether to continue, the header says the technician is asked (never ARMED), and `1` answers
+that question; `y` (the gate's accept) does not, and no stale verdict override reaches the next step.
 """
 
 from __future__ import annotations
@@ -50,9 +50,14 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
             if drift_prompt(dialog) and answered_drift is None:
                 assert dialog.request.choices == ("continue", "abort")
                 creeping_twin[0].set_creep(0.0)  # the technician re-tightens the knobs
-                await pilot.press("y")
+                assert "WAITING FOR YOU" in app.monitor.state.header_text()  # never ARMED under a prompt
+                assert "ARMED" not in app.monitor.state.header_text()
+                await pilot.press("y")  # the gate's accept: it does not answer the drift prompt
                 await pilot.pause(0.3)
-                assert dialog.closed and dialog.request.answer == "continue", "y did not answer the drift prompt"
+                assert not dialog.closed
+                await pilot.press("1")
+                await pilot.pause(0.3)
+                assert dialog.closed and dialog.request.answer == "continue", "1 did not answer the drift prompt"
                 answered_drift = dialog.request
                 continue
             if isinstance(dialog, ReviewDialog):

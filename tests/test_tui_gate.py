@@ -137,7 +137,10 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
         assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
-        await pilot.press("y")
+        await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
+        await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     assert app.outcome.status == "aborted" and len(events.of(ev.ImpactAcquired)) == 1
     with CampaignReader(tmp_path / "gate.h5") as reader:
@@ -174,7 +177,10 @@ async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_
         step = await wait_for(pilot, lambda: events.of(ev.StepProcessed), what="step 1 identified")
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
-        await pilot.press("y")
+        await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
+        await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     assert step[0].used_attempts == (1, 2)
     n = frf.frequencies_hz.size

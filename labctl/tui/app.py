@@ -19,7 +19,7 @@ from textual.worker import Worker, WorkerState
 from labctl import events as ev
 from labctl.engine import Outcome, RunControl
 from labctl.protocol import Protocol
-from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
+from labctl.tui.dialogs import ConfirmDialog, HelpScreen, PromptDialog, ReviewDialog
 from labctl.tui.monitor import MonitorScreen
 from labctl.tui.operator import PromptRequest, TuiOperator
 from labctl.tui.state import reason_text
@@ -80,6 +80,7 @@ class LabApp(App[Outcome | None]):
         Binding("t", "auto_confirm", "auto-confirm"),
         Binding("o", "browse", "open file"),
         Binding("q", "quit", "quit"),
+        Binding("question_mark", "help", "keys"),
     ]
 
     def __init__(self, settings: TuiSettings, *, open_path: Path | None = None,
@@ -253,33 +254,43 @@ class LabApp(App[Outcome | None]):
     def action_verdict(self, accept: bool) -> None:
         if not self.running:
             return
+        if self.screen is not self.monitor:  # a dialog is open: y/r never answer it, nor judge a blow behind it
+            self.notify("y / r judge a blow in the gate; this dialog takes its digits or Enter (? for the keys)",
+                        severity="warning", timeout=4)
+            return
         shown = self.monitor.state.last_impact
         self.control.override_last_impact(accept, attempt=shown.attempt if shown else None)
         verb = "accept" if accept else "reject"
         self.monitor.log_line(f"{verb} requested for the step's latest impact (applied at the next safe point)")
 
     def action_abort(self) -> None:
-        """Ask before aborting; acquisition pauses (at its next safe point) until the question is answered."""
-        if not self.running or self.control.stop_status:
+        """Ask before aborting (``x`` aborts); acquisition pauses at its next safe point until it is answered."""
+        self._ask("aborted", ConfirmDialog(
+            "Abort the campaign?", "Acquisition is paused. x aborts: it stops here, the file keeps every impact so "
+            "far and is marked aborted. n goes on.", yes_key="x", yes_label="abort"))
+
+    def _ask(self, status: str, question: ConfirmDialog) -> None:
+        """Put a stopping question; acquisition pauses while it is open, a yes stops the run with ``status``."""
+        if not self.running or self.control.stop_status or isinstance(self.screen, ConfirmDialog):
             return
         was_paused = self.control.paused
         self.control.pause()
         if not was_paused:
-            self.monitor.log_line("paused while the abort question is open")
+            self.monitor.log_line("paused while the question is open")
 
         def answered(yes: bool | None) -> None:
             if yes:
-                self._stop("aborted")
+                self.quit_when_done = status == "interrupted"
+                self._stop(status)
             elif not was_paused:
                 self.control.resume()
                 self.monitor.set_status("running")
-                self.monitor.log_line("not aborted: resuming")
+                self.monitor.log_line("not stopped: resuming")
             held, self.held_prompt = self.held_prompt, None
             if held is not None:
                 self.show_prompt(held)
 
-        self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition is paused. Abort: it stops here, the "
-                                       "file keeps every impact so far and is marked aborted."), answered)
+        self.push_screen(question, answered)
 
     def _stop(self, status: str) -> None:
         (self.control.abort if status == "aborted" else self.control.stop)()
@@ -294,12 +305,18 @@ class LabApp(App[Outcome | None]):
             self.operator.stop("interrupted")
 
     async def action_quit(self) -> None:
-        """Quit; mid-run the engine is stopped cleanly first (the file stays resumable)."""
+        """Quit; mid-run it asks first (``q`` again quits), then the engine is stopped cleanly at its next safe
+        point (the file stays resumable)."""
         if not self.running:
             self.exit(self.outcome)
             return
-        self.quit_when_done = True
-        self._stop("interrupted")
+        self._ask("interrupted", ConfirmDialog(
+            "Quit mid-run?", "Acquisition is paused. q quits: the engine stops here and the file stays resumable "
+            "(labctl tui PROTOCOL --out FILE --resume). n goes on.", yes_key="q", yes_label="quit"))
+
+    def action_help(self) -> None:
+        if not isinstance(self.screen, HelpScreen):
+            self.push_screen(HelpScreen())
 
     def action_browse(self, path: Path | None = None) -> None:
         from labctl.tui.browser import BrowserScreen

@@ -14,15 +14,17 @@ from textual.widgets import Footer, Static, Tree
 
 from labctl.errors import LabctlError
 from labctl.protocol import parse_protocol
-from labctl.storage import CampaignReader, StepInfo
+from labctl.report.notes import check_words, step_events
+from labctl.storage import CampaignReader, ImpactInfo, StepInfo
+from labctl.storage.records import OPERATOR
 from labctl.tui import plotdata as pd
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import reason_text, tilt_text
 
 BROWSER_CSS = """
 BrowserScreen #title { height: 1; background: $primary-background; padding: 0 1; }
-BrowserScreen #tree { width: 48; border: round $primary; }
-BrowserScreen #detail { height: auto; max-height: 8; padding: 0 1; }
+BrowserScreen #tree { width: 45%; min-width: 36; border: round $primary; }
+BrowserScreen #detail { height: auto; max-height: 10; padding: 0 1; }
 BrowserScreen .row { height: 1fr; }
 BrowserScreen .panel { border: round $primary; width: 1fr; height: 1fr; }
 """
@@ -38,7 +40,27 @@ def step_label(step: StepInfo) -> str:
         text += " · not identified"
     elif not step.complete:
         text += " · unfinished"
-    return f"{text} · {step.accepted_count}/{len(step.impacts)} impacts"
+    text += f" · {step.accepted_count}/{len(step.impacts)} impacts"
+    happened = step_events(step)
+    flags = (["LOAD DRIFTED"] if happened.drifted() else []) + (
+        [f"{', '.join(happened.channels_dropped)} left out"] if happened.channels_dropped else []) + (
+        [f"{len(happened.overrides)} override(s)"] if happened.overrides else [])
+    return text + "".join(f" · {f}" for f in flags)
+
+
+def impact_label(imp: ImpactInfo) -> str:
+    """One line per impact: its peak force and the verdict, who gave it and why (an override and its reason)."""
+    v = imp.verdict
+    if v.source == OPERATOR and v.accepted != imp.checks.accepted:
+        said = "clean" if imp.checks.accepted else f"flagged {check_words(imp.checks.reasons)}"
+        verdict = (f"{'ACCEPTED' if v.accepted else 'REJECTED'} by the operator, checks said {said}: "
+                   f"{v.reason or 'no reason'}")
+    elif v.accepted:
+        verdict = "ok"
+    else:
+        verdict = f"rejected: {reason_text(imp.reasons)}" + (f" ({v.reason})" if v.source == OPERATOR and v.reason
+                                                               else "")
+    return f"impact {imp.attempt}: {imp.peak_force_n:.0f} N · {verdict}"
 
 
 class BrowserScreen(Screen):
@@ -91,9 +113,7 @@ class BrowserScreen(Screen):
                 for step in run.steps:
                     snode = rnode.add(step_label(step), data=("step", series, run.run, step.step))
                     for imp in step.impacts:
-                        verdict = "ok" if imp.accepted else f"rejected: {reason_text(imp.reasons)}"
-                        snode.add_leaf(f"impact {imp.attempt}: {imp.peak_force_n:.0f} N"
-                                       f" · {verdict}", data=("impact", series, run.run, step.step, imp.attempt))
+                        snode.add_leaf(impact_label(imp), data=("impact", series, run.run, step.step, imp.attempt))
         tree.focus()
         if self.reader.series_indices():
             self.show_series(self.reader.series_indices()[0])
@@ -138,10 +158,15 @@ class BrowserScreen(Screen):
         if r is not None and r.identified:
             lines.append(f"bounce {r.bounce_hz:.2f} Hz · tilt {tilt_text(list(r.tilt_hz))} Hz · "
                          f"damping {r.bounce_damping_ratio:.4f} · coherence {r.coherence_at_bounce:.3f}")
-            if r.warnings:
-                lines.append("warnings: " + "; ".join(r.warnings))
-        elif r is not None and r.error:
-            lines.append(f"not identified: {r.error}")
+        happened = step_events(info)
+        lines.append(f"load {happened.load_before_n:.1f} N before the blows, "
+                     + (f"{happened.load_after_n:.1f} N after" if math.isfinite(happened.load_after_n)
+                        else "not read after"))
+        lines += happened.notes()
+        if attempt is not None:
+            imp = next((i for i in info.impacts if i.attempt == attempt), None)
+            if imp is not None:
+                lines.append(impact_label(imp))
         self.query_one("#detail", Static).update("\n".join(lines))
         frf = self.reader.step_frf(series, run, step)
         if frf is not None and r is not None:

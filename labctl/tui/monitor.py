@@ -105,18 +105,38 @@ class MonitorScreen(Screen):
         self.impact = ImpactPlots(self.query_one("#force-plot", TracePlot), self.query_one("#accel-plot", TracePlot))
         self.frf = FrfPlots(self.query_one("#frf-plot", TracePlot), self.query_one("#coh-plot", TracePlot))
         self.set_interval(1.0, self.refresh_header)
+        self.app.screen_change_signal.subscribe(self, lambda _screen: self.call_later(self.refresh_header))
         self.refresh_header()
 
     # --- header and log -------------------------------------------------------------------------------------
+    def asked(self) -> tuple[str, bool]:
+        """What the open dialog asks the technician ("" when none), and whether it stops the work (every dialog
+        but the per-hit gate, which is part of taking a blow): the header says it, the ETA stands still."""
+        from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title
+
+        for screen in reversed(self.app.screen_stack):
+            if isinstance(screen, ConfirmDialog):
+                return screen.asks, True
+            if isinstance(screen, ReviewDialog) and not screen.closed:
+                return "JUDGE THE BLOW: y accept · r reject (nothing armed)", False
+            if isinstance(screen, PromptDialog) and not screen.closed:
+                return (f"WAITING FOR YOU: {prompt_title(screen.request.action, screen.hint)} "
+                        "(nothing armed)"), True
+        return "", False
+
     def refresh_header(self) -> None:
         s = self.state
         title = f"labctl · {s.protocol or (self.protocol.name if self.protocol else 'no protocol')}"
         if s.backend:
             title += f" · {s.backend} → {s.path}"
+        if self.is_mounted:
+            s.hold(*self.asked())
         status = STATUS_WORDS.get(s.status, s.status.upper())
+        if s.waiting and s.status == "running":
+            status = "WAITING FOR THE OPERATOR"
         header = self.query_one("#header", Static)
         header.update(f"{escape(title)}   [b]{escape(status)}[/b]\n{escape(s.header_text())}")
-        header.set_class(s.status == "paused", "-paused")
+        header.set_class(s.status == "paused" or bool(s.waiting and s.status == "running"), "-paused")
         header.set_class(s.status == "complete", "-done")
         header.set_class(s.status in ("failed", "aborted", "interlock"), "-failed")
 
