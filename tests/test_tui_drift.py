@@ -72,3 +72,49 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
     assert not [e for e in events.of(ev.Notice) if "verdict on impact" in e.message]
     with CampaignReader(tmp_path / "gate.h5") as reader:
         assert any(s.load_drift for s in reader.runs(1)[0].steps)
+
+
+async def test_a_drift_a_dead_channel_and_an_override_each_appear_live(tmp_path: Path, creeping_twin: list[RigTwin],
+                                                                       monkeypatch):
+    """What happens at the rig is on the screen when it happens: the drift and the technician's choice, the
+    pulled A3X cable in the step's summary, and the rejection of a clean blow with its reason."""
+    from tests.test_tui_gate import type_text
+
+    crept = RigTwin.strike
+
+    def strike(self: RigTwin):  # noqa: ANN202 - A3X's cable is pulled from the first blow on
+        self.pulled_channel = "A3X"
+        return crept(self)
+
+    monkeypatch.setattr(RigTwin, "strike", strike)
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True))
+    headers = set()
+    async with app.run_test(size=SIZE) as pilot:
+        while True:
+            dialog = await next_dialog(pilot, app)
+            if app.outcome is not None:
+                break
+            app.monitor.refresh_header()
+            headers.add(app.monitor.state.prompt_text().split(":")[0])
+            if drift_prompt(dialog):
+                creeping_twin[0].set_creep(0.0)
+                await pilot.press("1")
+            elif isinstance(dialog, ReviewDialog):
+                r = dialog.request.review
+                if (r.step, r.attempt) == (1, 1) and r.checks_accepted:
+                    await pilot.press("r")
+                    await type_text(pilot, "hammer slipped")
+                    await pilot.press("enter")
+                else:
+                    await pilot.press("y" if r.checks_accepted else "r")
+            else:
+                await pilot.press("enter")
+            await wait_for(pilot, lambda d=dialog: d.closed, what="the dialog to close")
+            if app.screen is not dialog:
+                app.monitor.refresh_header()
+        log = "\n".join(str(line.text) for line in app.monitor.query_one("#log").lines)
+    assert app.outcome.status == "complete"
+    assert {"WAITING FOR YOU", "JUDGE THE BLOW"} <= headers and "ARMED" not in headers
+    assert "load drifted from" in log and "resumed: the operator continued past load drift" in log
+    assert "dead channel(s) left out: A3X" in log
+    assert "rejected by the operator (hammer slipped)" in log

@@ -21,7 +21,7 @@ from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
 MONITOR_CSS = """
-#header { height: 2; background: $primary-background; color: $text; padding: 0 1; }
+#header { height: auto; max-height: 4; background: $primary-background; color: $text; padding: 0 1; }
 #header.-paused { background: $warning 40%; }
 #header.-done { background: $success 30%; }
 #header.-failed { background: $error 40%; }
@@ -135,7 +135,9 @@ class MonitorScreen(Screen):
         if s.waiting and s.status == "running":
             status = "WAITING FOR THE OPERATOR"
         header = self.query_one("#header", Static)
-        header.update(f"{escape(title)}   [b]{escape(status)}[/b]\n{escape(s.header_text())}")
+        prompt = s.prompt_text()
+        header.update(f"[b]{escape(status)}[/b]  {escape(title)}\n{escape(s.counters_text())}"
+                      + (f"\n[b]{escape(prompt)}[/b]" if prompt else ""))
         header.set_class(s.status == "paused" or bool(s.waiting and s.status == "running"), "-paused")
         header.set_class(s.status == "complete", "-done")
         header.set_class(s.status in ("failed", "aborted", "interlock"), "-failed")
@@ -175,10 +177,12 @@ class MonitorScreen(Screen):
 
     def _impact(self, e: ev.ImpactAcquired) -> None:
         p, rejected = e.position, isinstance(e, ev.ImpactRejected)
-        head = f"impact {p.impact}/{self.state.impacts_per_step} (attempt {e.attempt})"
+        head = f"step {p.step} impact {e.attempt}"
         if rejected:
-            title = f"{head} REJECTED: {reason_text(e.reasons)}"
-            self.log_line(f"{head} rejected ({reason_text(e.reasons)}): hit again", "bold red")
+            title = f"{head} FLAGGED: {reason_text(e.reasons)}"
+            gate = getattr(getattr(self.app, "operator", None), "reviews_hits", False)
+            self.log_line(f"{head} flagged by the checks ({reason_text(e.reasons)}): "
+                          + ("judge it" if gate else "not used, hit again"), "bold red")
         else:
             title = f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms"
             self.log_line(f"{head}: {e.peak_force_n:.0f} N, pulse {e.pulse_width_s * 1e3:.2f} ms", "green")
@@ -223,7 +227,7 @@ class MonitorScreen(Screen):
         self.log_line("paused at a safe point (between impacts)", "bold yellow")
 
     def _resumed(self, e: ev.Resumed) -> None:
-        self.log_line("resumed", "bold")
+        self.log_line(f"resumed: {e.reason.replace('_', ' ')}" if e.reason else "resumed", "bold")
 
     def _suspended(self, e: ev.Suspended) -> None:
         self.log_line(e.reason, "bold yellow")

@@ -229,7 +229,8 @@ class CampaignState:
         return self.status in ("running", "paused", "stopping")
 
     def progress_text(self) -> str:
-        """``run r/R · step s/S · impact i/I`` (with the series when the protocol has several)."""
+        """``run r/R · step s/S · accepted a/I`` (with the series when the protocol has several). The accepted
+        blows of the step count here; "impact N" always names a blow by its number in the step (as stored)."""
         p = self.position
 
         def n(value: int) -> str:
@@ -242,18 +243,25 @@ class CampaignState:
             steps_total = self.steps_estimate[0]
         parts = [f"series {n(p.series)}/{self.series_total}"] if self.series_total > 1 else []
         parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{steps_total or '-'}",
-                  f"impact {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
+                  f"accepted {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
         return " · ".join(parts)
 
-    def header_text(self, now: float | None = None) -> str:
+    def counters_text(self, now: float | None = None) -> str:
+        """Where the campaign is, the load, the elapsed time and the ETA."""
         load = "--" if math.isnan(self.load_n) else f"{self.load_n:.1f}"
-        if self.waiting and self.running:
-            trigger = f" · {self.waiting}"
-        else:
-            trigger = {"armed": " · ARMED: waiting for the blow", "triggered": " · TRIGGERED: judge the hit"}.get(
-                self.trigger if self.status == "running" else "", "")
         return (f"{self.progress_text()} · load {load} N · elapsed {clock(self.elapsed_s(now))} · "
-                f"ETA {clock(self.eta_now_s(now))}{trigger}")
+                f"ETA {clock(self.eta_now_s(now))}")
+
+    def prompt_text(self) -> str:
+        """What the rig and the technician are doing now: asked by a dialog, armed for a blow, or a blow taken."""
+        if self.waiting and self.running:
+            return self.waiting
+        return {"armed": "ARMED: waiting for the blow", "triggered": "TRIGGERED: judge the hit"}.get(
+            self.trigger if self.status == "running" else "", "")
+
+    def header_text(self, now: float | None = None) -> str:
+        prompt = self.prompt_text()
+        return self.counters_text(now) + (f" · {prompt}" if prompt else "")
 
     def step_summary(self, event: ev.StepProcessed) -> str:
         """One step in a line: used and rejected blows (why), bounce, k ± 1-σ and the per-roller warning."""
