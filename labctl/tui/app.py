@@ -83,10 +83,11 @@ class LabApp(App[Outcome | None]):
         Binding("question_mark", "help", "keys"),
     ]
 
-    def __init__(self, settings: TuiSettings, *, open_path: Path | None = None,
+    def __init__(self, settings: TuiSettings, *, open_path: Path | None = None, watch_path: Path | None = None,
                  subscribers: tuple = ()) -> None:
         super().__init__()
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
+        self.watch_path = watch_path
         self.control = RunControl()
         self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
@@ -107,7 +108,11 @@ class LabApp(App[Outcome | None]):
         return self.monitor
 
     def on_ready(self) -> None:
-        if self.open_path is not None:
+        if self.watch_path is not None:
+            from labctl.tui.watcher import WatchScreen
+
+            self.push_screen(WatchScreen(self.watch_path))
+        elif self.open_path is not None:
             self.action_browse(self.open_path)
         elif self.settings.protocol is None:
             from labctl.tui.setup import SetupScreen
