@@ -140,7 +140,7 @@ async def test_the_browser_shows_the_drift_the_dead_channel_and_the_override(cam
         nodes = tree_nodes(tree.root)
         labels = {n.data: str(n.label) for n in nodes if n.data}
         assert "LOAD DRIFTED" in labels[("step", 1, 1, 1)] and "A3X left out" in labels[("step", 1, 1, 1)]
-        assert labels[("impact", 1, 1, 1, 1)].endswith(f"REJECTED by the operator, checks said clean: {REASON}")
+        assert labels[("impact", 1, 1, 1, 1)].endswith("REJECTED by the operator (clean)")
         tree.move_cursor(next(n for n in nodes if n.data == ("step", 1, 1, 1)))
         await pilot.pause(0.2)
         detail = str(screen.query_one("#detail").render())

@@ -77,7 +77,7 @@ async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
         assert app.outcome.status == "complete" and state.status == "complete"
         done = [e.impacts_done for e in progress.of(ev.Progress)]
         assert done == list(range(1, 7))  # 3 steps × 2 impacts, one at a time
-        assert state.impacts_done == 6 and state.progress_text() == "run 1/1 · step 3/3 · accepted 2/2"
+        assert state.impacts_done == 6 and state.progress_text() == "run 1/1 · step 3/3 · hit 2/2"
         plot = app.monitor.query_one("#stiffness", StiffnessPlot)
         assert plot.point_count() == 3
         assert {"Tripp", "Eq. 5 (Ra 0.2 µm)"} <= set(plot.models)
@@ -112,7 +112,7 @@ async def test_running_screen_snapshot_shows_progress_modes_and_curve(tmp_path, 
         await wait_for(pilot, lambda: app.outcome)
     lines = svg_lines(svg)
     text = "\n".join(lines)
-    assert "run 1/1 · step 2/3 · accepted 2/2" in text and "RUNNING" in text
+    assert "run 1/1 · step 2/3 · hit 2/2" in text and "RUNNING" in text
     assert re.search(r"bounce \d+\.\d\d Hz", text)
     assert "stiffness vs load" in text and "FRF step 2" in text
     if os.environ.get("LABCTL_UPDATE_SNAPSHOTS"):

@@ -85,12 +85,12 @@ def test_resumed_campaign_counts_stored_steps_as_done_and_shows_a_positive_eta(t
 def test_state_eta_stands_still_while_paused_and_counters_come_from_the_plan():
     s = CampaignState()
     s.plan(1, 3, 3, (11,))
-    assert s.progress_text() == "run -/3 · step -/11 · accepted -/3"
+    assert s.progress_text() == "run -/3 · step -/11 · hit -/3"
     s.apply(ev.CampaignStarted(0.0, "roller_stiffness", "x.h5", "sim", 1, 3, (11,), 3), now=0.0)
     s.apply(ev.Progress(1.0, ev.Position(1, 1, 1, 1), 1, 99, 600.0), now=10.0)
     assert s.eta_now_s(now=20.0) == pytest.approx(590.0)
     s.apply(ev.Paused(2.0, ev.Position(1, 1, 1, 4)), now=30.0)
     assert s.eta_now_s(now=30.0) == s.eta_now_s(now=500.0) == pytest.approx(580.0)
-    assert s.progress_text() == "run 1/3 · step 1/11 · accepted 3/3"  # never "accepted 4/3"
+    assert s.progress_text() == "run 1/3 · step 1/11 · hit 3/3"  # never "hit 4/3"
     s.apply(ev.Resumed(3.0, ev.Position(1, 1, 1, 4)), now=500.0)
     assert s.eta_now_s(now=510.0) == pytest.approx(570.0)

@@ -40,8 +40,9 @@ class ProgressPrinter:
             self.load = event.load_n
         elif isinstance(event, ev.Progress):
             p = event.position
-            line = (f"run {p.run}/{self.runs} · step {p.step}/{self.steps_total} · impact {p.impact} · "
-                    f"load {self.load:7.1f} N · bounce {self.bounce:7.2f} Hz · "
+            bounce = "   --  " if self.bounce != self.bounce else f"{self.bounce:7.2f}"  # none before step 1
+            line = (f"run {p.run}/{self.runs} · step {p.step}/{self.steps_total} · hit {p.impact} · "
+                    f"load {self.load:7.1f} N · bounce {bounce} Hz · "
                     f"{event.impacts_done}/{event.impacts_total} impacts · ETA {_eta(event.eta_s)}")
             self.out.write(("\r" + line) if self.tty else line + "\n")
             self.open_line = self.tty

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -116,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         CampaignReader(open_path).close()  # a missing or foreign file fails here, as one line
     if args.serve:
         return serve(args, sys.argv[1:])
-    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+    served = "web_driver" in os.environ.get("TEXTUAL_DRIVER", "")  # a session of labctl tui --serve
+    if not served and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise InputError("needs an interactive terminal; for unattended runs use 'labctl run'")
     app = LabApp(settings, open_path=open_path, watch_path=watch_path)
     outcome = app.run()

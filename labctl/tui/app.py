@@ -71,23 +71,24 @@ class LabApp(App[Outcome | None]):
     """``labctl tui``: pick a protocol, run it with live plots and dialogs, browse campaign files."""
 
     TITLE = "labctl"
+    ENABLE_COMMAND_PALETTE = False  # every action has its key (? lists them); the footer keeps its room
     BINDINGS = [
         Binding("s", "start", "start"),
         Binding("p", "pause", "pause/resume"),
         Binding("a", "abort", "abort"),
-        Binding("r", "verdict(False)", "reject hit"),
-        Binding("y", "verdict(True)", "accept hit"),
-        Binding("t", "auto_confirm", "auto-confirm"),
-        Binding("o", "browse", "open file"),
+        Binding("r", "verdict(False)", "reject hit", show=False),  # the gate shows its own y / r
+        Binding("y", "verdict(True)", "accept hit", show=False),
+        Binding("t", "auto_confirm", "auto"),
+        Binding("o", "browse", "open"),
         Binding("q", "quit", "quit"),
         Binding("question_mark", "help", "keys"),
     ]
 
     def __init__(self, settings: TuiSettings, *, open_path: Path | None = None, watch_path: Path | None = None,
-                 subscribers: tuple = ()) -> None:
+                 watch_interval_s: float = 1.0, subscribers: tuple = ()) -> None:
         super().__init__()
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
-        self.watch_path = watch_path
+        self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
         self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
@@ -111,7 +112,7 @@ class LabApp(App[Outcome | None]):
         if self.watch_path is not None:
             from labctl.tui.watcher import WatchScreen
 
-            self.push_screen(WatchScreen(self.watch_path))
+            self.push_screen(WatchScreen(self.watch_path, self.watch_interval_s))
         elif self.open_path is not None:
             self.action_browse(self.open_path)
         elif self.settings.protocol is None:
@@ -259,6 +260,8 @@ class LabApp(App[Outcome | None]):
     def action_verdict(self, accept: bool) -> None:
         if not self.running:
             return
+        if self.operator.reviews_hits:  # the gate judges every blow: y / r mean only that, never a late override
+            return
         if self.screen is not self.monitor:  # a dialog is open: y/r never answer it, nor judge a blow behind it
             self.notify("y / r judge a blow in the gate; this dialog takes its digits or Enter (? for the keys)",
                         severity="warning", timeout=4)
@@ -344,8 +347,10 @@ class LabApp(App[Outcome | None]):
         if action == "start":
             return self.settings.protocol is not None and not self.running and self.outcome is None \
                 and self.error is None
-        if action in ("pause", "abort", "verdict"):
+        if action in ("pause", "abort"):
             return self.running
+        if action == "verdict":
+            return self.running and not self.operator.reviews_hits
         if action == "auto_confirm":
             return self.settings.backend == "sim"
         return True

@@ -24,6 +24,9 @@ from labctl.tui.state import reason_text, tilt_text
 BROWSER_CSS = """
 BrowserScreen #title { height: 1; background: $primary-background; padding: 0 1; }
 BrowserScreen #tree { width: 45%; min-width: 36; border: round $primary; }
+BrowserScreen.-narrow #b-main { layout: vertical; }
+BrowserScreen.-narrow #tree { width: 100%; height: 45%; }
+BrowserScreen.-narrow #b-frf, BrowserScreen.-short #b-traces { display: none; }
 BrowserScreen #detail { height: auto; max-height: 10; padding: 0 1; }
 BrowserScreen .row { height: 1fr; }
 BrowserScreen .panel { border: round $primary; width: 1fr; height: 1fr; }
@@ -40,21 +43,22 @@ def step_label(step: StepInfo) -> str:
         text += " · not identified"
     elif not step.complete:
         text += " · unfinished"
-    text += f" · {step.accepted_count}/{len(step.impacts)} impacts"
+    text += f" · {step.accepted_count}/{len(step.impacts)} hits"
     happened = step_events(step)
     flags = (["LOAD DRIFTED"] if happened.drifted() else []) + (
-        [f"{', '.join(happened.channels_dropped)} left out"] if happened.channels_dropped else []) + (
-        [f"{len(happened.overrides)} override(s)"] if happened.overrides else [])
+        [f"{','.join(happened.channels_dropped)} left out"] if happened.channels_dropped else []) + (
+        [f"{len(happened.overrides)} override"] if happened.overrides else [])
     return text + "".join(f" · {f}" for f in flags)
 
 
-def impact_label(imp: ImpactInfo) -> str:
-    """One line per impact: its peak force and the verdict, who gave it and why (an override and its reason)."""
+def impact_label(imp: ImpactInfo, reason: bool = False) -> str:
+    """One line per impact: its peak force and the verdict, and who gave it; an override says so (with
+    ``reason``: and why, as the detail line shows it)."""
     v = imp.verdict
     if v.source == OPERATOR and v.accepted != imp.checks.accepted:
         said = "clean" if imp.checks.accepted else f"flagged {check_words(imp.checks.reasons)}"
-        verdict = (f"{'ACCEPTED' if v.accepted else 'REJECTED'} by the operator, checks said {said}: "
-                   f"{v.reason or 'no reason'}")
+        verdict = f"{'ACCEPTED' if v.accepted else 'REJECTED'} by the operator ({said})" + (
+            f": {v.reason or 'no reason given'}" if reason else "")
     elif v.accepted:
         verdict = "ok"
     else:
@@ -68,10 +72,12 @@ class BrowserScreen(Screen):
 
     DEFAULT_CSS = BROWSER_CSS
     BINDINGS = [Binding("escape,b", "back", "back")]
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (140, "-wide")]  # narrower: the tree above, its labels whole
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, locking: bool | None = None) -> None:
         super().__init__()
-        self.reader = CampaignReader(path)
+        self.reader = CampaignReader(path, locking=locking)  # False: a file just watched, opened as the watcher did
         self.protocol = None
         try:
             text = self.reader.config_text("protocol.toml")
@@ -83,7 +89,7 @@ class BrowserScreen(Screen):
         a = self.reader.attrs
         yield Static(f"{self.reader.path} · {a.get('protocol_name', '?')} on {a.get('backend', '?')} · "
                      f"status {a.get('status', '?')} {a.get('status_message', '')}", id="title", markup=False)
-        with Horizontal():
+        with Horizontal(id="b-main"):
             yield Tree(self.reader.path.name, id="tree")
             with Vertical():
                 yield Static("select a series, run, step or impact", id="detail", markup=False)
@@ -92,7 +98,7 @@ class BrowserScreen(Screen):
                     with Vertical(classes="panel", id="b-frf"):
                         yield TracePlot("FRF", "f [Hz]", "|H1| [(m/s²)/N]", id="b-frf-plot")
                         yield TracePlot("", "f [Hz]", "coherence", id="b-coh-plot")
-                with Horizontal(classes="row"):
+                with Horizontal(classes="row", id="b-traces"):
                     yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")
                     yield TracePlot("response", "t [ms]", "a [m/s²]", id="b-accel")
         yield Footer()
@@ -166,7 +172,7 @@ class BrowserScreen(Screen):
         if attempt is not None:
             imp = next((i for i in info.impacts if i.attempt == attempt), None)
             if imp is not None:
-                lines.append(impact_label(imp))
+                lines.append(impact_label(imp, reason=True))
         self.query_one("#detail", Static).update("\n".join(lines))
         frf = self.reader.step_frf(series, run, step)
         if frf is not None and r is not None:

@@ -11,7 +11,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Button, Footer, Input, Label, Static
 
 from labctl.tui.operator import PromptRequest
 from labctl.tui.plots import FrfPlots, TracePlot
@@ -39,6 +39,8 @@ PromptDialog .countdown { color: $text-muted; width: 100%; }
 PromptDialog Horizontal, ConfirmDialog Horizontal { height: auto; width: 100%; }
 PromptDialog Button, ConfirmDialog Button { margin-right: 2; }
 ReviewDialog { align: center bottom; background: $background 20%; }
+ReviewDialog > Footer { dock: bottom; }
+ReviewDialog.-short .hint { display: none; }
 ReviewDialog > Vertical {
     width: 100; max-width: 98%; height: auto; border: thick $success; background: $surface; padding: 0 2;
 }
@@ -198,9 +200,8 @@ def review_body(request: PromptRequest) -> str:
     r = request.review
     assert r is not None
     said = "passed every check" if r.checks_accepted else f"the checks reject it: {reason_text(r.reasons)}"
-    return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms · "
-            f"{said}.\nIts force and response are in the impact panel above (range use on its lower border); "
-            "the next blow is armed only after your verdict.")
+    return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms"
+            f" · {said}.")
 
 
 class ReviewDialog(ModalScreen[str]):
@@ -212,10 +213,11 @@ class ReviewDialog(ModalScreen[str]):
     """
 
     DEFAULT_CSS = DIALOG_CSS
-    BINDINGS = [Binding("y", "choose('accept')", "accept hit"), Binding("r", "choose('reject')", "reject hit"),
+    BINDINGS = [Binding("y", "choose('accept')", "accept"), Binding("r", "choose('reject')", "reject"),
                 Binding("escape", "back", "back", show=False)] + [
-        Binding(key, f"app.{action}", show=False) for key, action in (
-            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"), ("question_mark", "help"))]
+        Binding(key, f"app.{action}", label) for key, action, label in (
+            ("p", "pause", "pause"), ("a", "abort", "abort"), ("t", "auto_confirm", "auto"), ("q", "quit", "quit"),
+            ("question_mark", "help", "keys"))]
     HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
     VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
@@ -238,6 +240,8 @@ class ReviewDialog(ModalScreen[str]):
         with Vertical():
             yield Label(review_title(self.request), classes="title")
             yield Static(review_body(self.request), classes="message")
+            yield Static("Its force and response are in the impact panel above (range use on its lower border); "
+                         "the next blow is armed only after your verdict.", classes="message hint")
             with Horizontal(id="gate-frf"):
                 yield TracePlot("", "f [Hz]", "|H1| [(m/s²)/N]", id="gate-frf-plot")
                 yield TracePlot("", "f [Hz]", "coherence", id="gate-coh-plot")
@@ -246,6 +250,7 @@ class ReviewDialog(ModalScreen[str]):
                 yield Button("r reject", id="reject", variant="default" if self.clean else "error")
             yield Input(placeholder="why? (Enter to confirm, Esc to go back)", id="reason")
             yield Static("", classes="countdown", id="countdown")
+        yield Footer()  # the gate covers the screen's footer: it shows the keys that work here
 
     def on_mount(self) -> None:
         self.set_class(not self.clean, "-flagged")
@@ -332,7 +337,7 @@ KEYS = (
     ("s", "start the campaign (when not started with --autostart)"),
     ("p", "pause / resume: the engine holds before it arms the next blow"),
     ("a", "abort: asks first (x aborts, n goes on); the file keeps every impact"),
-    ("y / r", "in the per-hit gate: accept / reject the blow just taken (an override asks for the reason)"),
+    ("y / r", "in the gate: accept / reject the blow just taken (an override asks why)"),
     ("1-9, Enter", "in a prompt: pick a choice by number; Enter takes the highlighted one"),
     ("t", "auto-confirm on/off (simulated rig only)"),
     ("o", "browse a campaign file"),

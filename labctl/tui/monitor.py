@@ -60,6 +60,13 @@ HANDLERS: dict[type[ev.Event], str] = {
 }
 
 
+def fit_title(variants: list[str], width: int) -> str:
+    """The longest of ``variants`` (longest first) that fits a border of ``width`` columns whole, so a title
+    is shortened by dropping what matters least, never cut mid-word; the last variant when none fits."""
+    room = width - 6  # corners, the title's padding
+    return next((v for v in variants if len(v) <= room), variants[-1])
+
+
 def run_label(series: int, run: int, series_total: int) -> str:
     return f"series {series} run {run}" if series_total > 1 else f"run {run}"
 
@@ -96,7 +103,7 @@ class MonitorScreen(Screen):
 
     def on_mount(self) -> None:
         self.query_one("#impact-panel").border_title = "last impact: waiting"
-        self.query_one("#frf-panel").border_title = "FRF and coherence: waiting for the first step"
+        self.query_one("#frf-panel").border_title = "FRF: after the first step"
         self.query_one("#side").border_title = "modes and log"
         self.query_one("#stiffness").add_class("panel")
         self.query_one("#stiffness").border_title = "stiffness vs load"
@@ -178,18 +185,21 @@ class MonitorScreen(Screen):
     def _impact(self, e: ev.ImpactAcquired) -> None:
         p, rejected = e.position, isinstance(e, ev.ImpactRejected)
         head = f"step {p.step} impact {e.attempt}"
-        if rejected:
-            title = f"{head} FLAGGED: {reason_text(e.reasons)}"
-            gate = getattr(getattr(self.app, "operator", None), "reviews_hits", False)
+        width = self.query_one("#impact-panel").size.width or 60
+        gate = getattr(getattr(self.app, "operator", None), "reviews_hits", False)
+        if rejected:  # with the gate the technician decides; without it the checks' rejection stands
+            word = "FLAGGED" if gate else "REJECTED"
+            title = fit_title([f"{head} {word}: {reason_text(e.reasons)}", f"{head} {word}"], width)
             self.log_line(f"{head} flagged by the checks ({reason_text(e.reasons)}): "
                           + ("judge it" if gate else "not used, hit again"), "bold red")
         else:
-            title = f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms"
+            title = fit_title([f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms",
+                               f"{head} ok · {e.peak_force_n:.0f} N"], width)
             self.log_line(f"{head}: {e.peak_force_n:.0f} N, pulse {e.pulse_width_s * 1e3:.2f} ms", "green")
         panel = self.query_one("#impact-panel")
         panel.set_class(rejected, "-rejected")
         panel.border_title = title
-        panel.border_subtitle = self.state.range_text()
+        panel.border_subtitle = fit_title([self.state.range_text(n) for n in (6, 4, 3, 2, 1)], width)
         full = [name for name, use in e.range_use.items() if use >= 1.0]
         clipped = sorted({r.partition(":")[2] for r in e.reasons if r.startswith("clipped:")} | set(full))
         if clipped:
@@ -205,8 +215,12 @@ class MonitorScreen(Screen):
         table.move_cursor(row=table.row_count - 1)
         self.log_line(f"load {e.load_n:.1f} N · " + self.state.step_summary(e), "cyan")
         self.frf.show(e.frequencies_hz, e.h1_magnitude, e.coherence, e.channels, e.bounce_hz, e.tilt_hz, "")
-        self.query_one("#frf-panel").border_title = (f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), "
-                                                     f"tilt {tilt} Hz (orange)")
+        panel = self.query_one("#frf-panel")
+        panel.border_title = fit_title([
+            f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), tilt {tilt} Hz (orange)",
+            f"step {p.step}: bounce {e.bounce_hz:.1f} (red) · tilt {tilt} Hz",
+            f"step {p.step}: bounce {e.bounce_hz:.1f} Hz"],
+            panel.size.width or 60)
         self._show_runs()
 
     def _step_failed(self, e: ev.StepFailed) -> None:

@@ -229,8 +229,9 @@ class CampaignState:
         return self.status in ("running", "paused", "stopping")
 
     def progress_text(self) -> str:
-        """``run r/R · step s/S · accepted a/I`` (with the series when the protocol has several). The accepted
-        blows of the step count here; "impact N" always names a blow by its number in the step (as stored)."""
+        """``run r/R · step s/S · hit h/I`` (with the series when the protocol has several): the good hit of the
+        step being taken (a rejected blow is hit again for the same h); "impact N" always names a blow by its
+        number in the step, as stored, so the two never read alike."""
         p = self.position
 
         def n(value: int) -> str:
@@ -243,7 +244,7 @@ class CampaignState:
             steps_total = self.steps_estimate[0]
         parts = [f"series {n(p.series)}/{self.series_total}"] if self.series_total > 1 else []
         parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{steps_total or '-'}",
-                  f"accepted {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
+                  f"hit {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
         return " · ".join(parts)
 
     def counters_text(self, now: float | None = None) -> str:

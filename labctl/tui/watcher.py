@@ -99,7 +99,8 @@ class WatchScreen(Screen):
             k = "--" if math.isnan(s.stiffness_n_per_m) else f"{s.stiffness_n_per_m * 1e-6:.2f}"
             bounce = "--" if math.isnan(s.bounce_hz) else f"{s.bounce_hz:.2f}"
             table.add_row(str(s.run), str(s.step), f"{s.load_n:.1f}", f"{s.accepted}/{s.impacts}", bounce, k,
-                          "; ".join(s.notes) or ("" if s.complete else "in progress"))
+                          "; ".join(s.notes) or ("" if s.complete else
+                                                 "unfinished" if snap.finished else "in progress"))
             key = (s.series, s.run, s.step, s.complete)
             if s.complete and key not in self._seen_steps:
                 self._seen_steps.add(key)
@@ -149,4 +150,4 @@ class WatchScreen(Screen):
             return
         from labctl.tui.browser import BrowserScreen
 
-        self.app.push_screen(BrowserScreen(self.path))
+        self.app.push_screen(BrowserScreen(self.path, locking=False))
