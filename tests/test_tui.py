@@ -250,6 +250,10 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
         plot = resumed.monitor.query_one("#stiffness", StiffnessPlot)
         assert resumed.outcome.status == "complete" and steps == [(1, 1), (1, 2), (1, 3)]
         assert plot.point_count() == 3 and resumed.monitor.query_one("#steps").row_count == 3
+        counted = sum(resumed.monitor.state.rejected.values())
+    with CampaignReader(tmp_path / "qc.h5") as r:  # the summary covers the whole campaign, not the session
+        unused = sum(not o.used for s in r.runs(1)[0].steps for o in s.result.impacts)
+    assert counted == unused
 
 
 async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):

@@ -258,23 +258,37 @@ class MonitorScreen(Screen):
             self.log_line("o: browse this file · q: quit")
 
     def preload(self, path: str) -> None:
-        """Show what an interrupted campaign already holds before the engine continues it."""
+        """Show what an interrupted campaign already holds before the engine continues it: its identified steps,
+        and its unused blows in the campaign's counts, so the end summary covers the whole campaign."""
         from labctl.storage import CampaignReader
+        from labctl.tui.state import blow_reason
 
         with CampaignReader(path) as reader:
             for series in reader.series_indices():
                 for run in reader.runs(series):
                     for step in run.steps:
                         r = step.result
-                        if r is None or not r.identified:
+                        if r is None:  # unfinished: the engine finishes it and reports all its blows
                             continue
+                        if not r.identified:
+                            self.state.steps_failed += 1
+                            continue
+                        stored = {i.attempt: i for i in step.impacts}
+                        for outcome in r.impacts:
+                            if not outcome.used:
+                                info = stored.get(outcome.attempt)
+                                why = info.reasons if info is not None and not info.accepted else outcome.reasons
+                                key = blow_reason(tuple(why))
+                                self.state.rejected[key] = self.state.rejected.get(key, 0) + 1
                         tilt = tuple(float(t) for t in r.tilt_hz)[:2]
                         row = StepRow(series, run.run, step.step, step.load_n, r.bounce_hz,
                                       (tilt + (math.nan, math.nan))[:2], r.roller_stiffness_n_per_m,
                                       r.coherence_at_bounce)
                         self.state.add_row(row)
                         self.query_one("#steps", DataTable).add_row(*row_cells(row))
-        self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file")
+        unused = sum(self.state.rejected.values())
+        self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file"
+                      + (f", {unused} blows in them not used" if unused else ""))
 
     # --- stiffness plot -------------------------------------------------------------------------------------
     def _show_models(self, series: int) -> None:
