@@ -44,6 +44,7 @@ class TuiSettings:
     devices: str | None = None
     no_auto_confirm: bool = False  # --no-auto-confirm: the setup screen's auto-confirm box starts unticked
     review_hits: bool = True  # the per-hit gate: every stored blow waits for the technician's verdict
+    arm_grace_s: float = 1.0  # after a verdict at the gate, a `p` this soon still pauses before the next arm
 
     def out_path(self) -> Path:
         """The campaign file: as given, or ``<protocol>-<date>-<time>.h5`` in the working directory."""
@@ -90,7 +91,8 @@ class LabApp(App[Outcome | None]):
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
         self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
-        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits)
+        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits,
+                                    settings.arm_grace_s)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
             else DEFAULT_AUTO_CONFIRM_S
