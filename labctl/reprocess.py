@@ -69,5 +69,5 @@ def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None
                                             step.knob_angle_deg, result, step))
                     if result.identified:
                         out.points.append(specimen_point(spec, run.run, step.load_n,
-                                                         result.roller_stiffness_n_per_m, result))
+                                                         result.roller_stiffness_n_per_m, result, step))
     return out

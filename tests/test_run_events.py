@@ -145,3 +145,19 @@ async def test_the_browser_shows_the_drift_the_dead_channel_and_the_override(cam
         await pilot.pause(0.2)
         detail = str(screen.query_one("#detail").render())
         assert "load drifted from" in detail and "channel A3X left out: dead" in detail and REASON in detail
+
+
+def test_the_stiffness_table_flags_the_drifted_step_for_the_discrepancy_workflow(campaign, tmp_path):
+    from labctl.stiffness_table import read_stiffness_table, write_stiffness_table
+    from labctl.storage import campaign_stiffness_points
+
+    path, _, _ = campaign
+    points = campaign_stiffness_points(path)
+    first = points[0]
+    assert first.drifted and "channels_left_out" in first.flags and "operator_override" in first.flags
+    assert first.load_after_n is not None and first.load_after_n > first.load_n * 1.05
+    csv = tmp_path / "k.csv"
+    write_stiffness_table(csv, points)
+    again = read_stiffness_table(csv)  # the optional columns round-trip
+    assert [p.flags for p in again] == [p.flags for p in points]
+    assert again[0].load_after_n == pytest.approx(first.load_after_n)

@@ -6,14 +6,34 @@ import math
 from pathlib import Path
 from typing import Any
 
-from labctl.stiffness_table import BUDGET_COLUMNS, StiffnessPoint
-from labctl.storage.reader import CampaignReader
-from labctl.storage.records import StepResult
+from labctl.stiffness_table import (
+    BUDGET_COLUMNS,
+    FLAG_CHANNELS,
+    FLAG_LOAD_DRIFT,
+    FLAG_OVERRIDE,
+    StiffnessPoint,
+)
+from labctl.storage.reader import CampaignReader, StepInfo
+from labctl.storage.records import OPERATOR, StepResult
+
+
+def step_flags(step: StepInfo, result: StepResult | None = None) -> tuple[float | None, str | None]:
+    """The load read after a step's blows and what happened at it, as the stiffness table's optional columns."""
+    r = result if result is not None else step.result
+    flags = [FLAG_LOAD_DRIFT] if step.load_drift else []
+    if r is not None and (r.dead_channels or r.dropped_channels):
+        flags.append(FLAG_CHANNELS)
+    if any(i.verdict.source == OPERATOR and i.verdict.accepted != i.checks.accepted for i in step.impacts):
+        flags.append(FLAG_OVERRIDE)
+    after = step.load_after_n
+    return (after if math.isfinite(after) else None), (";".join(flags) or None)
 
 
 def specimen_point(specimen: dict[str, Any], repetition: int, load_n: float, stiffness_n_per_m: float,
-                   result: StepResult | None = None) -> StiffnessPoint:
-    """A table row for a measured point of a stored specimen (with the result's uncertainty budget when given)."""
+                   result: StepResult | None = None, step: StepInfo | None = None) -> StiffnessPoint:
+    """A table row for a measured point of a stored specimen (with the result's uncertainty budget when given,
+    and with ``step`` the load after its blows and what happened at it)."""
+    after, flags = step_flags(step, result) if step is not None else (None, None)
     rt = specimen.get("roller_type")
     budget = result.roller_stiffness_budget_n_per_m if result is not None else {}
     std = result.roller_stiffness_std_n_per_m if result is not None else None
@@ -26,6 +46,7 @@ def specimen_point(specimen: dict[str, Any], repetition: int, load_n: float, sti
         poisson_ratio=specimen.get("poisson_ratio"), hardness_hrc=specimen.get("hardness_hrc"),
         repetition=int(repetition), rail_material=specimen.get("rail_material") or None,
         stiffness_std_n_per_m=std if std is not None and math.isfinite(std) else None,
+        load_after_n=after, flags=flags,
         **{column: float(budget[key]) for key, column in BUDGET_COLUMNS.items() if key in budget})
 
 
@@ -39,5 +60,5 @@ def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
                 for step in run.steps:
                     if step.result is not None and step.result.identified:
                         points.append(specimen_point(spec, run.run, step.load_n,
-                                                     step.result.roller_stiffness_n_per_m, step.result))
+                                                     step.result.roller_stiffness_n_per_m, step.result, step))
     return points
