@@ -228,7 +228,7 @@ def frf(step: FrfStep, simulated: bool = False) -> Figure:
     coh.set_ylim(0, 1.02)
     coh.set_xlim(0, FRF_MAX_HZ)
     for ax in (vert, horiz, coh):
-        ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        ax.legend(fontsize=10, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     for ax in (vert, horiz, coh):
         ax.grid(alpha=0.3)
     mark_simulated(fig, simulated)

@@ -160,10 +160,8 @@ def _parameters(data: ReportData) -> str:
 
 
 def _events(data: ReportData) -> str:
-    """Run events: every step where something happened that the numbers alone do not say."""
-    rows = [[s.name, e.run, e.step, f"{e.load_before_n:.1f}",
-             "–" if e.load_after_n != e.load_after_n else f"{e.load_after_n:.1f}", "; ".join(e.notes())]
-            for s in data.series for e in s.events if e.notes()]
+    """Run events: every step where something happened that the numbers alone do not say, one line each."""
+    rows = [(s.name, e) for s in data.series for e in s.events if e.notes()]
     if not rows:
         return ("<p>Nothing happened outside the plan: no load drift, no channel left out, no operator override, "
                 "no identification warning.</p>")
@@ -172,8 +170,15 @@ def _events(data: ReportData) -> str:
     head = (f"<p>{len(rows)} steps with events: {drifts} with the load drifting during the step, {overrides} "
             "operator override(s). Load before: read before the blows (the load the stiffness is reported at); "
             "after: read after the step's last blow.</p>")
-    table = _table(["specimen", "run", "step", "load before [N]", "load after [N]", "what happened"], rows, left=1)
-    return head + table.replace("<th>what happened</th>", "<th class=l>what happened</th>")
+    cols = ["specimen", "run", "step", "load before [N]", "load after [N]", "what happened"]
+    out = ["<table class=long><thead><tr>" + "".join(f"<th{' class=l' if c in (cols[0], cols[-1]) else ''}>"
+                                                     f"{_e(c)}</th>" for c in cols) + "</tr></thead><tbody>"]
+    for name, e in rows:
+        after = "–" if e.load_after_n != e.load_after_n else f"{e.load_after_n:.1f}"
+        notes = "<br>".join(_e(n) for n in e.notes())
+        out.append(f"<tr{' class=drift' if e.drifted() else ''}><td class=l>{_e(name)}</td><td>{e.run}</td>"
+                   f"<td>{e.step}</td><td>{e.load_before_n:.1f}</td><td>{after}</td><td class=l>{notes}</td></tr>")
+    return head + "\n".join(out) + "</tbody></table>"
 
 
 def _impacts(data: ReportData) -> str:
