@@ -103,6 +103,7 @@ async def test_a_drift_a_dead_channel_and_an_override_each_appear_live(tmp_path:
                 r = dialog.request.review
                 if (r.step, r.attempt) == (1, 1) and r.checks_accepted:
                     await pilot.press("r")
+                    await wait_for(pilot, lambda d=dialog: d.query_one("#reason").has_focus, what="the reason line")
                     await type_text(pilot, "hammer slipped")
                     await pilot.press("enter")
                 else:

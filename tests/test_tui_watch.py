@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -104,12 +105,16 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     server = subprocess.Popen([sys.executable, "-m", "labctl", "tui", "--watch", str(campaign), "--serve",
                                "--port", str(port)], env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE)
+                              stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         body, output = asyncio.run(_browse(f"127.0.0.1:{port}"))
-    finally:
-        server.terminate()
-        server.wait(20)
+    finally:  # the server and the sessions it started: their own process group
+        os.killpg(server.pid, signal.SIGTERM)
+        try:
+            server.wait(20)
+        except subprocess.TimeoutExpired:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait(20)
     assert "-first-byte" in body  # the app's output reached the page
     assert b"WATCHING (read-only)" in output and b"COMPLETE" in output
 

@@ -182,6 +182,8 @@ class LabApp(App[Outcome | None]):
 
     def on_engine_event(self, message: EngineEvent) -> None:
         e = message.event
+        if not self.monitor.is_attached:  # the app is closing: events still in flight have no screen
+            return
         if isinstance(e, ev.ImpactRejected):
             self.rejection = reason_text(e.reasons)
         elif isinstance(e, ev.ImpactAcquired | ev.StepStarted):

@@ -17,6 +17,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from labctl import events as ev
 from labctl.protocol import Protocol
 from labctl.tui import plotdata as pd
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
@@ -119,8 +120,6 @@ class MonitorScreen(Screen):
     def asked(self) -> tuple[str, bool]:
         """What the open dialog asks the technician ("" when none), and whether it stops the work (every dialog
         but the per-hit gate, which is part of taking a blow): the header says it, the ETA stands still."""
-        from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title
-
         for screen in reversed(self.app.screen_stack):
             if isinstance(screen, ConfirmDialog):
                 return screen.asks, True
