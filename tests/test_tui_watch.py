@@ -138,7 +138,8 @@ async def _browse(host: str) -> tuple[str, bytes]:
             await asyncio.sleep(0.25)
         chrome = subprocess.Popen(["chromium-headless-shell", "--no-sandbox", "--headless", "--disable-gpu",
                                    "--remote-debugging-port=0", "--window-size=1200,800", f"http://{host}/"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                  start_new_session=True)
         try:
             devtools = ""
             while not devtools:
@@ -161,9 +162,13 @@ async def _browse(host: str) -> tuple[str, bytes]:
                     if "-first-byte" in body:
                         break
                     await asyncio.sleep(0.25)
-        finally:
-            chrome.terminate()
-            chrome.wait(20)
+        finally:  # chromium and its helpers: their own process group
+            os.killpg(chrome.pid, signal.SIGTERM)
+            try:
+                chrome.wait(20)
+            except subprocess.TimeoutExpired:
+                os.killpg(chrome.pid, signal.SIGKILL)
+                chrome.wait(20)
         output = b""
         async with http.ws_connect(f"ws://{host}/ws?width=100&height=30") as ws:
             await ws.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
