@@ -84,6 +84,7 @@ def test_process_json_reports_what_happened(campaign, capsys):
     assert step1["load_after_n"] > step1["load_before_n"]
     assert step1["channels_dropped"] == {"A3X": "dead (no signal in the step's FRF)"}
     assert step1["overrides"] == [{"impact": 1, "accepted": False, "checks": "clean", "reason": REASON}]
+    assert step1["operator_verdicts"][0] == step1["overrides"][0]  # every operator decision, overrides first here
     assert any("load drifted" in n for n in step1["notes"])
 
 

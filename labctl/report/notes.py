@@ -70,6 +70,7 @@ class StepEvents:
     overrides: tuple[Override, ...] = ()
     warnings: tuple[str, ...] = ()  # identification's warnings not already said above
     error: str = ""
+    verdicts: tuple[Override, ...] = ()  # every verdict the operator gave at the step, agreeing or not
 
     @property
     def drift_fraction(self) -> float:
@@ -105,7 +106,8 @@ class StepEvents:
                 "load_drift_fraction": num(self.drift_fraction), "load_drifted": self.drifted(tolerance),
                 "drift_continued_by_operator": self.drift_continued, "channels_used": list(self.channels_used),
                 "channels_dropped": dict(self.channels_dropped),
-                "overrides": [o.to_dict() for o in self.overrides], "notes": self.notes(tolerance)}
+                "overrides": [o.to_dict() for o in self.overrides],
+                "operator_verdicts": [v.to_dict() for v in self.verdicts], "notes": self.notes(tolerance)}
 
 
 def step_events(info: StepInfo, result: StepResult | None = None) -> StepEvents:
@@ -124,5 +126,7 @@ def step_events(info: StepInfo, result: StepResult | None = None) -> StepEvents:
         said = ("dead channel(s) left out", "saturated in every impact")
         warnings = [w for w in r.warnings if not any(s in w for s in said)]
         error = r.error
+    verdicts = tuple(Override(i.attempt, i.verdict.accepted, check_words(i.checks.reasons), i.verdict.reason)
+                     for i in info.impacts if i.verdict.source == OPERATOR)
     return StepEvents(info.series, info.run, info.step, info.load_n, info.load_after_n, info.load_drift, used,
-                      dropped, overrides_of(info.impacts), tuple(warnings), error)
+                      dropped, overrides_of(info.impacts), tuple(warnings), error, verdicts)
