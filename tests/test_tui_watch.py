@@ -181,3 +181,21 @@ async def _browse(host: str) -> tuple[str, bytes]:
             except TimeoutError:
                 pass
         return body, output
+
+
+def test_a_read_is_taken_only_as_an_earlier_state_of_the_next(tmp_path: Path):
+    """The writer only appends: a read whose finished step differs from the next read's, or that holds more
+    impacts than the next, caught a flush half-way and is not shown."""
+    from dataclasses import replace
+
+    from labctl.tui.watch import Snapshot, WatchedStep
+
+    done = WatchedStep(1, 1, 1, 38.0, 2, 2, True, 500.0, 2.2e7, (), True)
+    going = WatchedStep(1, 1, 2, 118.0, 1, 1, False, float("nan"), float("nan"), (), False)
+    early = Snapshot("f.h5", "running", "p", "sim", (done, going), ("a",))
+    later = Snapshot("f.h5", "running", "p", "sim", (done, replace(going, impacts=2, accepted=2)), ("a", "b"))
+    assert early.earlier_state_of(later) and early.earlier_state_of(early)
+    assert not later.earlier_state_of(early)  # impacts do not go away
+    torn = Snapshot("f.h5", "running", "p", "sim", (replace(done, bounce_hz=0.0), going), ("a",))
+    assert not torn.earlier_state_of(later)  # a finished step never changes
+    assert not replace(early, log=("x",)).earlier_state_of(later)  # the run log only grows

@@ -98,6 +98,17 @@ class StepEvents:
             out.append(f"not identified: {self.error}")
         return out
 
+    def flags(self, tolerance: float | None = None) -> list[str]:
+        """The events in a few words each, for a list line (``LOAD DRIFTED``, ``A3X left out``, ``1 override``)."""
+        out = ["LOAD DRIFTED"] if self.drifted(tolerance) else []
+        if self.channels_dropped:
+            out.append(f"{','.join(self.channels_dropped)} left out")
+        if self.overrides:
+            out.append(f"{len(self.overrides)} override")
+        if self.warnings:
+            out.append(f"{len(self.warnings)} warning{'s' if len(self.warnings) > 1 else ''}")
+        return out
+
     def to_dict(self, tolerance: float | None = None) -> dict[str, Any]:
         def num(x: float) -> float | None:
             return x if math.isfinite(x) else None

@@ -356,5 +356,5 @@ class LabApp(App[Outcome | None]):
         if action == "verdict":
             return self.running and not self.operator.reviews_hits
         if action == "auto_confirm":
-            return self.settings.backend == "sim"
+            return self.settings.backend == "sim" and self.watch_path is None
         return True

@@ -44,11 +44,7 @@ def step_label(step: StepInfo) -> str:
     elif not step.complete:
         text += " · unfinished"
     text += f" · {step.accepted_count}/{len(step.impacts)} hits"
-    happened = step_events(step)
-    flags = (["LOAD DRIFTED"] if happened.drifted() else []) + (
-        [f"{','.join(happened.channels_dropped)} left out"] if happened.channels_dropped else []) + (
-        [f"{len(happened.overrides)} override"] if happened.overrides else [])
-    return text + "".join(f" · {f}" for f in flags)
+    return text + "".join(f" · {f}" for f in step_events(step).flags() if "warning" not in f)
 
 
 def impact_label(imp: ImpactInfo, reason: bool = False) -> str:

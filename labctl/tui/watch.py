@@ -1,8 +1,9 @@
 """Follow a campaign file another process is writing (``labctl tui --watch FILE``), read-only.
 
 The writer flushes the file after every impact; the watcher re-opens it read-only without HDF5's file lock at
-each poll, reads what it needs, and closes it. A read that catches a flush half-way fails or disagrees with a
-second read taken right after it; it is retried, and the screen keeps the last consistent snapshot meanwhile.
+each poll, reads what it needs, and closes it. A read that catches a flush half-way fails, or is not an earlier
+state of a second read taken right after it (the writer only appends); it is retried, and the screen keeps the
+last consistent snapshot meanwhile.
 Nothing here ever opens the file for writing.
 """
 
@@ -35,6 +36,7 @@ class WatchedStep:
     stiffness_n_per_m: float
     notes: tuple[str, ...]
     complete: bool
+    flags: tuple[str, ...] = ()  # the notes in a few words each
 
 
 @dataclass(frozen=True)
@@ -60,8 +62,22 @@ class Snapshot:
     def accepted(self) -> int:
         return sum(s.accepted for s in self.steps)
 
-    def same_as(self, other: Snapshot) -> bool:
-        return repr(self) == repr(other)  # NaN-safe: two reads of the same bytes print alike
+    def earlier_state_of(self, later: Snapshot) -> bool:
+        """Whether this read is a state the file really passed through on its way to ``later``: the writer
+        only appends, so every step read here is in ``later`` (a finished step alike, an unfinished one with no
+        more impacts) and this run log is the start of that one. A read that caught a flush half-way is not."""
+        if (self.path, self.protocol, self.backend) != (later.path, later.protocol, later.backend):
+            return False
+        if len(self.steps) > len(later.steps) or later.log[:len(self.log)] != self.log:
+            return False
+        for mine, theirs in zip(self.steps, later.steps, strict=False):
+            if (mine.series, mine.run, mine.step) != (theirs.series, theirs.run, theirs.step):
+                return False
+            if mine.complete and repr(mine) != repr(theirs):  # NaN-safe: equal values print alike
+                return False
+            if not mine.complete and mine.impacts > theirs.impacts:
+                return False
+        return True
 
 
 def _read(path: Path) -> Snapshot:
@@ -71,27 +87,28 @@ def _read(path: Path) -> Snapshot:
         for series in reader.series_indices():
             for run in reader.runs(series):
                 for st in run.steps:
-                    r = st.result
+                    r, happened = st.result, step_events(st)
                     ok = r is not None and r.identified
                     steps.append(WatchedStep(
                         series, run.run, st.step, st.load_n, len(st.impacts), st.accepted_count, ok,
                         r.bounce_hz if ok and r is not None else math.nan,
                         r.roller_stiffness_n_per_m if ok and r is not None else math.nan,
-                        tuple(step_events(st).notes()), st.complete))
+                        tuple(happened.notes()), st.complete, tuple(happened.flags())))
         log = tuple(f"{e.time_utc[11:19]} {e.level}: {e.message}" for e in reader.log())
         return Snapshot(str(path), str(a.get("status", "")), str(a.get("protocol_name", "")),
                         str(a.get("backend", "")), tuple(steps), log)
 
 
 def read_snapshot(path: str | Path, attempts: int = 5, wait_s: float = 0.2) -> Snapshot:
-    """A consistent snapshot of a campaign file being written: two reads that agree (retried up to ``attempts``
-    times). InputError when the file does not exist, is no campaign, or never reads consistently."""
+    """A consistent snapshot of a campaign file being written: a read that a second read shows to be a state
+    the file passed through (retried up to ``attempts`` times). InputError when the file does not exist, is no
+    campaign, or never reads consistently."""
     p = Path(path)
     last = ""
     for _ in range(attempts):
         try:
             first = _read(p)
-            if first.finished or first.same_as(_read(p)):
+            if first.finished or first.earlier_state_of(_read(p)):
                 return first
             last = "the file changed while it was read"
         except InputError as exc:

@@ -27,11 +27,14 @@ WatchScreen #w-header { height: auto; max-height: 4; background: $primary-backgr
 WatchScreen #w-header.-done { background: $success 30%; }
 WatchScreen #w-header.-failed { background: $error 40%; }
 WatchScreen #w-main { height: 1fr; }
+WatchScreen.-narrow #w-main { layout: vertical; }
+WatchScreen.-narrow #w-steps { width: 100%; height: 40%; }
 WatchScreen #w-steps { width: 1fr; height: 1fr; border: round $primary; }
 WatchScreen #w-side { width: 1fr; }
 WatchScreen #w-stiffness { height: 1fr; border: round $primary; }
 WatchScreen #w-log { height: 1fr; border: round $primary; }
-WatchScreen.-narrow #w-stiffness { display: none; }
+WatchScreen.-narrow #w-side { width: 100%; }
+WatchScreen.-narrow #w-stiffness, WatchScreen.-short #w-stiffness { display: none; }
 """
 
 
@@ -40,7 +43,8 @@ class WatchScreen(Screen):
 
     DEFAULT_CSS = WATCH_CSS
     BINDINGS = [Binding("o", "browse", "browse file"), Binding("q", "app.quit", "quit")]
-    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (110, "-wide")]
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (140, "-wide")]  # narrower: the table above the log, rows whole
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
     def __init__(self, path: Path, interval_s: float = 1.0) -> None:
         super().__init__()
@@ -57,7 +61,7 @@ class WatchScreen(Screen):
             yield DataTable(id="w-steps", cursor_type="row", zebra_stripes=True)
             with Vertical(id="w-side"):
                 yield StiffnessPlot(id="w-stiffness")
-                yield RichLog(id="w-log", markup=True, wrap=True, max_lines=2000)
+                yield RichLog(id="w-log", markup=True, wrap=True, min_width=20, max_lines=2000)  # wraps at its width
         yield Footer()
 
     def on_mount(self) -> None:
@@ -99,8 +103,8 @@ class WatchScreen(Screen):
             k = "--" if math.isnan(s.stiffness_n_per_m) else f"{s.stiffness_n_per_m * 1e-6:.2f}"
             bounce = "--" if math.isnan(s.bounce_hz) else f"{s.bounce_hz:.2f}"
             table.add_row(str(s.run), str(s.step), f"{s.load_n:.1f}", f"{s.accepted}/{s.impacts}", bounce, k,
-                          "; ".join(s.notes) or ("" if s.complete else
-                                                 "unfinished" if snap.finished else "in progress"))
+                          " · ".join(s.flags) or ("" if s.complete else
+                                                  "unfinished" if snap.finished else "in progress"))
             key = (s.series, s.run, s.step, s.complete)
             if s.complete and key not in self._seen_steps:
                 self._seen_steps.add(key)
