@@ -166,6 +166,8 @@ async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_
             assert gate.request.review.checks_accepted, "seed 2's first blows are clean"
             frf = gate.frf
             assert frf is not None and frf.attempts == tuple(range(1, attempt + 1))
+            await wait_for(pilot, lambda g=gate: g.is_mounted and g.query("#gate-coh-plot"),
+                           what="the gate's plots mounted")  # a loaded machine composes the dialog later
             magnitude = gate.query_one("#gate-frf-plot", TracePlot)
             coherence = gate.query_one("#gate-coh-plot", TracePlot)
             assert magnitude.point_count() > 100 and coherence.point_count() > 100
