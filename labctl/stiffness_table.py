@@ -28,7 +28,11 @@ REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffne
 BUDGET_COLUMNS = {"modal_fit": "stiffness_std_fit_n_per_m", "disc_mass": "stiffness_std_mass_n_per_m",
                   "setup_stiffness": "stiffness_std_setup_n_per_m", "rig_model": "stiffness_std_model_n_per_m"}
 OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
-            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values())
+            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values(), "load_after_n", "flags")
+# What happened at a step that a user of its point must weigh (``flags``, separated by ";"):
+FLAG_LOAD_DRIFT = "load_drift"  # the load did not hold during the step (the operator continued past the suspend)
+FLAG_CHANNELS = "channels_left_out"  # a dead or saturated channel was left out of the step
+FLAG_OVERRIDE = "operator_override"  # the operator overruled the checks on a blow of the step
 COLUMNS = REQUIRED + OPTIONAL
 
 
@@ -116,6 +120,16 @@ class StiffnessPoint(RollerContact):
     """Its K_setup share (common to every point of one rig, larger for stiffer contacts), N/m."""
     stiffness_std_model_n_per_m: float | None = None
     """Its rig-model share (the 6-DOF idealisation), N/m."""
+    load_after_n: float | None = None
+    """The load per roller read after the step's blows, N (``load_n`` is the one read before them)."""
+    flags: str | None = None
+    """What happened at the step (FLAG_* names separated by ";"); a point flagged load_drift belongs to a load
+    between load_n and load_after_n."""
+
+    @property
+    def drifted(self) -> bool:
+        """The load did not hold during the step this point was measured at."""
+        return FLAG_LOAD_DRIFT in (self.flags or "").split(";")
 
 
 def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:
@@ -174,6 +188,8 @@ _SPECS: dict[str, _Spec] = {
     "rail_material": ("rail_material", 0, str, None, "a rail material name"),
     **{c: (c, 0, _number, _non_negative, "a stiffness uncertainty ≥ 0 in N/m")
        for c in ("stiffness_std_n_per_m", *BUDGET_COLUMNS.values())},
+    "load_after_n": ("load_after_n", 0, _number, _positive, "a positive load per roller in N"),
+    "flags": ("flags", 0, str, None, "flags separated by ';'"),
 }
 
 

@@ -107,7 +107,7 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
             if "reject (r) or accept anyway" in pane:  # a flagged blow waits for the technician: hit again
                 subprocess.run(["tmux", "send-keys", "-t", session, "r"], check=True)
             time.sleep(0.5)
-        assert "run 1/1 · step 3/3 · impact 2/2" in pane, pane
+        assert "run 1/1 · step 3/3 · hit 2/2" in pane, pane
         assert re.search(r"bounce \d+\.\d\d Hz", pane), pane
         subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
         time.sleep(1.0)

@@ -10,11 +10,21 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, is_dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from labctl.stiffness_table import BUDGET_COLUMNS, RollerContact, StiffnessPoint
+from labctl.stiffness_table import (
+    BUDGET_COLUMNS,
+    FLAG_CHANNELS,
+    FLAG_LOAD_DRIFT,
+    FLAG_OVERRIDE,
+    RollerContact,
+    StiffnessPoint,
+)
+
+if TYPE_CHECKING:
+    from labctl.storage.reader import StepInfo
 
 VerdictSource = Literal["checks", "operator"]
 CHECKS: VerdictSource = "checks"
@@ -431,11 +441,13 @@ class SpecimenRecord(RollerContact):
         """The stored attributes (None values are not stored)."""
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
 
-    def point(self, repetition: int, load_n: float, stiffness_n_per_m: float, result: StepResult | None = None
-              ) -> StiffnessPoint:
-        """A stiffness-table row for a measured point of this specimen (with the result's uncertainty budget)."""
+    def point(self, repetition: int, load_n: float, stiffness_n_per_m: float, result: StepResult | None = None,
+              step: StepInfo | None = None) -> StiffnessPoint:
+        """A stiffness-table row for a measured point of this specimen (with the result's uncertainty budget, and
+        with ``step`` the load read after its blows and what happened at it)."""
         budget = result.roller_stiffness_budget_n_per_m if result is not None else {}
         std = result.roller_stiffness_std_n_per_m if result is not None else None
+        after, flags = step_flags(step, result) if step is not None else (None, None)
         return StiffnessPoint(
             diameter_m=self.diameter_m, contact_length_m=self.contact_length_m, rail_ra_m=self.rail_ra_m,
             load_n=float(load_n), stiffness_n_per_m=float(stiffness_n_per_m), roller_type=self.roller_type,
@@ -443,4 +455,17 @@ class SpecimenRecord(RollerContact):
             poisson_ratio=self.poisson_ratio, hardness_hrc=self.hardness_hrc, repetition=int(repetition),
             rail_material=self.rail_material or None,
             stiffness_std_n_per_m=std if std is not None and math.isfinite(std) else None,
+            load_after_n=after, flags=flags,
             **{column: float(budget[key]) for key, column in BUDGET_COLUMNS.items() if key in budget})
+
+
+def step_flags(step: StepInfo, result: StepResult | None = None) -> tuple[float | None, str | None]:
+    """The load read after a step's blows and what happened at it, as the stiffness table's optional columns."""
+    r = result if result is not None else step.result
+    flags = [FLAG_LOAD_DRIFT] if step.load_drift else []
+    if r is not None and (r.dead_channels or r.dropped_channels):
+        flags.append(FLAG_CHANNELS)
+    if any(i.verdict.source == OPERATOR and i.verdict.accepted != i.checks.accepted for i in step.impacts):
+        flags.append(FLAG_OVERRIDE)
+    after = step.load_after_n
+    return (after if math.isfinite(after) else None), (";".join(flags) or None)
