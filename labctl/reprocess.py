@@ -12,7 +12,7 @@ from labctl.processing import CheckConfig
 from labctl.protocol import parse_protocol
 from labctl.recording import process_step
 from labctl.stiffness_table import StiffnessPoint
-from labctl.storage import CampaignReader, LogEntry, StepResult
+from labctl.storage import CampaignReader, LogEntry, StepInfo, StepResult
 
 
 @dataclass
@@ -24,6 +24,7 @@ class StepRow:
     load_n: float
     knob_angle_deg: float
     result: StepResult
+    info: StepInfo | None = None  # the stored step: loads before and after, impacts and their verdicts
 
     @property
     def error(self) -> str:
@@ -64,8 +65,8 @@ def process_campaign(path: str | Path, rig: RigConfig | str | Path | None = None
                 for step in run.steps:
                     result = process_step(reader.impacts(series, run.run, step.step), rig, checks)
                     out.rows.append(StepRow(series, spec.label, run.run, step.step, step.load_n,
-                                            step.knob_angle_deg, result))
+                                            step.knob_angle_deg, result, step))
                     if result.identified:
                         out.points.append(spec.point(run.run, step.load_n, result.roller_stiffness_n_per_m, result,
-                                                     step.attrs.get("load_std_n")))
+                                                     step=step))
     return out

@@ -28,7 +28,12 @@ REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffne
 BUDGET_COLUMNS = {"modal_fit": "stiffness_std_fit_n_per_m", "disc_mass": "stiffness_std_mass_n_per_m",
                   "setup_stiffness": "stiffness_std_setup_n_per_m", "rig_model": "stiffness_std_model_n_per_m"}
 OPTIONAL = ("roller_type", "roller_length_mm", "material", "youngs_modulus_gpa", "poisson_ratio", "hardness_hrc",
-            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values(), "load_std_n")
+            "repetition", "rail_material", "stiffness_std_n_per_m", *BUDGET_COLUMNS.values(), "load_std_n",
+            "load_after_n", "flags")
+# What happened at a step that a user of its point must weigh (``flags``, separated by ";"):
+FLAG_LOAD_DRIFT = "load_drift"  # the load did not hold during the step (the operator continued past the suspend)
+FLAG_CHANNELS = "channels_left_out"  # a dead or saturated channel was left out of the step
+FLAG_OVERRIDE = "operator_override"  # the operator overruled the checks on a blow of the step
 COLUMNS = REQUIRED + OPTIONAL
 
 
@@ -119,6 +124,16 @@ class StiffnessPoint(RollerContact):
     load_std_n: float | None = None
     """1-σ of the load per roller when it came from the characterised spring curve (``load_source = "springs"``),
     N; None: read from a load cell (its noise is negligible against the stiffness scatter)."""
+    load_after_n: float | None = None
+    """The load per roller read after the step's blows, N (``load_n`` is the one read before them)."""
+    flags: str | None = None
+    """What happened at the step (FLAG_* names separated by ";"); a point flagged load_drift belongs to a load
+    between load_n and load_after_n."""
+
+    @property
+    def drifted(self) -> bool:
+        """The load did not hold during the step this point was measured at."""
+        return FLAG_LOAD_DRIFT in (self.flags or "").split(";")
 
 
 def _catalogue_roller_ra_m(type_id: int | None, diameter_m: float, contact_length_m: float) -> float:
@@ -178,6 +193,8 @@ _SPECS: dict[str, _Spec] = {
     **{c: (c, 0, _number, _non_negative, "a stiffness uncertainty ≥ 0 in N/m")
        for c in ("stiffness_std_n_per_m", *BUDGET_COLUMNS.values())},
     "load_std_n": ("load_std_n", 0, _number, _non_negative, "a load uncertainty ≥ 0 in N"),
+    "load_after_n": ("load_after_n", 0, _number, _positive, "a positive load per roller in N"),
+    "flags": ("flags", 0, str, None, "flags separated by ';'"),
 }
 
 

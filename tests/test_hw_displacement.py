@@ -102,7 +102,7 @@ def test_mcc_window_reads_one_input_with_the_units_calibration() -> None:
     with DaqDisplacementSensor(reader, sensitivity_um_per_v=50.0, window_s=0.2, sample_rate_hz=1000.0) as sensor:
         value = sensor.read()
     assert value == pytest.approx(-62.5e-6, abs=0.05e-6)  # one code at ±2 V is 61 µV = 3.1 nm
-    assert "START" in device.log and device.log[-1] == "CLEAR_FIFO" and device.ranges[3] == 3  # ±2 V: code 3 of the USB-1608FS-Plus
+    assert "START" in device.log and device.log[-1] == "CLEAR_FIFO" and device.ranges[3] == 3  # ±2 V: code 3
 
 
 def test_mcc_failures_are_typed() -> None:

@@ -20,7 +20,7 @@ from labctl.engine import StopRequested
 from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
-from labctl.tui.dialogs import PromptDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot
 from tests.engine_util import Recorder, impact_event, short_protocol
 
@@ -77,7 +77,7 @@ async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
         assert app.outcome.status == "complete" and state.status == "complete"
         done = [e.impacts_done for e in progress.of(ev.Progress)]
         assert done == list(range(1, 7))  # 3 steps × 2 impacts, one at a time
-        assert state.impacts_done == 6 and state.progress_text() == "run 1/1 · step 3/3 · impact 2/2"
+        assert state.impacts_done == 6 and state.progress_text() == "run 1/1 · step 3/3 · hit 2/2"
         plot = app.monitor.query_one("#stiffness", StiffnessPlot)
         assert plot.point_count() == 3
         assert {"Tripp", "Eq. 5 (Ra 0.2 µm)"} <= set(plot.models)
@@ -112,7 +112,7 @@ async def test_running_screen_snapshot_shows_progress_modes_and_curve(tmp_path, 
         await wait_for(pilot, lambda: app.outcome)
     lines = svg_lines(svg)
     text = "\n".join(lines)
-    assert "run 1/1 · step 2/3 · impact 2/2" in text and "RUNNING" in text
+    assert "run 1/1 · step 2/3 · hit 2/2" in text and "RUNNING" in text
     assert re.search(r"bounce \d+\.\d\d Hz", text)
     assert "stiffness vs load" in text and "FRF step 2" in text
     if os.environ.get("LABCTL_UPDATE_SNAPSHOTS"):
@@ -160,7 +160,10 @@ async def test_quit_with_a_prompt_open_stops_cleanly_and_the_file_resumes(tmp_pa
     app = LabApp(quick_settings(tmp_path, autostart=True))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog))
-        await pilot.press("q")  # with the mount dialog open: the prompt is withdrawn, the engine stops
+        await pilot.press("q")  # with the mount dialog open: quitting mid-run asks first
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the quit question")
+        assert "QUESTION: Quit mid-run?" in app.monitor.state.header_text()
+        await pilot.press("q")  # q again: the prompt is withdrawn, the engine stops
         await wait_for(pilot, lambda: not app.is_running or app.outcome, what="exit")
     assert app.outcome is not None and app.outcome.status == "interrupted"
     with CampaignReader(tmp_path / "qc.h5") as r:
@@ -181,13 +184,12 @@ def _hold_after_step_1() -> tuple[threading.Event, threading.Event, Callable[[ev
     return hold, release, hold_after_step_1
 
 
-@pytest.mark.parametrize("answer", ["n", "y"])
+@pytest.mark.parametrize("answer", ["n", "x"])
 async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(tmp_path, answer):
     """A prompt the engine asked just before the technician pressed abort may reach the screen after the
     question: it must not cover it (the next key would answer the wrong dialog); it opens once the question
     is answered, and on abort it is withdrawn unseen. The engine is held after step 1 and the late prompt is
     asked from another thread through the operator, as the engine asks."""
-    from labctl.tui.dialogs import ConfirmDialog
 
     hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
@@ -218,7 +220,7 @@ async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(t
         asker.join(10)
         release.set()
         if answer == "n":
-            await pilot.press("q")
+            await pilot.press("q", "q")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     if answer == "n":
         assert answers == ["done"] and app.outcome.status == "interrupted"
@@ -231,7 +233,7 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))
     async with app.run_test(size=SIZE) as pilot:
         await wait_for(pilot, hold.is_set)
-        await pilot.press("q")
+        await pilot.press("q", "q")
         assert app.monitor.state.status == "stopping" and app.is_running  # waits for the engine's safe point
         release.set()
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
@@ -248,6 +250,10 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
         plot = resumed.monitor.query_one("#stiffness", StiffnessPlot)
         assert resumed.outcome.status == "complete" and steps == [(1, 1), (1, 2), (1, 3)]
         assert plot.point_count() == 3 and resumed.monitor.query_one("#steps").row_count == 3
+        counted = sum(resumed.monitor.state.rejected.values())
+    with CampaignReader(tmp_path / "qc.h5") as r:  # the summary covers the whole campaign, not the session
+        unused = sum(not o.used for s in r.runs(1)[0].steps for o in s.result.impacts)
+    assert counted == unused
 
 
 async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
@@ -284,9 +290,8 @@ def app_event(event: ev.Event):
     return EngineEvent(event)
 
 
-@pytest.mark.parametrize("answer", ["n", "y"])
+@pytest.mark.parametrize("answer", ["n", "x"])
 async def test_abort_dialog_pauses_acquisition_until_answered(tmp_path, answer):
-    from labctl.tui.dialogs import ConfirmDialog
 
     hold, release, hold_after_step_1 = _hold_after_step_1()
     app = LabApp(quick_settings(tmp_path, autostart=True, auto_confirm_s=0.1), subscribers=(hold_after_step_1,))

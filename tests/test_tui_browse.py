@@ -6,7 +6,9 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -18,6 +20,8 @@ from labctl.tui.dialogs import PromptDialog
 from labctl.tui.plots import StiffnessPlot, TracePlot
 from labctl.tui.setup import SetupScreen
 from tests.test_tui import SIZE, wait_for
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +99,9 @@ async def test_setup_screen_runs_the_chosen_shipped_protocol(tmp_path, monkeypat
 def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     """Issue 6's check as the technician would run it, in a real (80×24) terminal."""
     session = f"labctl-tui-{os.getpid()}"
-    cmd = "labctl tui protocols/quick_check.toml --backend sim --autostart"
+    # this checkout's labctl (a running tmux server keeps its own environment, and the labctl script may be
+    # another checkout's)
+    cmd = f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim --autostart"
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
     try:
         pane, deadline = "", time.monotonic() + 120
@@ -107,7 +113,7 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
             if "reject (r) or accept anyway" in pane:  # a flagged blow waits for the technician: hit again
                 subprocess.run(["tmux", "send-keys", "-t", session, "r"], check=True)
             time.sleep(0.5)
-        assert "run 1/1 · step 3/3 · impact 2/2" in pane, pane
+        assert "run 1/1 · step 3/3 · hit 2/2" in pane, pane
         assert re.search(r"bounce \d+\.\d\d Hz", pane), pane
         subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
         time.sleep(1.0)

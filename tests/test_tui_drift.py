@@ -1,6 +1,6 @@
 """The load-drift prompt in the TUI, driven with Pilot on the simulated rig: the springs creep during step 1,
-the engine asks whether to continue, and the technician's `y` answers that question (not a stale verdict
-override on the step's latest impact, which would be applied to the next step with the wrong index).
+the engine asks whether to continue, the header says the technician is asked (never ARMED), and `1` answers
+that question; `y` (the gate's accept) does not, and no stale verdict override reaches the next step.
 """
 
 from __future__ import annotations
@@ -50,9 +50,14 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
             if drift_prompt(dialog) and answered_drift is None:
                 assert dialog.request.choices == ("continue", "abort")
                 creeping_twin[0].set_creep(0.0)  # the technician re-tightens the knobs
-                await pilot.press("y")
+                assert "WAITING FOR YOU" in app.monitor.state.header_text()  # never ARMED under a prompt
+                assert "ARMED" not in app.monitor.state.header_text()
+                await pilot.press("y")  # the gate's accept: it does not answer the drift prompt
                 await pilot.pause(0.3)
-                assert dialog.closed and dialog.request.answer == "continue", "y did not answer the drift prompt"
+                assert not dialog.closed
+                await pilot.press("1")
+                await pilot.pause(0.3)
+                assert dialog.closed and dialog.request.answer == "continue", "1 did not answer the drift prompt"
                 answered_drift = dialog.request
                 continue
             if isinstance(dialog, ReviewDialog):
@@ -67,3 +72,50 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
     assert not [e for e in events.of(ev.Notice) if "verdict on impact" in e.message]
     with CampaignReader(tmp_path / "gate.h5") as reader:
         assert any(s.load_drift for s in reader.runs(1)[0].steps)
+
+
+async def test_a_drift_a_dead_channel_and_an_override_each_appear_live(tmp_path: Path, creeping_twin: list[RigTwin],
+                                                                       monkeypatch):
+    """What happens at the rig is on the screen when it happens: the drift and the technician's choice, the
+    pulled A3X cable in the step's summary, and the rejection of a clean blow with its reason."""
+    from tests.test_tui_gate import type_text
+
+    crept = RigTwin.strike
+
+    def strike(self: RigTwin):  # noqa: ANN202 - A3X's cable is pulled from the first blow on
+        self.pulled_channel = "A3X"
+        return crept(self)
+
+    monkeypatch.setattr(RigTwin, "strike", strike)
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True))
+    headers = set()
+    async with app.run_test(size=SIZE) as pilot:
+        while True:
+            dialog = await next_dialog(pilot, app)
+            if app.outcome is not None:
+                break
+            app.monitor.refresh_header()
+            headers.add(app.monitor.state.prompt_text().split(":")[0])
+            if drift_prompt(dialog):
+                creeping_twin[0].set_creep(0.0)
+                await pilot.press("1")
+            elif isinstance(dialog, ReviewDialog):
+                r = dialog.request.review
+                if (r.step, r.attempt) == (1, 1) and r.checks_accepted:
+                    await pilot.press("r")
+                    await wait_for(pilot, lambda d=dialog: d.query_one("#reason").has_focus, what="the reason line")
+                    await type_text(pilot, "hammer slipped")
+                    await pilot.press("enter")
+                else:
+                    await pilot.press("y" if r.checks_accepted else "r")
+            else:
+                await pilot.press("enter")
+            await wait_for(pilot, lambda d=dialog: d.closed, what="the dialog to close")
+            if app.screen is not dialog:
+                app.monitor.refresh_header()
+        log = "\n".join(str(line.text) for line in app.monitor.query_one("#log").lines)
+    assert app.outcome.status == "complete"
+    assert {"WAITING FOR YOU", "JUDGE THE BLOW"} <= headers and "ARMED" not in headers
+    assert "load drifted from" in log and "resumed: the operator continued past load drift" in log
+    assert "dead channel(s) left out: A3X" in log
+    assert "rejected by the operator (hammer slipped)" in log

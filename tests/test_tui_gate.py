@@ -24,6 +24,7 @@ PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
 
 
 def gate_settings(tmp_path: Path, **kw) -> TuiSettings:
+    kw.setdefault("arm_grace_s", 0.0)  # no grace after each verdict: the tests answer at once
     return TuiSettings(protocol=load_protocol(PROTOCOL), out=tmp_path / "gate.h5", seed=2, autostart=True, **kw)
 
 
@@ -137,7 +138,10 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
         assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
-        await pilot.press("y")
+        await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
+        await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     assert app.outcome.status == "aborted" and len(events.of(ev.ImpactAcquired)) == 1
     with CampaignReader(tmp_path / "gate.h5") as reader:
@@ -162,6 +166,8 @@ async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_
             assert gate.request.review.checks_accepted, "seed 2's first blows are clean"
             frf = gate.frf
             assert frf is not None and frf.attempts == tuple(range(1, attempt + 1))
+            await wait_for(pilot, lambda g=gate: g.is_mounted and g.query("#gate-coh-plot"),
+                           what="the gate's plots mounted")  # a loaded machine composes the dialog later
             magnitude = gate.query_one("#gate-frf-plot", TracePlot)
             coherence = gate.query_one("#gate-coh-plot", TracePlot)
             assert magnitude.point_count() > 100 and coherence.point_count() > 100
@@ -174,10 +180,39 @@ async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_
         step = await wait_for(pilot, lambda: events.of(ev.StepProcessed), what="step 1 identified")
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
-        await pilot.press("y")
+        await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
+        await pilot.pause(0.3)
+        assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
+        await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
     assert step[0].used_attempts == (1, 2)
     n = frf.frequencies_hz.size
     assert np.allclose(frf.frequencies_hz, step[0].frequencies_hz[:n])
     assert np.allclose(frf.h1_magnitude, step[0].h1_magnitude[:, :n], rtol=1e-5, atol=0)
     assert np.allclose(frf.coherence, step[0].coherence[:, :n], atol=1e-6)
+
+
+async def test_pause_pressed_just_after_the_verdict_holds_before_the_next_blow_is_armed(tmp_path):
+    """Issue 28: `p` 0.3 s after `y` let one more blow be taken. The next blow is armed only after a short
+    grace that follows a person's verdict, so the pause is honoured at the engine's next safe point first."""
+    assert TuiSettings().arm_grace_s >= 0.5  # the default leaves a technician's reaction time
+    events = Recorder()
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True, arm_grace_s=1.0), subscribers=(events,))
+    async with app.run_test(size=SIZE) as pilot:
+        await next_dialog(pilot, app)
+        await pilot.press("enter")  # mount
+        gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and app.screen, what="the gate")
+        await pilot.press("y" if gate.request.review.checks_accepted else "r")  # agreeing needs no reason
+        await pilot.pause(0.3)
+        await pilot.press("p")
+        await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="the engine to hold")
+        await pilot.pause(1.0)
+        taken = len(events.of(ev.ImpactAcquired))
+        assert taken == 1, "a blow was armed and taken after the pause was asked for"
+        assert "PAUSED" in str(app.monitor.query_one("#header").render())
+        await pilot.press("p")  # resume: the next gate opens
+        await wait_for(pilot, lambda: len(events.of(ev.ImpactAcquired)) == 2, what="the next blow")
+        await pilot.press("a")
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("x")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")

@@ -30,13 +30,13 @@ def step_processed(step: int, load: float, bounce: float, k: float) -> ev.StepPr
 
 def test_state_header_follows_the_events():
     s = CampaignState()
-    assert s.progress_text() == "run -/1 · step -/- · impact -/1"
+    assert s.progress_text() == "run -/1 · step -/- · hit -/1"
     s.apply(ev.CampaignStarted(0.0, "quick_check", "qc.h5", "sim", 1, 3, (3,), 2), now=100.0)
     s.apply(ev.RunStarted(0.1, ev.Position(1, 2), "roller type 1"), now=100.1)
     s.apply(ev.StepStarted(0.2, ev.Position(1, 2, 1), 3, 0.0, 38.0), now=100.2)
     s.apply(ev.LoadMeasured(0.3, ev.Position(1, 2, 1), 37.9, True), now=100.3)
     s.apply(ev.Progress(0.4, ev.Position(1, 2, 1, 2), 8, 18, 65.0), now=110.0)
-    assert s.header_text(now=115.0) == ("run 2/3 · step 1/3 · impact 2/2 · load 37.9 N · elapsed 00:15 · ETA 01:00"
+    assert s.header_text(now=115.0) == ("run 2/3 · step 1/3 · hit 2/2 · load 37.9 N · elapsed 00:15 · ETA 01:00"
                                         " · ARMED: waiting for the blow")
     s.apply(step_processed(1, 37.9, 532.48, 2.26e7), now=111.0)
     s.apply(step_processed(2, 116.1, 638.97, 3.33e7), now=112.0)

@@ -46,15 +46,19 @@ def test_range_use_names_the_fullest_channels_first_and_marks_the_overload():
 
 def test_step_and_end_summaries_count_rejections_and_compare_with_the_models():
     s = CampaignState()
-    e = step({1: "double_hit", 4: "clipped:A3Z"}, ("rollers differ: roller 2 is 30 % stiffer",))
+    e = step({1: "double_hit, operator_rejected", 4: "clipped:A3Z", 5: "operator_rejected"},
+             ("rollers differ: roller 2 is 30 % stiffer", "dead channel(s) left out: A3X"))
     s.apply(e)
     line = s.step_summary(e)
-    assert line.startswith("step 1: 2 hits used, rejected #1 double hit; #4 A3Z clipped")
-    assert "k 500.00 ± 20.00 N/µm" in line and "WARNING rollers differ" in line
+    assert line.startswith("step 1: 2 hits used, rejected impact 1 double hit; impact 4 A3Z clipped; "
+                           "impact 5 rejected by the operator")
+    assert "k 500.00 ± 20.00 N/µm" in line and "WARNING: rollers differ" in line
+    assert "WARNING: dead channel(s) left out: A3X" in line  # every warning, not only the rollers'
     s.apply(ev.RunProcessed(3.0, ev.Position(1, 1), "type 1", (100.0,), (5.0e8,), {"Tripp": (4.0e8,)}))
     end = s.end_summary()
     assert end[0] == "1 steps identified"
-    assert end[1] == "hits not used: 1× double hit, 1× A3Z clipped"
+    # a flagged blow the operator also rejected is one blow, counted once under the checks' reason
+    assert end[1] == "hits not used: 1× double hit, 1× A3Z clipped, 1× rejected by the operator"
     assert end[2].startswith("measured/Tripp: 1.25 on average")
 
 

@@ -17,6 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.report.notes import step_events
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
     from labctl.storage.records import result_summary
@@ -25,9 +26,14 @@ def run(args: argparse.Namespace) -> int:
     done = process_campaign(args.file, rig=args.rig)
     if args.csv:
         write_stiffness_table(args.csv, done.points)
-    steps = [{"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
-              "knob_angle_deg": r.knob_angle_deg, "used_impacts": list(r.result.used_attempts),
-              "rejected_impacts": r.result.rejected_count, **result_summary(r.result)} for r in done.rows]
+    steps = []
+    for r in done.rows:
+        item = {"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
+                "knob_angle_deg": r.knob_angle_deg, "used_impacts": list(r.result.used_attempts),
+                "rejected_impacts": r.result.rejected_count, **result_summary(r.result)}
+        if r.info is not None:  # what happened at the rig: drift, channels left out, overrides with reasons
+            item.update(step_events(r.info, r.result).to_dict())
+        steps.append(item)
     log = summarize(done.log)
     result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
               "csv": args.csv, "log": {"entries": log.entries, "by_kind": log.by_kind, "by_level": log.by_level,
@@ -51,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
                              f"   {s['roller_stiffness_n_per_m']:.4e}   {std:.2e}"
                              + (f"   rollers {', '.join(map(str, s['rollers_differing']))} differ"
                                 if s["rollers_differing"] else ""))
+            lines += [f"             note: {n}" for n in s.get("notes", [])]
         return "\n".join(lines)
 
     emit(result, args.json, text)

@@ -1,10 +1,13 @@
-"""A one-line progress display for unattended runs: run/step/impact, load, last bounce frequency, ETA."""
+"""The live output of ``labctl run``: a progress line (run/step/impact, load, last bounce frequency, ETA) and,
+as they arise, every warning in words: a flagged blow, the operator's verdicts with their reasons, a load drift
+and what the operator chose, channels left out, what identification could not vouch for."""
 
 from __future__ import annotations
 
 from typing import TextIO
 
 from labctl import events as ev
+from labctl.report.notes import check_words
 
 
 def _eta(seconds: float | None) -> str:
@@ -24,6 +27,7 @@ class ProgressPrinter:
         self.runs = 1
         self.steps_total = 0
         self.tty = hasattr(stream, "isatty") and stream.isatty()
+        self.open_line = False  # a carriage-return progress line is on the terminal
 
     def __call__(self, event: ev.Event) -> None:
         if isinstance(event, ev.CampaignStarted):
@@ -36,22 +40,35 @@ class ProgressPrinter:
             self.load = event.load_n
         elif isinstance(event, ev.Progress):
             p = event.position
-            line = (f"run {p.run}/{self.runs} · step {p.step}/{self.steps_total} · impact {p.impact} · "
-                    f"load {self.load:7.1f} N · bounce {self.bounce:7.2f} Hz · "
+            bounce = "   --  " if self.bounce != self.bounce else f"{self.bounce:7.2f}"  # none before step 1
+            line = (f"run {p.run}/{self.runs} · step {p.step}/{self.steps_total} · hit {p.impact} · "
+                    f"load {self.load:7.1f} N · bounce {bounce} Hz · "
                     f"{event.impacts_done}/{event.impacts_total} impacts · ETA {_eta(event.eta_s)}")
             self.out.write(("\r" + line) if self.tty else line + "\n")
+            self.open_line = self.tty
         elif isinstance(event, ev.StepProcessed):
             self.bounce = event.bounce_hz
-            if self.tty:
-                self.out.write("\n")
-            self.out.write(f"  step {event.position.step}: load {event.load_n:.1f} N, bounce {event.bounce_hz:.2f} Hz, "
-                           f"k {event.roller_stiffness_n_per_m:.4e} N/m\n")
+            self._line(f"step {event.position.step}: load {event.load_n:.1f} N, bounce {event.bounce_hz:.2f} Hz, "
+                       f"k {event.roller_stiffness_n_per_m:.4e} N/m")
+            for warning in event.warnings:
+                self._line(f"  warning: {warning}")
         elif isinstance(event, ev.ImpactRejected):
-            self.out.write(f"  impact rejected ({', '.join(event.reasons)}): hitting again\n")
-        elif isinstance(event, ev.Suspended | ev.StepFailed):
-            self.out.write(f"  {type(event).__name__.lower()}: {getattr(event, 'reason', '')}\n")
-        elif isinstance(event, ev.Notice) and event.level != "info":
-            self.out.write(f"  {event.level}: {event.message}\n")
+            p = event.position
+            self._line(f"step {p.step} impact {event.attempt} flagged by the checks "
+                       f"({check_words(event.reasons)})")
+        elif isinstance(event, ev.Suspended):
+            self._line(f"SUSPENDED: {event.reason}")
+        elif isinstance(event, ev.Resumed) and event.reason:
+            self._line(f"resumed: {event.reason}")
+        elif isinstance(event, ev.StepFailed):
+            self._line(f"step {event.position.step} not identified: {event.reason}")
+        elif isinstance(event, ev.Notice) and (event.level != "info" or event.kind == "verdict"):
+            self._line(f"{event.level}: {event.message}")
         elif isinstance(event, ev.CampaignFinished):
             self.out.write(f"finished: {event.status}\n")
         self.out.flush()
+
+    def _line(self, text: str) -> None:
+        """A line of its own (ending the progress line first on a terminal)."""
+        self.out.write(("\n" if self.open_line else "") + f"  {text}\n")
+        self.open_line = False

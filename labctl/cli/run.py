@@ -49,6 +49,17 @@ def install_sigint(control: RunControl) -> None:
     signal.signal(signal.SIGINT, handler)
 
 
+def rails_of(protocol: str) -> dict[int, float]:
+    """Series → the rails' Ra (m), so two series of one roller type on different rails are told apart."""
+    from labctl.errors import LabctlError
+    from labctl.protocol import load_protocol
+
+    try:
+        return {i: s.rail_ra_m for i, s in enumerate(load_protocol(protocol).specimens, start=1)}
+    except LabctlError:  # the run itself reported what is wrong with the protocol
+        return {}
+
+
 def run(args: argparse.Namespace) -> int:
     from labctl.campaign import load_operator_script, run_campaign
     from labctl.cli.progress import ProgressPrinter
@@ -61,15 +72,18 @@ def run(args: argparse.Namespace) -> int:
     outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume, world=args.world,
                            seed=args.seed, rig=args.rig, devices=args.devices, operator=operator, subscribers=subs,
                            control=control, adaptive=args.adaptive, budget_steps=args.budget_steps)
+    rails = rails_of(args.protocol)
     result = {"status": outcome.status, "path": outcome.path, "message": outcome.message,
               "runs": [{"series": c.series, "run": c.run, "specimen": c.specimen, "step": c.step.tolist(),
-                        "load_n": c.load_n.tolist(), "stiffness_n_per_m": c.stiffness_n_per_m.tolist()}
-                       for c in outcome.curves]}
+                        "rail_ra_m": rails.get(c.series), "load_n": c.load_n.tolist(),
+                        "stiffness_n_per_m": c.stiffness_n_per_m.tolist()} for c in outcome.curves]}
 
     def text(r: dict) -> str:
         lines = [f"campaign {r['status']}: {r['path']}" + (f" ({r['message']})" if r["message"] else "")]
         for c in r["runs"]:
-            lines.append(f"  {c['specimen']} repetition {c['run']}: {len(c['load_n'])} steps")
+            rail = f" on rails Ra {c['rail_ra_m'] * 1e6:.3g} µm" if c["rail_ra_m"] is not None else ""
+            lines.append(f"  series {c['series']} ({c['specimen']}{rail}) repetition {c['run']}: "
+                         f"{len(c['load_n'])} steps")
         return "\n".join(lines)
 
     emit(result, args.json, text)

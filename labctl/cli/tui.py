@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -19,6 +20,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--autostart", action="store_true", help="start acquiring at once")
     p.add_argument("--resume", action="store_true", help="continue the interrupted campaign file given by --out")
     p.add_argument("--open", metavar="FILE.h5", help="browse an existing campaign file")
+    p.add_argument("--watch", metavar="FILE.h5",
+                   help="follow a campaign another process (labctl run / labctl tui) is writing, read-only")
+    p.add_argument("--serve", action="store_true",
+                   help="show this screen in a web browser (textual-serve) instead of the terminal; each browser "
+                        "tab starts its own session, so serve --watch FILE to follow a campaign from elsewhere")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="with --serve: address to listen on (default 127.0.0.1, this machine only)")
+    p.add_argument("--port", type=int, default=8000, help="with --serve: port (default 8000)")
     auto = p.add_mutually_exclusive_group()
     auto.add_argument("--auto-confirm", type=float, metavar="SECONDS",
                       help="simulated rig: prompts take their first choice by themselves after SECONDS "
@@ -60,17 +69,58 @@ def settings_from(args: argparse.Namespace):  # noqa: ANN201 - TuiSettings, impo
                        seed=args.seed, rig=args.rig, devices=devices, no_auto_confirm=args.no_auto_confirm)
 
 
+def serve_command(argv: list[str]) -> str:
+    """The ``labctl tui`` command each browser session runs: these arguments without --serve/--host/--port."""
+    import shlex
+
+    out, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg in ("--host", "--port"):
+            skip = True
+            continue
+        if arg == "--serve" or arg.startswith(("--host=", "--port=")):
+            continue
+        out.append(arg)
+    return shlex.join([sys.executable, "-m", "labctl", *out])
+
+
+def serve(args: argparse.Namespace, argv: list[str]) -> int:
+    """Serve the TUI to web browsers through textual-serve (localhost unless --host says otherwise)."""
+    try:
+        from textual_serve.server import Server
+    except ImportError:
+        raise InputError("--serve needs textual-serve: pip install textual-serve") from None
+    if not 0 < args.port < 65536:
+        raise InputError(f"--port {args.port}: expected 1-65535")
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        sys.stderr.write(f"labctl tui: warning: serving on {args.host}: anyone who reaches this address can see "
+                         "the screen" + ("" if args.watch else " and drive the rig") + "\n")
+    Server(serve_command(argv), host=args.host, port=args.port, title="labctl").serve()
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from labctl.storage import CampaignReader
     from labctl.tui import LabApp
 
     settings = settings_from(args)
     open_path = Path(args.open) if args.open else None
+    watch_path = Path(args.watch) if args.watch else None
+    if open_path is not None and watch_path is not None:
+        raise InputError("--open and --watch: give one (--watch follows a campaign still being written)")
+    if watch_path is not None and args.protocol:
+        raise InputError("--watch FILE only follows a campaign another process runs; it takes no PROTOCOL")
     if open_path is not None:
         CampaignReader(open_path).close()  # a missing or foreign file fails here, as one line
-    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+    if args.serve:
+        return serve(args, sys.argv[1:])
+    served = "web_driver" in os.environ.get("TEXTUAL_DRIVER", "")  # a session of labctl tui --serve
+    if not served and not (sys.stdin.isatty() and sys.stdout.isatty()):
         raise InputError("needs an interactive terminal; for unattended runs use 'labctl run'")
-    app = LabApp(settings, open_path=open_path)
+    app = LabApp(settings, open_path=open_path, watch_path=watch_path)
     outcome = app.run()
     if app.error is not None:
         sys.stderr.write(f"labctl tui: error: {app.error}\n")

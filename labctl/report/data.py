@@ -16,6 +16,7 @@ import numpy as np
 
 from labctl.errors import InputError
 from labctl.physics import ContactCase, RigConfig
+from labctl.report.notes import StepEvents, step_events
 from labctl.reprocess import rig_of
 from labctl.storage import CampaignReader, RunInfo, StepInfo
 from labctl.storage.records import curve_from_steps
@@ -59,6 +60,17 @@ class SeriesData:
     specimen: dict[str, Any]
     case: ContactCase
     runs: list[RunCurve]
+    events: list[StepEvents] = field(default_factory=list)  # what happened at each stored step
+
+    @property
+    def name(self) -> str:
+        """The series as tables and legends name it: the specimen and its rails (two series of one roller type
+        on different rails are told apart)."""
+        return f"{self.label} · rails Ra {self.case.rail_ra_m * 1e6:.3g} µm"
+
+    def drifted(self, step: int) -> list[StepEvents]:
+        """The repetitions of ``step`` whose load did not hold during the step."""
+        return [e for e in self.events if e.step == step and e.drifted()]
 
     def step_stats(self) -> list[StepStat]:
         """Statistics per step number over the repetitions that identified it."""
@@ -203,7 +215,8 @@ def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = N
                     if st.result is not None and st.result.error:
                         failed.append((s, run.run, st.step, st.result.error))
             curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
-            series.append(SeriesData(s, spec.label or f"series {s}", spec.kind, spec, spec.case(), curves))
+            series.append(SeriesData(s, spec.label or f"series {s}", spec.kind, spec, spec.case(), curves,
+                                     [step_events(st) for run in runs for st in run.steps]))
         config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
                   if (text := reader.config_text(name))}
         return ReportData(Path(path), reader.attrs, series, stats, _frf(reader, series, frf_step), config,

@@ -100,8 +100,20 @@ def load_stiffness(series: SeriesData | list[SeriesData], simulated: bool = Fals
     fig, axes = _grid(len(group))
     for i, (ax, s) in enumerate(zip(axes, group, strict=True)):
         _load_stiffness_panel(ax, s, legend=i == 0)
+    share_limits(axes[:len(group)])
     mark_simulated(fig, simulated, "load–stiffness per repetition" if len(group) > 1 else "")
     return fig
+
+
+def share_limits(axes: list[Axes]) -> None:
+    """One x and one y range for panels the reader compares side by side (Fig. 8's series)."""
+    if len(axes) < 2:
+        return
+    xs = [ax.get_xlim() for ax in axes]
+    ys = [ax.get_ylim() for ax in axes]
+    for ax in axes:
+        ax.set_xlim(min(x[0] for x in xs), max(x[1] for x in xs))
+        ax.set_ylim(min(y[0] for y in ys), max(y[1] for y in ys))
 
 
 def _material_groups(group: list[SeriesData]) -> list[tuple[str, list[SeriesData]]]:
@@ -216,7 +228,7 @@ def frf(step: FrfStep, simulated: bool = False) -> Figure:
     coh.set_ylim(0, 1.02)
     coh.set_xlim(0, FRF_MAX_HZ)
     for ax in (vert, horiz, coh):
-        ax.legend(fontsize=6.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        ax.legend(fontsize=10, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     for ax in (vert, horiz, coh):
         ax.grid(alpha=0.3)
     mark_simulated(fig, simulated)

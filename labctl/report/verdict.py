@@ -7,6 +7,8 @@ repetitions with the rig's systematic uncertainty (disc mass, K_setup, rig model
 ``[uncertainty]``). With the interval k ± 2u (about 95 %): **pass** when the whole interval lies within
 the band, **fail** when it lies wholly outside, otherwise **cannot tell**. Eqs. 5/6 were fitted to steel
 rollers; a roller whose contact modulus differs from bearing steel's by more than 5 % gets no verdict.
+A step whose load drifted during the step (in any repetition) is never a pass or a fail: the stiffness
+belongs to a load that did not hold, so it is **cannot tell** with the drift in its note.
 """
 
 from __future__ import annotations
@@ -107,9 +109,15 @@ def series_verdicts(series: SeriesData, rig: RigConfig, band: float | None = Non
             note = f"{name} is not defined at this load"
         elif len(per_run) < 2:
             note = "one repetition: no scatter estimate"
-        out.append(StepVerdict(series.index, series.label, st.step, st.load_n, st.stiffness_n_per_m, std,
-                               st.repetitions, name if applies else "", float(km), band,
-                               _verdict(st.stiffness_n_per_m, std, float(km), band) if applies else NO_MODEL, note))
+        verdict = _verdict(st.stiffness_n_per_m, std, float(km), band) if applies else NO_MODEL
+        drifted = series.drifted(st.step)
+        if drifted and verdict in (PASS, FAIL):  # the stiffness belongs to a load that did not hold
+            verdict = UNDECIDED
+        if drifted:
+            note = "; ".join([*(f"run {e.run}: load drifted {e.load_before_n:.1f} → {e.load_after_n:.1f} N "
+                                f"during the step" for e in drifted), *([note] if note else [])])
+        out.append(StepVerdict(series.index, series.name, st.step, st.load_n, st.stiffness_n_per_m, std,
+                               st.repetitions, name if applies else "", float(km), band, verdict, note))
     return out
 
 

@@ -212,12 +212,14 @@ def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
 class CampaignReader:
     """Read-only view of a campaign file; errors on corrupt or foreign files name the file."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, locking: bool | None = None) -> None:
+        """``locking=False``: open without HDF5's file lock, to look at a file another process is writing
+        (``labctl tui --watch`` re-reads it each time and retries a read that caught a flush half-way)."""
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
         try:
-            self.h5 = h5py.File(self.path, "r")
+            self.h5 = h5py.File(self.path, "r", **({} if locking is None else {"locking": locking}))
         except OSError as exc:
             raise InputError(f"{self.path}: not a readable HDF5 campaign file ({exc})") from None
         if _decode(self.h5.attrs.get("format")) != s.FORMAT:

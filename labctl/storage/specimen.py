@@ -9,9 +9,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from labctl.stiffness_table import BUDGET_COLUMNS, RollerContact, StiffnessPoint
+from labctl.stiffness_table import (
+    BUDGET_COLUMNS,
+    FLAG_CHANNELS,
+    FLAG_LOAD_DRIFT,
+    FLAG_OVERRIDE,
+    RollerContact,
+    StiffnessPoint,
+)
+from labctl.storage.records import OPERATOR
 
 if TYPE_CHECKING:
+    from labctl.storage.reader import StepInfo
     from labctl.storage.records import StepResult
 
 NAN = math.nan
@@ -104,10 +113,14 @@ class SpecimenRecord(RollerContact):
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
 
     def point(self, repetition: int, load_n: float, stiffness_n_per_m: float, result: StepResult | None = None,
-              load_std_n: float | None = None) -> StiffnessPoint:
-        """A stiffness-table row for a measured point of this specimen (with the result's uncertainty budget)."""
+              load_std_n: float | None = None, step: StepInfo | None = None) -> StiffnessPoint:
+        """A stiffness-table row for a measured point of this specimen (with the result's uncertainty budget, and
+        with ``step`` the load read after its blows, what happened at it and the spring curve's load 1-σ)."""
         budget = result.roller_stiffness_budget_n_per_m if result is not None else {}
         std = result.roller_stiffness_std_n_per_m if result is not None else None
+        after, flags = step_flags(step, result) if step is not None else (None, None)
+        if load_std_n is None and step is not None:
+            load_std_n = step.attrs.get("load_std_n")
         return StiffnessPoint(
             diameter_m=self.diameter_m, contact_length_m=self.contact_length_m, rail_ra_m=self.rail_ra_m,
             load_n=float(load_n), stiffness_n_per_m=float(stiffness_n_per_m), roller_type=self.roller_type,
@@ -116,4 +129,17 @@ class SpecimenRecord(RollerContact):
             rail_material=self.rail_material or None,
             stiffness_std_n_per_m=std if std is not None and math.isfinite(std) else None,
             load_std_n=float(load_std_n) if load_std_n is not None and math.isfinite(load_std_n) else None,
+            load_after_n=after, flags=flags,
             **{column: float(budget[key]) for key, column in BUDGET_COLUMNS.items() if key in budget})
+
+
+def step_flags(step: StepInfo, result: StepResult | None = None) -> tuple[float | None, str | None]:
+    """The load read after a step's blows and what happened at it, as the stiffness table's optional columns."""
+    r = result if result is not None else step.result
+    flags = [FLAG_LOAD_DRIFT] if step.load_drift else []
+    if r is not None and (r.dead_channels or r.dropped_channels):
+        flags.append(FLAG_CHANNELS)
+    if any(i.verdict.source == OPERATOR and i.verdict.accepted != i.checks.accepted for i in step.impacts):
+        flags.append(FLAG_OVERRIDE)
+    after = step.load_after_n
+    return (after if math.isfinite(after) else None), (";".join(flags) or None)

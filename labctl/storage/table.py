@@ -18,5 +18,5 @@ def campaign_stiffness_points(path: str | Path) -> list[StiffnessPoint]:
                 for step in run.steps:
                     if step.result is not None and step.result.identified:
                         points.append(spec.point(run.run, step.load_n, step.result.roller_stiffness_n_per_m,
-                                                 step.result, step.attrs.get("load_std_n")))
+                                                 step.result, step=step))
     return points

@@ -19,7 +19,7 @@ from textual.worker import Worker, WorkerState
 from labctl import events as ev
 from labctl.engine import Outcome, RunControl
 from labctl.protocol import Protocol
-from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
+from labctl.tui.dialogs import ConfirmDialog, HelpScreen, PromptDialog, ReviewDialog
 from labctl.tui.monitor import MonitorScreen
 from labctl.tui.operator import PromptRequest, TuiOperator
 from labctl.tui.state import reason_text
@@ -44,6 +44,7 @@ class TuiSettings:
     devices: str | None = None
     no_auto_confirm: bool = False  # --no-auto-confirm: the setup screen's auto-confirm box starts unticked
     review_hits: bool = True  # the per-hit gate: every stored blow waits for the technician's verdict
+    arm_grace_s: float = 1.0  # after a verdict at the gate, a `p` this soon still pauses before the next arm
 
     def out_path(self) -> Path:
         """The campaign file: as given, or ``<protocol>-<date>-<time>.h5`` in the working directory."""
@@ -71,23 +72,27 @@ class LabApp(App[Outcome | None]):
     """``labctl tui``: pick a protocol, run it with live plots and dialogs, browse campaign files."""
 
     TITLE = "labctl"
+    ENABLE_COMMAND_PALETTE = False  # every action has its key (? lists them); the footer keeps its room
     BINDINGS = [
         Binding("s", "start", "start"),
         Binding("p", "pause", "pause/resume"),
         Binding("a", "abort", "abort"),
-        Binding("r", "verdict(False)", "reject hit"),
-        Binding("y", "verdict(True)", "accept hit"),
-        Binding("t", "auto_confirm", "auto-confirm"),
-        Binding("o", "browse", "open file"),
+        Binding("r", "verdict(False)", "reject hit", show=False),  # the gate shows its own y / r
+        Binding("y", "verdict(True)", "accept hit", show=False),
+        Binding("t", "auto_confirm", "auto"),
+        Binding("o", "browse", "open"),
         Binding("q", "quit", "quit"),
+        Binding("question_mark", "help", "keys"),
     ]
 
-    def __init__(self, settings: TuiSettings, *, open_path: Path | None = None,
-                 subscribers: tuple = ()) -> None:
+    def __init__(self, settings: TuiSettings, *, open_path: Path | None = None, watch_path: Path | None = None,
+                 watch_interval_s: float = 1.0, subscribers: tuple = ()) -> None:
         super().__init__()
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
+        self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
-        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits)
+        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits,
+                                    settings.arm_grace_s)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
             else DEFAULT_AUTO_CONFIRM_S
@@ -106,7 +111,11 @@ class LabApp(App[Outcome | None]):
         return self.monitor
 
     def on_ready(self) -> None:
-        if self.open_path is not None:
+        if self.watch_path is not None:
+            from labctl.tui.watcher import WatchScreen
+
+            self.push_screen(WatchScreen(self.watch_path, self.watch_interval_s))
+        elif self.open_path is not None:
             self.action_browse(self.open_path)
         elif self.settings.protocol is None:
             from labctl.tui.setup import SetupScreen
@@ -173,6 +182,8 @@ class LabApp(App[Outcome | None]):
 
     def on_engine_event(self, message: EngineEvent) -> None:
         e = message.event
+        if not self.monitor.is_attached:  # the app is closing: events still in flight have no screen
+            return
         if isinstance(e, ev.ImpactRejected):
             self.rejection = reason_text(e.reasons)
         elif isinstance(e, ev.ImpactAcquired | ev.StepStarted):
@@ -253,33 +264,45 @@ class LabApp(App[Outcome | None]):
     def action_verdict(self, accept: bool) -> None:
         if not self.running:
             return
+        if self.operator.reviews_hits:  # the gate judges every blow: y / r mean only that, never a late override
+            return
+        if self.screen is not self.monitor:  # a dialog is open: y/r never answer it, nor judge a blow behind it
+            self.notify("y / r judge a blow in the gate; this dialog takes its digits or Enter (? for the keys)",
+                        severity="warning", timeout=4)
+            return
         shown = self.monitor.state.last_impact
         self.control.override_last_impact(accept, attempt=shown.attempt if shown else None)
         verb = "accept" if accept else "reject"
         self.monitor.log_line(f"{verb} requested for the step's latest impact (applied at the next safe point)")
 
     def action_abort(self) -> None:
-        """Ask before aborting; acquisition pauses (at its next safe point) until the question is answered."""
-        if not self.running or self.control.stop_status:
+        """Ask before aborting (``x`` aborts); acquisition pauses at its next safe point until it is answered."""
+        self._ask("aborted", ConfirmDialog(
+            "Abort the campaign?", "Acquisition is paused. x aborts: it stops here, the file keeps every impact so "
+            "far and is marked aborted. n goes on.", yes_key="x", yes_label="abort"))
+
+    def _ask(self, status: str, question: ConfirmDialog) -> None:
+        """Put a stopping question; acquisition pauses while it is open, a yes stops the run with ``status``."""
+        if not self.running or self.control.stop_status or isinstance(self.screen, ConfirmDialog):
             return
         was_paused = self.control.paused
         self.control.pause()
         if not was_paused:
-            self.monitor.log_line("paused while the abort question is open")
+            self.monitor.log_line("paused while the question is open")
 
         def answered(yes: bool | None) -> None:
             if yes:
-                self._stop("aborted")
+                self.quit_when_done = status == "interrupted"
+                self._stop(status)
             elif not was_paused:
                 self.control.resume()
                 self.monitor.set_status("running")
-                self.monitor.log_line("not aborted: resuming")
+                self.monitor.log_line("not stopped: resuming")
             held, self.held_prompt = self.held_prompt, None
             if held is not None:
                 self.show_prompt(held)
 
-        self.push_screen(ConfirmDialog("Abort the campaign?", "Acquisition is paused. Abort: it stops here, the "
-                                       "file keeps every impact so far and is marked aborted."), answered)
+        self.push_screen(question, answered)
 
     def _stop(self, status: str) -> None:
         (self.control.abort if status == "aborted" else self.control.stop)()
@@ -294,12 +317,18 @@ class LabApp(App[Outcome | None]):
             self.operator.stop("interrupted")
 
     async def action_quit(self) -> None:
-        """Quit; mid-run the engine is stopped cleanly first (the file stays resumable)."""
+        """Quit; mid-run it asks first (``q`` again quits), then the engine is stopped cleanly at its next safe
+        point (the file stays resumable)."""
         if not self.running:
             self.exit(self.outcome)
             return
-        self.quit_when_done = True
-        self._stop("interrupted")
+        self._ask("interrupted", ConfirmDialog(
+            "Quit mid-run?", "Acquisition is paused. q quits: the engine stops here and the file stays resumable "
+            "(labctl tui PROTOCOL --out FILE --resume). n goes on.", yes_key="q", yes_label="quit"))
+
+    def action_help(self) -> None:
+        if not isinstance(self.screen, HelpScreen):
+            self.push_screen(HelpScreen())
 
     def action_browse(self, path: Path | None = None) -> None:
         from labctl.tui.browser import BrowserScreen
@@ -322,8 +351,10 @@ class LabApp(App[Outcome | None]):
         if action == "start":
             return self.settings.protocol is not None and not self.running and self.outcome is None \
                 and self.error is None
-        if action in ("pause", "abort", "verdict"):
+        if action in ("pause", "abort"):
             return self.running
+        if action == "verdict":
+            return self.running and not self.operator.reviews_hits
         if action == "auto_confirm":
-            return self.settings.backend == "sim"
+            return self.settings.backend == "sim" and self.watch_path is None
         return True

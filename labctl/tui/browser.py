@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +14,20 @@ from textual.widgets import Footer, Static, Tree
 
 from labctl.errors import LabctlError
 from labctl.protocol import parse_protocol
-from labctl.storage import CampaignReader, StepInfo
+from labctl.report.notes import check_words, step_events
+from labctl.storage import CampaignReader, ImpactInfo, StepInfo
+from labctl.storage.records import OPERATOR
 from labctl.tui import plotdata as pd
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import reason_text, tilt_text
 
 BROWSER_CSS = """
 BrowserScreen #title { height: 1; background: $primary-background; padding: 0 1; }
-BrowserScreen #tree { width: 48; border: round $primary; }
-BrowserScreen #detail { height: auto; max-height: 8; padding: 0 1; }
+BrowserScreen #tree { width: 45%; min-width: 36; border: round $primary; }
+BrowserScreen.-narrow #b-main { layout: vertical; }
+BrowserScreen.-narrow #tree { width: 100%; height: 45%; }
+BrowserScreen.-narrow #b-frf, BrowserScreen.-short #b-traces { display: none; }
+BrowserScreen #detail { height: auto; max-height: 10; padding: 0 1; }
 BrowserScreen .row { height: 1fr; }
 BrowserScreen .panel { border: round $primary; width: 1fr; height: 1fr; }
 """
@@ -37,7 +43,24 @@ def step_label(step: StepInfo) -> str:
         text += " · not identified"
     elif not step.complete:
         text += " · unfinished"
-    return f"{text} · {step.accepted_count}/{len(step.impacts)} impacts"
+    text += f" · {step.accepted_count}/{len(step.impacts)} hits"
+    return text + "".join(f" · {f}" for f in step_events(step).flags() if "warning" not in f)
+
+
+def impact_label(imp: ImpactInfo, reason: bool = False) -> str:
+    """One line per impact: its peak force and the verdict, and who gave it; an override says so (with
+    ``reason``: and why, as the detail line shows it)."""
+    v = imp.verdict
+    if v.source == OPERATOR and v.accepted != imp.checks.accepted:
+        said = "clean" if imp.checks.accepted else f"flagged {check_words(imp.checks.reasons)}"
+        verdict = f"{'ACCEPTED' if v.accepted else 'REJECTED'} by the operator ({said})" + (
+            f": {v.reason or 'no reason given'}" if reason else "")
+    elif v.accepted:
+        verdict = "ok"
+    else:
+        verdict = f"rejected: {reason_text(imp.reasons)}" + (f" ({v.reason})" if v.source == OPERATOR and v.reason
+                                                               else "")
+    return f"impact {imp.attempt}: {imp.peak_force_n:.0f} N · {verdict}"
 
 
 class BrowserScreen(Screen):
@@ -45,10 +68,12 @@ class BrowserScreen(Screen):
 
     DEFAULT_CSS = BROWSER_CSS
     BINDINGS = [Binding("escape,b", "back", "back")]
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (140, "-wide")]  # narrower: the tree above, its labels whole
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, locking: bool | None = None) -> None:
         super().__init__()
-        self.reader = CampaignReader(path)
+        self.reader = CampaignReader(path, locking=locking)  # False: a file just watched, opened as the watcher did
         self.protocol = None
         try:
             text = self.reader.config_text("protocol.toml")
@@ -60,7 +85,7 @@ class BrowserScreen(Screen):
         a = self.reader.attrs
         yield Static(f"{self.reader.path} · {a.get('protocol_name', '?')} on {a.get('backend', '?')} · "
                      f"status {a.get('status', '?')} {a.get('status_message', '')}", id="title", markup=False)
-        with Horizontal():
+        with Horizontal(id="b-main"):
             yield Tree(self.reader.path.name, id="tree")
             with Vertical():
                 yield Static("select a series, run, step or impact", id="detail", markup=False)
@@ -69,7 +94,7 @@ class BrowserScreen(Screen):
                     with Vertical(classes="panel", id="b-frf"):
                         yield TracePlot("FRF", "f [Hz]", "|H1| [(m/s²)/N]", id="b-frf-plot")
                         yield TracePlot("", "f [Hz]", "coherence", id="b-coh-plot")
-                with Horizontal(classes="row"):
+                with Horizontal(classes="row", id="b-traces"):
                     yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")
                     yield TracePlot("response", "t [ms]", "a [m/s²]", id="b-accel")
         yield Footer()
@@ -89,9 +114,7 @@ class BrowserScreen(Screen):
                 for step in run.steps:
                     snode = rnode.add(step_label(step), data=("step", series, run.run, step.step))
                     for imp in step.impacts:
-                        verdict = "ok" if imp.accepted else f"rejected: {reason_text(imp.reasons)}"
-                        snode.add_leaf(f"impact {imp.attempt}: {imp.peak_force_n:.0f} N"
-                                       f" · {verdict}", data=("impact", series, run.run, step.step, imp.attempt))
+                        snode.add_leaf(impact_label(imp), data=("impact", series, run.run, step.step, imp.attempt))
         tree.focus()
         if self.reader.series_indices():
             self.show_series(self.reader.series_indices()[0])
@@ -136,10 +159,15 @@ class BrowserScreen(Screen):
         if r is not None and r.identified:
             lines.append(f"bounce {r.bounce_hz:.2f} Hz · tilt {tilt_text(list(r.tilt_hz))} Hz · "
                          f"damping {r.bounce_damping_ratio:.4f} · coherence {r.coherence_at_bounce:.3f}")
-            if r.warnings:
-                lines.append("warnings: " + "; ".join(r.warnings))
-        elif r is not None and r.error:
-            lines.append(f"not identified: {r.error}")
+        happened = step_events(info)
+        lines.append(f"load {happened.load_before_n:.1f} N before the blows, "
+                     + (f"{happened.load_after_n:.1f} N after" if math.isfinite(happened.load_after_n)
+                        else "not read after"))
+        lines += happened.notes()
+        if attempt is not None:
+            imp = next((i for i in info.impacts if i.attempt == attempt), None)
+            if imp is not None:
+                lines.append(impact_label(imp, reason=True))
         self.query_one("#detail", Static).update("\n".join(lines))
         frf = self.reader.step_frf(series, run, step)
         if frf is not None and r is not None:

@@ -6,11 +6,12 @@ import math
 import time
 from collections.abc import Callable
 
+from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Button, Footer, Input, Label, Static
 
 from labctl.tui.operator import PromptRequest
 from labctl.tui.plots import FrfPlots, TracePlot
@@ -38,6 +39,8 @@ PromptDialog .countdown { color: $text-muted; width: 100%; }
 PromptDialog Horizontal, ConfirmDialog Horizontal { height: auto; width: 100%; }
 PromptDialog Button, ConfirmDialog Button { margin-right: 2; }
 ReviewDialog { align: center bottom; background: $background 20%; }
+ReviewDialog > Footer { dock: bottom; }
+ReviewDialog.-short .hint { display: none; }
 ReviewDialog > Vertical {
     width: 100; max-width: 98%; height: auto; border: thick $success; background: $surface; padding: 0 2;
 }
@@ -63,14 +66,9 @@ def prompt_title(action: str, hint: str = "") -> str:
     return ACTION_TITLES.get(action, "Please confirm")
 
 
-def affirmative(choices: tuple[str, ...]) -> str | None:
-    """The choice a "yes" stands for: the first one that is not a refusal (None if every choice refuses)."""
-    return next((c for c in choices if c.lower() not in REFUSALS), None)
-
-
 class PromptDialog(ModalScreen[str]):
-    """One engine prompt: a button per choice (Enter takes the first, digits pick by number, ``y`` the first
-    that is not a refusal, e.g. ``continue`` on a load-drift prompt).
+    """One engine prompt: a button per choice (Enter takes the highlighted first, digits pick by number). No
+    letter answers a prompt: ``y`` is the gate's accept, so it never also continues past a drift or an abort.
 
     ``auto_delay_s`` is asked every tick: a number means the first choice is taken by itself that many
     seconds after the dialog appeared (shown as a countdown); None means wait for the technician.
@@ -80,10 +78,9 @@ class PromptDialog(ModalScreen[str]):
 
     DEFAULT_CSS = DIALOG_CSS
     BINDINGS = [Binding(str(n), f"choose({n})", show=False) for n in range(1, 10)] + [
-        Binding("y", "yes", "yes", show=False)] + [
         # the run stays under control while the engine waits for an answer (a modal screen hides app keys)
         Binding(key, f"app.{action}", show=False) for key, action in (
-            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
+            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"), ("question_mark", "help"))]
 
     def __init__(self, request: PromptRequest, hint: str = "",
                  auto_delay_s: Callable[[], float | None] = lambda: None) -> None:
@@ -146,30 +143,36 @@ class PromptDialog(ModalScreen[str]):
         if 1 <= number <= len(self.request.choices):
             self.answer(self.request.choices[number - 1])
 
-    def action_yes(self) -> None:
-        """``y``: answer this prompt with its affirmative choice (a prompt of refusals only ignores it)."""
-        choice = affirmative(self.request.choices)
-        if choice is not None:
-            self.answer(choice)
 
 
 class ConfirmDialog(ModalScreen[bool]):
-    """A yes/no question before something that cannot be undone (abort, quit mid-run)."""
+    """A question before something that cannot be undone (abort, quit mid-run). It is confirmed by its own key
+    (``x`` for abort, ``q`` for quit), never by ``y``: no key confirms two different dialogs."""
 
     DEFAULT_CSS = DIALOG_CSS
-    BINDINGS = [Binding("y", "answer(True)", "yes"), Binding("n,escape", "answer(False)", "no")]
+    BINDINGS = [Binding("n,escape", "answer(False)", "no")]
 
-    def __init__(self, title: str, message: str) -> None:
+    def __init__(self, title: str, message: str, yes_key: str = "x", yes_label: str = "yes") -> None:
         super().__init__()
-        self.title_text, self.message = title, message
+        self.title_text, self.message, self.yes_key, self.yes_label = title, message, yes_key, yes_label
+
+    @property
+    def asks(self) -> str:
+        """What the header says while this question is open."""
+        return f"QUESTION: {self.title_text} ({self.yes_key} {self.yes_label} · n no)"
 
     def compose(self) -> ComposeResult:
         with Vertical():
             yield Label(self.title_text, classes="title")
             yield Static(self.message, classes="message")
             with Horizontal():
-                yield Button("y yes", id="yes", variant="error")
-                yield Button("n no", id="no", variant="primary")
+                yield Button(f"{self.yes_key} {self.yes_label}", id="yes", variant="error")
+                yield Button("n no, go on", id="no", variant="primary")
+
+    def on_key(self, event: events.Key) -> None:
+        if event.key == self.yes_key:
+            event.stop()
+            self.dismiss(True)
 
     def on_mount(self) -> None:
         self.query_one("#no", Button).focus()
@@ -186,7 +189,7 @@ def review_title(request: PromptRequest) -> str:
     """The gate's headline: which blow, and what the checks made of it."""
     r = request.review
     assert r is not None
-    where = f"Impact {r.attempt} of step {r.step}"
+    where = f"Step {r.step} impact {r.attempt}"
     if r.checks_accepted:
         return f"{where}: CLEAN — accept (y) or reject (r)?"
     return f"{where}: FLAGGED ({reason_text(r.reasons)}) — reject (r) or accept anyway (y)?"
@@ -197,9 +200,8 @@ def review_body(request: PromptRequest) -> str:
     r = request.review
     assert r is not None
     said = "passed every check" if r.checks_accepted else f"the checks reject it: {reason_text(r.reasons)}"
-    return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms · "
-            f"{said}.\nIts force and response are in the impact panel above (range use on its lower border); "
-            "the next blow is armed only after your verdict.")
+    return (f"series {r.series} run {r.run} · peak {r.peak_force_n:.0f} N · pulse {r.pulse_width_s * 1e3:.2f} ms"
+            f" · {said}.")
 
 
 class ReviewDialog(ModalScreen[str]):
@@ -211,10 +213,11 @@ class ReviewDialog(ModalScreen[str]):
     """
 
     DEFAULT_CSS = DIALOG_CSS
-    BINDINGS = [Binding("y", "choose('accept')", "accept hit"), Binding("r", "choose('reject')", "reject hit"),
+    BINDINGS = [Binding("y", "choose('accept')", "accept"), Binding("r", "choose('reject')", "reject"),
                 Binding("escape", "back", "back", show=False)] + [
-        Binding(key, f"app.{action}", show=False) for key, action in (
-            ("p", "pause"), ("a", "abort"), ("t", "auto_confirm"), ("q", "quit"))]
+        Binding(key, f"app.{action}", label) for key, action, label in (
+            ("p", "pause", "pause"), ("a", "abort", "abort"), ("t", "auto_confirm", "auto"), ("q", "quit", "quit"),
+            ("question_mark", "help", "keys"))]
     HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (120, "-wide")]
     VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
 
@@ -237,6 +240,8 @@ class ReviewDialog(ModalScreen[str]):
         with Vertical():
             yield Label(review_title(self.request), classes="title")
             yield Static(review_body(self.request), classes="message")
+            yield Static("Its force and response are in the impact panel above (range use on its lower border); "
+                         "the next blow is armed only after your verdict.", classes="message hint")
             with Horizontal(id="gate-frf"):
                 yield TracePlot("", "f [Hz]", "|H1| [(m/s²)/N]", id="gate-frf-plot")
                 yield TracePlot("", "f [Hz]", "coherence", id="gate-coh-plot")
@@ -245,6 +250,7 @@ class ReviewDialog(ModalScreen[str]):
                 yield Button("r reject", id="reject", variant="default" if self.clean else "error")
             yield Input(placeholder="why? (Enter to confirm, Esc to go back)", id="reason")
             yield Static("", classes="countdown", id="countdown")
+        yield Footer()  # the gate covers the screen's footer: it shows the keys that work here
 
     def on_mount(self) -> None:
         self.set_class(not self.clean, "-flagged")
@@ -325,3 +331,36 @@ class ReviewDialog(ModalScreen[str]):
         if not self.closed:
             self.closed = True
             self.dismiss(self.request.answer or "")
+
+
+KEYS = (
+    ("s", "start the campaign (when not started with --autostart)"),
+    ("p", "pause / resume: the engine holds before it arms the next blow"),
+    ("a", "abort: asks first (x aborts, n goes on); the file keeps every impact"),
+    ("y / r", "in the gate: accept / reject the blow just taken (an override asks why)"),
+    ("1-9, Enter", "in a prompt: pick a choice by number; Enter takes the highlighted one"),
+    ("t", "auto-confirm on/off (simulated rig only)"),
+    ("o", "browse a campaign file"),
+    ("q", "quit: mid-run it asks first (q again quits, the file stays resumable)"),
+    ("?", "this help"),
+)
+
+
+class HelpScreen(ModalScreen[None]):
+    """``?``: every key and what it does (one meaning per key)."""
+
+    DEFAULT_CSS = """
+    HelpScreen { align: center middle; }
+    HelpScreen > Vertical { width: 90; max-width: 98%; height: auto; border: thick $primary; background: $surface;
+        padding: 0 1; }
+    HelpScreen .title { text-style: bold; width: 100%; }
+    """
+    BINDINGS = [Binding("escape,question_mark,enter", "close", "close")]
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Label("Keys (Esc or ? closes)", classes="title")
+            yield Static("\n".join(f"{k:>10}  {what}" for k, what in KEYS), markup=False)
+
+    def action_close(self) -> None:
+        self.dismiss(None)

@@ -17,11 +17,12 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from labctl import events as ev
 from labctl.protocol import Protocol
 from labctl.tui import plotdata as pd
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
 MONITOR_CSS = """
-#header { height: 2; background: $primary-background; color: $text; padding: 0 1; }
+#header { height: auto; max-height: 4; background: $primary-background; color: $text; padding: 0 1; }
 #header.-paused { background: $warning 40%; }
 #header.-done { background: $success 30%; }
 #header.-failed { background: $error 40%; }
@@ -60,6 +61,13 @@ HANDLERS: dict[type[ev.Event], str] = {
 }
 
 
+def fit_title(variants: list[str], width: int) -> str:
+    """The longest of ``variants`` (longest first) that fits a border of ``width`` columns whole, so a title
+    is shortened by dropping what matters least, never cut mid-word; the last variant when none fits."""
+    room = width - 6  # corners, the title's padding
+    return next((v for v in variants if len(v) <= room), variants[-1])
+
+
 def run_label(series: int, run: int, series_total: int) -> str:
     return f"series {series} run {run}" if series_total > 1 else f"run {run}"
 
@@ -96,7 +104,7 @@ class MonitorScreen(Screen):
 
     def on_mount(self) -> None:
         self.query_one("#impact-panel").border_title = "last impact: waiting"
-        self.query_one("#frf-panel").border_title = "FRF and coherence: waiting for the first step"
+        self.query_one("#frf-panel").border_title = "FRF: after the first step"
         self.query_one("#side").border_title = "modes and log"
         self.query_one("#stiffness").add_class("panel")
         self.query_one("#stiffness").border_title = "stiffness vs load"
@@ -105,18 +113,38 @@ class MonitorScreen(Screen):
         self.impact = ImpactPlots(self.query_one("#force-plot", TracePlot), self.query_one("#accel-plot", TracePlot))
         self.frf = FrfPlots(self.query_one("#frf-plot", TracePlot), self.query_one("#coh-plot", TracePlot))
         self.set_interval(1.0, self.refresh_header)
+        self.app.screen_change_signal.subscribe(self, lambda _screen: self.call_later(self.refresh_header))
         self.refresh_header()
 
     # --- header and log -------------------------------------------------------------------------------------
+    def asked(self) -> tuple[str, bool]:
+        """What the open dialog asks the technician ("" when none), and whether it stops the work (every dialog
+        but the per-hit gate, which is part of taking a blow): the header says it, the ETA stands still."""
+        for screen in reversed(self.app.screen_stack):
+            if isinstance(screen, ConfirmDialog):
+                return screen.asks, True
+            if isinstance(screen, ReviewDialog) and not screen.closed:
+                return "JUDGE THE BLOW: y accept · r reject (nothing armed)", False
+            if isinstance(screen, PromptDialog) and not screen.closed:
+                return (f"WAITING FOR YOU: {prompt_title(screen.request.action, screen.hint)} "
+                        "(nothing armed)"), True
+        return "", False
+
     def refresh_header(self) -> None:
         s = self.state
         title = f"labctl · {s.protocol or (self.protocol.name if self.protocol else 'no protocol')}"
         if s.backend:
             title += f" · {s.backend} → {s.path}"
+        if self.is_mounted:
+            s.hold(*self.asked())
         status = STATUS_WORDS.get(s.status, s.status.upper())
+        if s.waiting and s.status == "running":
+            status = "WAITING FOR THE OPERATOR"
         header = self.query_one("#header", Static)
-        header.update(f"{escape(title)}   [b]{escape(status)}[/b]\n{escape(s.header_text())}")
-        header.set_class(s.status == "paused", "-paused")
+        prompt = s.prompt_text()
+        header.update(f"[b]{escape(status)}[/b]  {escape(title)}\n{escape(s.counters_text())}"
+                      + (f"\n[b]{escape(prompt)}[/b]" if prompt else ""))
+        header.set_class(s.status == "paused" or bool(s.waiting and s.status == "running"), "-paused")
         header.set_class(s.status == "complete", "-done")
         header.set_class(s.status in ("failed", "aborted", "interlock"), "-failed")
 
@@ -155,17 +183,22 @@ class MonitorScreen(Screen):
 
     def _impact(self, e: ev.ImpactAcquired) -> None:
         p, rejected = e.position, isinstance(e, ev.ImpactRejected)
-        head = f"impact {p.impact}/{self.state.impacts_per_step} (attempt {e.attempt})"
-        if rejected:
-            title = f"{head} REJECTED: {reason_text(e.reasons)}"
-            self.log_line(f"{head} rejected ({reason_text(e.reasons)}): hit again", "bold red")
+        head = f"step {p.step} impact {e.attempt}"
+        width = self.query_one("#impact-panel").size.width or 60
+        gate = getattr(getattr(self.app, "operator", None), "reviews_hits", False)
+        if rejected:  # with the gate the technician decides; without it the checks' rejection stands
+            word = "FLAGGED" if gate else "REJECTED"
+            title = fit_title([f"{head} {word}: {reason_text(e.reasons)}", f"{head} {word}"], width)
+            self.log_line(f"{head} flagged by the checks ({reason_text(e.reasons)}): "
+                          + ("judge it" if gate else "not used, hit again"), "bold red")
         else:
-            title = f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms"
+            title = fit_title([f"{head} ok · {e.peak_force_n:.0f} N · {e.pulse_width_s * 1e3:.2f} ms",
+                               f"{head} ok · {e.peak_force_n:.0f} N"], width)
             self.log_line(f"{head}: {e.peak_force_n:.0f} N, pulse {e.pulse_width_s * 1e3:.2f} ms", "green")
         panel = self.query_one("#impact-panel")
         panel.set_class(rejected, "-rejected")
         panel.border_title = title
-        panel.border_subtitle = self.state.range_text()
+        panel.border_subtitle = fit_title([self.state.range_text(n) for n in (6, 4, 3, 2, 1)], width)
         full = [name for name, use in e.range_use.items() if use >= 1.0]
         clipped = sorted({r.partition(":")[2] for r in e.reasons if r.startswith("clipped:")} | set(full))
         if clipped:
@@ -181,8 +214,12 @@ class MonitorScreen(Screen):
         table.move_cursor(row=table.row_count - 1)
         self.log_line(f"load {e.load_n:.1f} N · " + self.state.step_summary(e), "cyan")
         self.frf.show(e.frequencies_hz, e.h1_magnitude, e.coherence, e.channels, e.bounce_hz, e.tilt_hz, "")
-        self.query_one("#frf-panel").border_title = (f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), "
-                                                     f"tilt {tilt} Hz (orange)")
+        panel = self.query_one("#frf-panel")
+        panel.border_title = fit_title([
+            f"FRF step {p.step}: bounce {e.bounce_hz:.2f} Hz (red), tilt {tilt} Hz (orange)",
+            f"step {p.step}: bounce {e.bounce_hz:.1f} (red) · tilt {tilt} Hz",
+            f"step {p.step}: bounce {e.bounce_hz:.1f} Hz"],
+            panel.size.width or 60)
         self._show_runs()
 
     def _step_failed(self, e: ev.StepFailed) -> None:
@@ -203,7 +240,7 @@ class MonitorScreen(Screen):
         self.log_line("paused at a safe point (between impacts)", "bold yellow")
 
     def _resumed(self, e: ev.Resumed) -> None:
-        self.log_line("resumed", "bold")
+        self.log_line(f"resumed: {e.reason.replace('_', ' ')}" if e.reason else "resumed", "bold")
 
     def _suspended(self, e: ev.Suspended) -> None:
         self.log_line(e.reason, "bold yellow")
@@ -220,23 +257,37 @@ class MonitorScreen(Screen):
             self.log_line("o: browse this file · q: quit")
 
     def preload(self, path: str) -> None:
-        """Show what an interrupted campaign already holds before the engine continues it."""
+        """Show what an interrupted campaign already holds before the engine continues it: its identified steps,
+        and its unused blows in the campaign's counts, so the end summary covers the whole campaign."""
         from labctl.storage import CampaignReader
+        from labctl.tui.state import blow_reason
 
         with CampaignReader(path) as reader:
             for series in reader.series_indices():
                 for run in reader.runs(series):
                     for step in run.steps:
                         r = step.result
-                        if r is None or not r.identified:
+                        if r is None:  # unfinished: the engine finishes it and reports all its blows
                             continue
+                        if not r.identified:
+                            self.state.steps_failed += 1
+                            continue
+                        stored = {i.attempt: i for i in step.impacts}
+                        for outcome in r.impacts:
+                            if not outcome.used:
+                                info = stored.get(outcome.attempt)
+                                why = info.reasons if info is not None and not info.accepted else outcome.reasons
+                                key = blow_reason(tuple(why))
+                                self.state.rejected[key] = self.state.rejected.get(key, 0) + 1
                         tilt = tuple(float(t) for t in r.tilt_hz)[:2]
                         row = StepRow(series, run.run, step.step, step.load_n, r.bounce_hz,
                                       (tilt + (math.nan, math.nan))[:2], r.roller_stiffness_n_per_m,
                                       r.coherence_at_bounce)
                         self.state.add_row(row)
                         self.query_one("#steps", DataTable).add_row(*row_cells(row))
-        self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file")
+        unused = sum(self.state.rejected.values())
+        self.log_line(f"{path}: {len(self.state.steps)} identified steps already in the file"
+                      + (f", {unused} blows in them not used" if unused else ""))
 
     # --- stiffness plot -------------------------------------------------------------------------------------
     def _show_models(self, series: int) -> None:

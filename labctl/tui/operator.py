@@ -9,6 +9,7 @@ the UI while a dialog is open, the waiting prompt ends with ``StopRequested`` so
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -56,9 +57,10 @@ class TuiOperator:
     name = "operator@tui"
 
     def __init__(self, call_in_ui: Callable[..., object], show: Callable[[PromptRequest], object],
-                 tell: Callable[[str], object], reviews_hits: bool = False) -> None:
+                 tell: Callable[[str], object], reviews_hits: bool = False, arm_grace_s: float = 0.0) -> None:
         self._call, self._show, self._tell = call_in_ui, show, tell
         self.reviews_hits = reviews_hits
+        self.arm_grace_s = arm_grace_s  # after a person's verdict: time for a `p` before the next blow is armed
         self._lock = threading.Lock()
         self._pending: PromptRequest | None = None
         self._stopped: str | None = None
@@ -82,6 +84,7 @@ class TuiOperator:
         answer = self._ask(request)
         if request.automatic:
             return None
+        time.sleep(self.arm_grace_s)  # the engine arms only after this: a pause pressed just after `y` holds it
         return answer, request.reason or default_reason(review, answer)
 
     def verdicts(self, review: ImpactReview) -> dict[int, bool]:

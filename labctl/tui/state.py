@@ -33,6 +33,15 @@ def reason_text(reasons: tuple[str, ...] | list[str]) -> str:
     return ", ".join(out) or "no reason given"
 
 
+def blow_reason(reasons: tuple[str, ...]) -> str:
+    """Why one unused blow was not used, counted once: the checks' reasons, or the operator's rejection of a blow
+    the checks passed (a flagged blow the operator also rejected is counted under the checks' reason)."""
+    checks = tuple(r for r in reasons if r not in ("operator_rejected", "operator_accepted"))
+    if checks:
+        return reason_text(checks)
+    return "rejected by the operator" if "operator_rejected" in reasons else "no reason given"
+
+
 def tilt_text(tilt_hz: tuple[float, ...] | list[float]) -> str:
     """The tilt pair as ``500.5 / 501.4`` (only the frequencies that were found)."""
     return " / ".join(f"{float(t):.1f}" for t in tilt_hz if math.isfinite(float(t))) or "--"
@@ -99,6 +108,9 @@ class CampaignState:
     last_impact: ev.ImpactAcquired | None = None
     last_step: ev.StepProcessed | None = None
     paused_at: float | None = None  # local time the engine paused: the ETA stands still until it resumes
+    waiting: str = ""  # what the technician is asked right now (a dialog is open): the header says it
+    held: bool = False  # a prompt is open that stops the work (not the per-hit gate): the ETA stands still
+    frozen_at: float | None = None  # local time the ETA stopped counting down (paused or held)
     trigger: str = ""  # "armed" (waiting for the blow) | "triggered" (a blow taken, waiting for its verdict) | ""
     rejected: dict[str, int] = field(default_factory=dict)  # why blows were not used, over the campaign → count
     steps_failed: int = 0
@@ -137,6 +149,8 @@ class CampaignState:
             self.position, self.impacts_done = event.position, event.impacts_done
             self.impacts_total = event.impacts_total
             self.eta_s, self.eta_at = event.eta_s, now
+            if self.frozen_at is not None:  # a fresh estimate while stopped: it stands still from here
+                self.frozen_at = now
         elif isinstance(event, ev.StepProcessed):
             self._step(event)
         elif isinstance(event, ev.RunProcessed):
@@ -147,11 +161,11 @@ class CampaignState:
         elif isinstance(event, ev.Paused):
             self.status, self.position = "paused", event.position
             self.paused_at = now if self.paused_at is None else self.paused_at
+            self._freeze(now)
         elif isinstance(event, ev.Resumed):
             self.status = "running"
-            if self.paused_at is not None and self.eta_at is not None:
-                self.eta_at += now - self.paused_at  # the pause does not count down the ETA
             self.paused_at = None
+            self._freeze(now)  # the pause does not count down the ETA
         elif isinstance(event, ev.CampaignFinished):
             self.status, self.message, self.finished_at, self.eta_s = event.status, event.message, now, 0.0
             self.trigger = ""
@@ -160,9 +174,8 @@ class CampaignState:
         p = event.position
         self.last_step, self.trigger = event, ""
         for why in event.rejected.values():
-            for reason in (why.split(", ") if why else ["no reason given"]):
-                key = reason_text((reason,))
-                self.rejected[key] = self.rejected.get(key, 0) + 1
+            key = blow_reason(tuple(why.split(", ")) if why else ())
+            self.rejected[key] = self.rejected.get(key, 0) + 1
         self.add_row(StepRow(p.series, p.run, p.step, event.load_n, event.bounce_hz,
                              (float(event.tilt_hz[0]), float(event.tilt_hz[1])),
                              event.roller_stiffness_n_per_m, event.coherence_at_bounce))
@@ -189,17 +202,36 @@ class CampaignState:
         if self.finished_at is not None:
             return 0.0
         t = time.monotonic() if now is None else now
-        if self.paused_at is not None:
-            t = min(t, self.paused_at)
+        if self.frozen_at is not None:
+            t = min(t, self.frozen_at)
         floor = 1.0 if self.eta_s > 0 else 0.0  # work is left until the engine says it is done
         return max(self.eta_s - (t - self.eta_at), floor)
+
+    def hold(self, what: str, freeze: bool, now: float | None = None) -> None:
+        """A dialog is open (``what`` it asks; "" when none): the header says so instead of ARMED, and with
+        ``freeze`` the ETA stands still until it is answered (the time is added back to the countdown)."""
+        self.waiting, self.held = what, freeze
+        self._freeze(now)
+
+    def _freeze(self, now: float | None = None) -> None:
+        """Stop the ETA's countdown while paused or held; on going on, the stopped time is not counted."""
+        now = time.monotonic() if now is None else now
+        stopped = self.paused_at is not None or self.held
+        if stopped and self.frozen_at is None:
+            self.frozen_at = now
+        elif not stopped and self.frozen_at is not None:
+            if self.eta_at is not None:
+                self.eta_at += now - self.frozen_at
+            self.frozen_at = None
 
     @property
     def running(self) -> bool:
         return self.status in ("running", "paused", "stopping")
 
     def progress_text(self) -> str:
-        """``run r/R · step s/S · impact i/I`` (with the series when the protocol has several)."""
+        """``run r/R · step s/S · hit h/I`` (with the series when the protocol has several): the good hit of the
+        step being taken (a rejected blow is hit again for the same h); "impact N" always names a blow by its
+        number in the step, as stored, so the two never read alike."""
         p = self.position
 
         def n(value: int) -> str:
@@ -212,26 +244,35 @@ class CampaignState:
             steps_total = self.steps_estimate[0]
         parts = [f"series {n(p.series)}/{self.series_total}"] if self.series_total > 1 else []
         parts += [f"run {n(p.run)}/{self.runs_total}", f"step {n(p.step)}/{steps_total or '-'}",
-                  f"impact {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
+                  f"hit {n(min(p.impact, self.impacts_per_step))}/{self.impacts_per_step}"]
         return " · ".join(parts)
 
-    def header_text(self, now: float | None = None) -> str:
+    def counters_text(self, now: float | None = None) -> str:
+        """Where the campaign is, the load, the elapsed time and the ETA."""
         load = "--" if math.isnan(self.load_n) else f"{self.load_n:.1f}"
-        trigger = {"armed": " · ARMED: waiting for the blow", "triggered": " · TRIGGERED: judge the hit"}.get(
-            self.trigger if self.status == "running" else "", "")
         return (f"{self.progress_text()} · load {load} N · elapsed {clock(self.elapsed_s(now))} · "
-                f"ETA {clock(self.eta_now_s(now))}{trigger}")
+                f"ETA {clock(self.eta_now_s(now))}")
+
+    def prompt_text(self) -> str:
+        """What the rig and the technician are doing now: asked by a dialog, armed for a blow, or a blow taken."""
+        if self.waiting and self.running:
+            return self.waiting
+        return {"armed": "ARMED: waiting for the blow", "triggered": "TRIGGERED: judge the hit"}.get(
+            self.trigger if self.status == "running" else "", "")
+
+    def header_text(self, now: float | None = None) -> str:
+        prompt = self.prompt_text()
+        return self.counters_text(now) + (f" · {prompt}" if prompt else "")
 
     def step_summary(self, event: ev.StepProcessed) -> str:
         """One step in a line: used and rejected blows (why), bounce, k ± 1-σ and the per-roller warning."""
         k, sigma = event.roller_stiffness_n_per_m * 1e-6, sigma_text(event.roller_stiffness_std_n_per_m)
         used = len(event.used_attempts)
-        rejected = "; ".join(f"#{a} {reason_text(tuple(w.split(', ')) if w else ())}"
+        rejected = "; ".join(f"impact {a} {blow_reason(tuple(w.split(', ')) if w else ())}"
                              for a, w in sorted(event.rejected.items()))
         text = (f"step {event.position.step}: {used} hits used" + (f", rejected {rejected}" if rejected else "")
                 + f" · bounce {event.bounce_hz:.2f} Hz · k {k:.2f}{sigma} N/µm")
-        rollers = [w for w in event.warnings if "roller" in w.lower()]
-        return text + (f" · WARNING {rollers[0]}" if rollers else "")
+        return text + "".join(f" · WARNING: {w}" for w in event.warnings)
 
     def end_summary(self, labels: dict[str, str] | None = None) -> list[str]:
         """The end of the run: steps done, rejected blows and why, measured stiffness against the models

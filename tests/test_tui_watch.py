@@ -1,0 +1,201 @@
+"""``labctl tui --watch FILE``: follows a campaign another process writes, read-only, to its end; the snapshot
+reader retries reads that catch a flush half-way; ``--serve`` builds the command each browser session runs."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from labctl.cli.tui import serve_command
+from labctl.errors import InputError
+from labctl.storage import CampaignReader
+from labctl.tui import LabApp, TuiSettings
+from labctl.tui.watch import read_snapshot
+from labctl.tui.watcher import WatchScreen
+from tests.engine_util import stepped_protocol_text
+from tests.test_tui import SIZE, wait_for
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
+    out = tmp_path / "watched.h5"
+    protocol = tmp_path / "watched.toml"  # 2 repetitions of 4 steps: long enough to be seen running
+    protocol.write_text(stepped_protocol_text("watched", 1, 300.0, 4, 2), encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "labctl", "run", str(protocol), "--out", str(out), "--quiet",
+                             "--seed", "4"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.3)
+    seen: list[str] = []
+    try:
+        async with app.run_test(size=SIZE) as pilot:
+            screen = await wait_for(pilot, lambda: isinstance(app.screen, WatchScreen) and app.screen)
+            original = screen.update_from
+
+            def spy(snap, problem):  # noqa: ANN001, ANN202
+                seen.append(snap.status if snap is not None else f"unreadable: {problem}")
+                original(snap, problem)
+
+            screen.update_from = spy
+            await wait_for(pilot, lambda: screen.snapshot is not None and screen.snapshot.finished, timeout_s=240,
+                           what="the watched campaign to end")
+            header = str(screen.query_one("#w-header").render())
+            rows = screen.query_one("#w-steps").row_count
+    finally:
+        proc.wait(timeout=240)
+    assert proc.returncode == 0, proc.stderr.read()
+    assert header.startswith("COMPLETE") and "watched on sim" in header
+    assert "running" in seen, seen  # it followed the campaign while it ran, not only its end
+    with CampaignReader(out, locking=False) as reader:  # as the watcher opened it in this process
+        stored = [st for run in reader.runs(1) for st in run.steps]
+        assert reader.attrs["status"] == "complete"
+    assert rows == len(stored)
+    snap = read_snapshot(out)
+    assert snap.accepted == sum(st.accepted_count for st in stored) and snap.finished
+
+
+def test_a_missing_or_foreign_file_is_said_and_a_foreign_file_is_not_retried(tmp_path: Path):
+    with pytest.raises(InputError, match="not found"):
+        read_snapshot(tmp_path / "nope.h5", attempts=2, wait_s=0.0)
+    foreign = tmp_path / "foreign.h5"
+    import h5py
+
+    h5py.File(foreign, "w").close()
+    with pytest.raises(InputError, match="not a labctl campaign"):
+        read_snapshot(foreign, attempts=50, wait_s=1.0)  # refused at once, not after 50 s of retries
+
+
+def test_serve_listens_on_this_machine_only_unless_told():
+    from labctl.cli import build_parser
+
+    args = build_parser().parse_args(["tui", "--watch", "c.h5", "--serve"])
+    assert args.host == "127.0.0.1" and args.port == 8000
+
+
+def test_serve_runs_the_same_tui_command_without_the_serve_options():
+    cmd = serve_command(["tui", "--watch", "c.h5", "--serve", "--host", "0.0.0.0", "--port=8080"])
+    assert cmd.endswith("-m labctl tui --watch c.h5") and "--serve" not in cmd and "8080" not in cmd
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not shutil.which("chromium-headless-shell"), reason="needs chromium-headless-shell")
+def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
+    """``labctl tui --watch FILE --serve``: bound to 127.0.0.1; a headless Chromium page receives the app (its
+    terminal gets the first bytes), and the session's output carries the header (WATCHING … COMPLETE)."""
+    import asyncio
+
+    from tests.engine_util import short_campaign_file
+
+    campaign = short_campaign_file(tmp_path / "c.h5", seed=3, reps=1)
+    port = _free_port()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    server = subprocess.Popen([sys.executable, "-m", "labctl", "tui", "--watch", str(campaign), "--serve",
+                               "--port", str(port)], env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        body, output = asyncio.run(_browse(f"127.0.0.1:{port}"))
+    finally:  # the server and the sessions it started: their own process group
+        os.killpg(server.pid, signal.SIGTERM)
+        try:
+            server.wait(20)
+        except subprocess.TimeoutExpired:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait(20)
+    assert "-first-byte" in body  # the app's output reached the page
+    assert b"WATCHING (read-only)" in output and b"COMPLETE" in output
+
+
+async def _browse(host: str) -> tuple[str, bytes]:
+    """Open the served page in headless Chromium (DevTools protocol) until the app has drawn, and read one
+    session's output over the same websocket the page uses."""
+    import asyncio
+    import json
+
+    import aiohttp
+
+    async with aiohttp.ClientSession() as http:
+        for _ in range(240):  # the server imports textual-serve and starts
+            try:
+                async with http.get(f"http://{host}/") as r:
+                    if r.status == 200:
+                        break
+            except aiohttp.ClientError:
+                pass
+            await asyncio.sleep(0.25)
+        chrome = subprocess.Popen(["chromium-headless-shell", "--no-sandbox", "--headless", "--disable-gpu",
+                                   "--remote-debugging-port=0", "--window-size=1200,800", f"http://{host}/"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                  start_new_session=True)
+        try:
+            devtools = ""
+            while not devtools:
+                line = chrome.stderr.readline()
+                if not line:
+                    raise AssertionError("chromium did not start")
+                if "DevTools listening on " in line:
+                    devtools = line.split("DevTools listening on ", 1)[1].strip()
+            debug = devtools.split("/devtools/")[0].replace("ws://", "http://")
+            async with http.get(f"{debug}/json") as r:
+                page = next(p for p in await r.json() if p["type"] == "page")
+            body = ""
+            async with http.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0) as cdp:
+                for n in range(1, 240):
+                    await cdp.send_json({"id": n, "method": "Runtime.evaluate",
+                                         "params": {"expression": "document.body.className"}})
+                    while (reply := await cdp.receive_json()).get("id") != n:
+                        pass
+                    body = str(reply.get("result", {}).get("result", {}).get("value", ""))
+                    if "-first-byte" in body:
+                        break
+                    await asyncio.sleep(0.25)
+        finally:  # chromium and its helpers: their own process group
+            os.killpg(chrome.pid, signal.SIGTERM)
+            try:
+                chrome.wait(20)
+            except subprocess.TimeoutExpired:
+                os.killpg(chrome.pid, signal.SIGKILL)
+                chrome.wait(20)
+        output = b""
+        async with http.ws_connect(f"ws://{host}/ws?width=100&height=30") as ws:
+            await ws.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
+            try:
+                while not (b"WATCHING" in output and b"COMPLETE" in output):
+                    msg = await asyncio.wait_for(ws.receive(), 60)
+                    if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
+                        break
+                    output += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
+            except TimeoutError:
+                pass
+        return body, output
+
+
+def test_a_read_is_taken_only_as_an_earlier_state_of_the_next(tmp_path: Path):
+    """The writer only appends: a read whose finished step differs from the next read's, or that holds more
+    impacts than the next, caught a flush half-way and is not shown."""
+    from dataclasses import replace
+
+    from labctl.tui.watch import Snapshot, WatchedStep
+
+    done = WatchedStep(1, 1, 1, 38.0, 2, 2, True, 500.0, 2.2e7, (), True)
+    going = WatchedStep(1, 1, 2, 118.0, 1, 1, False, float("nan"), float("nan"), (), False)
+    early = Snapshot("f.h5", "running", "p", "sim", (done, going), ("a",))
+    later = Snapshot("f.h5", "running", "p", "sim", (done, replace(going, impacts=2, accepted=2)), ("a", "b"))
+    assert early.earlier_state_of(later) and early.earlier_state_of(early)
+    assert not later.earlier_state_of(early)  # impacts do not go away
+    torn = Snapshot("f.h5", "running", "p", "sim", (replace(done, bounce_hz=0.0), going), ("a",))
+    assert not torn.earlier_state_of(later)  # a finished step never changes
+    assert not replace(early, log=("x",)).earlier_state_of(later)  # the run log only grows
