@@ -112,3 +112,20 @@ def test_ball_rows_are_refused_with_one_line(tmp_path, null_points):
     with pytest.raises(InputError, match=r"row 3: .* is a ball .*Hertz") as exc:
         load_points([path])
     assert "\n" not in str(exc.value)
+
+
+def test_a_ball_series_in_a_campaign_file_is_refused_with_one_line(tmp_path):
+    """A campaign's specimen is a typed SpecimenRecord: a ball series is named and refused (it was read as a dict)."""
+    from labctl.discrepancy.data import load_points
+    from labctl.storage import CampaignWriter
+    from labctl.storage.specimen import SpecimenRecord
+
+    path = tmp_path / "balls.h5"
+    writer = CampaignWriter.create(path, protocol_name="ball_verification", backend="sim", seed=1,
+                                   config_files={"protocol.toml": "", "rig.toml": ""}, description={})
+    writer.series(1, SpecimenRecord(kind="ball", label="ball 8 mm", ball_diameter_m=8e-3, diameter_m=8e-3,
+                                    contact_length_m=8e-3, rail_ra_m=0.2e-6))
+    writer.close()
+    with pytest.raises(InputError, match=r"series 1 is a ball run \(ball 8 mm, diameter 8 mm\)") as exc:
+        load_points([path])
+    assert "\n" not in str(exc.value)

@@ -198,9 +198,9 @@ def _campaign_points(path: Path) -> list[StiffnessPoint]:
     with CampaignReader(path) as reader:
         for series in reader.series_indices():
             spec = reader.specimen(series)
-            if spec.get("kind") == "ball":
-                raise InputError(f"{path}: series {series} is a ball run ({spec.get('label') or 'ball'}, diameter "
-                                 f"{float(spec.get('ball_diameter_m') or spec['diameter_m']) * 1e3:g} mm): labctl "
+            if spec.kind == "ball":
+                raise InputError(f"{path}: series {series} is a ball run ({spec.label or 'ball'}, diameter "
+                                 f"{float(spec.ball_diameter_m or spec.diameter_m) * 1e3:g} mm): labctl "
                                  "discrepancy compares rollers with line-contact models, a ball is the rig's Hertz "
                                  "check (labctl report compares it with Hertz): give the roller campaigns alone")
     points = list(campaign_stiffness_points(path))
