@@ -3,6 +3,7 @@ reader retries reads that catch a flush half-way; ``--serve`` builds the command
 
 from __future__ import annotations
 
+import asyncio
 import os
 import shutil
 import signal
@@ -33,6 +34,18 @@ async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
                              "--seed", "4"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.3)
     seen: list[str] = []
+
+    async def hold_now_and_then() -> None:
+        """The twin runs on virtual time and may finish a short campaign between two polls: stop the run for
+        1.2 s in every 1.6 s so the watcher sees it mid-way, as it would see a run on the real rig."""
+        while proc.poll() is None:
+            await asyncio.sleep(0.4)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGSTOP)
+                await asyncio.sleep(1.2)
+                proc.send_signal(signal.SIGCONT)
+
+    holder = asyncio.create_task(hold_now_and_then())
     try:
         async with app.run_test(size=SIZE) as pilot:
             screen = await wait_for(pilot, lambda: isinstance(app.screen, WatchScreen) and app.screen)
@@ -48,6 +61,9 @@ async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
             header = str(screen.query_one("#w-header").render())
             rows = screen.query_one("#w-steps").row_count
     finally:
+        holder.cancel()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGCONT)
         proc.wait(timeout=240)
     assert proc.returncode == 0, proc.stderr.read()
     assert header.startswith("COMPLETE") and "watched on sim" in header
