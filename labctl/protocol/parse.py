@@ -8,6 +8,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from labctl.data.conditions import LUBRICATIONS, SpecimenConditions
 from labctl.data.schema import (
     Anything,
     Integer,
@@ -28,12 +29,10 @@ from labctl.errors import InputError
 from labctl.physics import materials, rollers
 from labctl.processing import CheckConfig
 from labctl.protocol.model import (
-    LUBRICATIONS,
     AcquisitionSpec,
     LoadingSpec,
     Protocol,
     RepetitionSpec,
-    SpecimenConditions,
     SpecimenSpec,
     c0_cap_n,
 )

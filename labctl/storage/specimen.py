@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from labctl.data.conditions import SpecimenConditions
 from labctl.stiffness_table import (
     BUDGET_COLUMNS,
     FLAG_CHANNELS,
@@ -27,10 +28,11 @@ NAN = math.nan
 
 
 @dataclass(frozen=True)
-class SpecimenRecord(RollerContact):
+class SpecimenRecord(RollerContact, SpecimenConditions):
     """The specimen of a series as stored: what was mounted between which rails, and the protocol's limits for it.
 
-    Old files may lack a field: it reads as its default. ``case()`` gives the contact case (``RollerContact``)."""
+    Old files may lack a field: it reads as its default. ``case()`` gives the contact case (``RollerContact``); the
+    recorded conditions are the fields of ``SpecimenConditions``."""
 
     kind: str = "roller"
     """What was mounted: "roller" (three rollers of one type) or "ball" (calibration balls)."""
@@ -62,20 +64,6 @@ class SpecimenRecord(RollerContact):
     """The protocol's largest load per roller for this specimen, N."""
     knob_step_deg: float = NAN
     """Knob turn between load steps, degrees."""
-    lubrication: str | None = None
-    """"dry", "oil" or "grease" (None: not recorded)."""
-    lubricant: str | None = None
-    """The oil's or grease's product name."""
-    orientation_deg: float | None = None
-    """Angle between the roller axis and the rails' grinding direction, degrees."""
-    roller_ra_m: float | None = None
-    """Measured Ra of the rollers, m."""
-    rail_ra_measured_m: float | None = None
-    """Measured Ra of the rails, m (``rail_ra_m`` is the nominal grade the models use)."""
-    roundness_m: float | None = None
-    """Measured roundness deviation of the rollers, m."""
-    cylindricity_m: float | None = None
-    """Measured cylindricity deviation of the rollers, m."""
 
     @classmethod
     def from_attrs(cls, attrs: Mapping[str, Any]) -> SpecimenRecord:
