@@ -19,11 +19,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.outputs import atomic_output, check_outputs
     from labctl.storage.runlog import summarize
 
+    check_outputs([("--csv", args.csv)], [args.file, args.rig])
     done = process_campaign(args.file, rig=args.rig)
     if args.csv:
-        write_stiffness_table(args.csv, done.points)
+        with atomic_output(args.csv) as tmp:
+            write_stiffness_table(tmp, done.points)
     steps = []
     for r in done.rows:
         res = r.result
