@@ -27,6 +27,7 @@ from labctl.errors import LabctlError
 from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
+from labctl.storage.diskspace import DiskFull
 from labctl.storage.records import RepetitionCurve
 from labctl.storage.writer import CampaignWriter
 
@@ -138,6 +139,8 @@ class Engine:
             outcome.status, outcome.message = stop.status, f"stopped by request ({stop.status}); resume with --resume"
         except Interlock as exc:
             outcome.status, outcome.message = "interlock", str(exc)
+        except DiskFull as exc:  # the file holds every impact but the one in flight: resumable once there is room
+            outcome.status, outcome.message = "interrupted", str(exc)
         except (LabctlError, DeviceError) as exc:
             outcome.status, outcome.message = "failed", str(exc)
         except KeyboardInterrupt:

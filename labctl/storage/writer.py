@@ -2,17 +2,22 @@
 
 HDF5 keeps changed metadata in memory until a flush, so a process killed between flushes leaves the file as
 it was at the last flush. Each group gets ``complete = True`` as its last write; resume deletes groups
-without it.
+without it. Before each impact the writer checks there is room for it (``labctl.storage.diskspace``); a
+write that fails anyway (disk full, file-size limit, I/O error) is not flushed: the file is reopened as it
+was at the last flush, the partial impact dropped, and ``DiskFull`` raised, so the campaign stays
+processable and resumable.
 """
 
 from __future__ import annotations
 
+import functools
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import asdict, fields, is_dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -21,6 +26,7 @@ from labctl import __version__
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
+from labctl.storage.diskspace import RESERVE_BYTES, DiskFull, discard, is_full, reserve, trim
 from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
     ImpactInfo,
@@ -32,6 +38,8 @@ from labctl.storage.records import (
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
 from labctl.storage.table import specimen_point
+
+T = TypeVar("T")
 
 
 def utc_now() -> str:
@@ -58,6 +66,8 @@ def _attr_value(value: Any) -> Any:
     return value
 
 
+IMPACT_SLACK_BYTES = 256 * 2**10
+"""An impact's metadata beyond its samples (group, two dataset headers, chunk index, attributes), generously."""
 ADC_BITS = (24, 16, 18, 20, 22, 12, 14)  # common converter resolutions, most likely first
 COMPRESS = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 COHERENCE_DECIMALS = 4  # the stored coherence (derived, recomputable from the raw impacts) is kept to 1e-4
@@ -99,6 +109,17 @@ def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float
     return g.create_dataset(name, data=x.astype(np.float32), chunks=chunks, **COMPRESS)
 
 
+def _guarded(method: Callable[..., T]) -> Callable[..., T]:
+    """A writing method: a failed write reopens the file as of its last flush and raises DiskFull."""
+
+    @functools.wraps(method)
+    def wrapper(self: CampaignWriter, *args: Any, **kw: Any) -> T:
+        with self._writing():
+            return method(self, *args, **kw)
+
+    return wrapper
+
+
 class CampaignWriter:
     """An open campaign file; create a new one with ``create`` or continue one with ``open_existing``."""
 
@@ -106,6 +127,50 @@ class CampaignWriter:
         self.h5 = h5
         self.path = str(h5.filename)
         self._accepted: int | None = None  # accepted impacts in the file, counted once then kept up to date
+
+    # --- disk-full safety ---------------------------------------------------------------------------------
+    def _kept(self) -> int:
+        try:
+            return sum(len(complete_impacts(st)) for st in s.all_steps(self.h5))
+        except Exception:  # noqa: BLE001 — only for the message
+            return 0
+
+    def ensure_room(self, need_bytes: int) -> None:
+        """Reserve room for ``need_bytes`` plus ``RESERVE_BYTES`` (what ends a step and the run) or raise
+        DiskFull with nothing written."""
+        try:
+            reserve(self.h5, need_bytes + RESERVE_BYTES)
+        except DiskFull as exc:
+            raise DiskFull(f"{self.path}: {exc}: {self._kept()} impacts kept; free space and --resume") from None
+
+    @contextmanager
+    def _writing(self) -> Iterator[None]:
+        """Run a write; when it fails, reopen the file as of its last flush and raise DiskFull."""
+        try:
+            yield
+        except DiskFull:
+            raise
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            if not isinstance(exc, OSError | RuntimeError) and self.h5 is not None and self.h5.id.valid:
+                raise  # a programming error on a healthy file, not a failed write
+            what = "disk full" if is_full(exc) else f"write failed ({' '.join(str(exc).split())[:200]})"
+            self._recover()
+            raise DiskFull(f"{self.path}: {what}: {self._kept()} impacts kept; free space and --resume") from None
+
+    def _recover(self) -> None:
+        """Drop the failed handle unflushed, reopen the file as of its last flush, remove partial groups."""
+        discard(self.h5)
+        self._accepted = None
+        try:
+            self.h5 = h5py.File(self.path, "r+")
+            self._drop_incomplete()
+            self.h5.flush()
+        except Exception:  # noqa: BLE001 — still no room: keep the file as it is on disk, read-only
+            discard(self.h5)
+            try:
+                self.h5 = h5py.File(self.path, "r")
+            except OSError:
+                self.h5 = None  # type: ignore[assignment]
 
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
@@ -174,6 +239,7 @@ class CampaignWriter:
     def has_series(self) -> bool:
         return any(k.startswith("series_") for k in self.h5)
 
+    @_guarded
     def _group(self, *names: str, attrs: Mapping[str, Any] | None = None) -> h5py.Group:
         g = self.h5
         for n in names:
@@ -194,6 +260,7 @@ class CampaignWriter:
         g = self.h5.get(s.series_name(series))
         return bool(g is not None and g.attrs.get("mounted", False))
 
+    @_guarded
     def mark_mounted(self, series: int) -> None:
         self.h5[s.series_name(series)].attrs["mounted"] = True
         self.h5.flush()
@@ -219,6 +286,7 @@ class CampaignWriter:
             return None
         return float(g.attrs["load_n"])
 
+    @_guarded
     def update_step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
         _attrs(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)], attrs)
         self.h5.flush()
@@ -240,7 +308,15 @@ class CampaignWriter:
         return self._accepted
 
     def write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> None:
-        """Store one blow (accepted or not) and flush; ``complete`` is written last."""
+        """Store one blow (accepted or not) and flush; ``complete`` is written last.
+
+        Raises DiskFull before writing when there is no room for it (with the reserve), and after a failed
+        write, with the file reopened as of the previous impact."""
+        self.ensure_room(4 * (record.force_n.size + record.accel_m_per_s2.size) + IMPACT_SLACK_BYTES)
+        with self._writing():
+            self._write_impact(series, run, step, record)
+
+    def _write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> None:
         g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].create_group(
             s.impact_name(record.attempt))
         cal, info = record.calibration, record.info
@@ -271,12 +347,14 @@ class CampaignWriter:
         g.attrs["verdict_reason"] = verdict.reason
         g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
 
+    @_guarded
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
         self._verdict(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)],
                       verdict)
         self.h5.flush()
 
+    @_guarded
     def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
         """Store a step's result (and its FRF up to ``FRF_MAX_HZ``), then mark the step complete."""
         stg = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
@@ -315,6 +393,7 @@ class CampaignWriter:
         g = self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}")
         return {} if g is None else attrs_of(g)
 
+    @_guarded
     def set_run_attrs(self, series: int, run: int, attrs: Mapping[str, Any]) -> None:
         """Set attributes of a started repetition (nested values are stored as JSON)."""
         _attrs(self.h5[f"{s.series_name(series)}/{s.run_name(run)}"], attrs)
@@ -332,6 +411,7 @@ class CampaignWriter:
                                                      result))
         return points
 
+    @_guarded
     def store_curve(self, series: int, run: int) -> RepetitionCurve:
         """Build a repetition's stiffness-vs-load table from its stored step results, store it, return it."""
         label = str(self.h5[s.series_name(series)].attrs.get("label", ""))
@@ -350,8 +430,9 @@ class CampaignWriter:
 
     def curves(self) -> list[RepetitionCurve]:
         """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
-        return curves_of(self.h5)
+        return [] if self.h5 is None else curves_of(self.h5)
 
+    @_guarded
     def append_log(self, entry: LogEntry) -> None:
         """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""
         append_entry(self.h5, entry)
@@ -360,15 +441,30 @@ class CampaignWriter:
         return read_entries(self.h5)
 
     def set_status(self, status: str, message: str = "") -> None:
-        self.h5.attrs["status"] = status
-        self.h5.attrs["status_message"] = message
-        self.h5.attrs["status_utc"] = utc_now()
-        self.h5.flush()
+        """Record how the run ended; after a failed write it is tried once more on the reopened file, and if
+        there is still no room the file keeps its last flushed status (``--resume`` and ``process`` read it)."""
+        for _ in range(2):
+            if self.h5 is None or self.h5.mode != "r+":
+                return
+            try:
+                with self._writing():
+                    self.h5.attrs["status"] = status
+                    self.h5.attrs["status_message"] = message
+                    self.h5.attrs["status_utc"] = utc_now()
+                    self.h5.flush()
+                return
+            except DiskFull:
+                continue
 
     def close(self) -> None:
-        if self.h5.id.valid:
+        if self.h5 is None or not self.h5.id.valid:
+            return
+        try:
             self.h5.flush()
+            trim(self.h5)
             self.h5.close()
+        except (OSError, RuntimeError):
+            discard(self.h5)  # never a half-written flush: the file stays as of its last good one
 
     def __enter__(self) -> CampaignWriter:
         return self
