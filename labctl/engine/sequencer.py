@@ -20,7 +20,7 @@ from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
-from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
+from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, continue_after, plan_steps
 from labctl.engine.runlog import RunLog
 from labctl.engine.steps import Interlock, StepRunner
 from labctl.errors import LabctlError
@@ -206,9 +206,7 @@ class Engine:
                 self.checkpoint(ev.Position(series, run, step))
                 load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan.steps_estimate)
             loads.append(load)
-            if step >= plan.steps_estimate + 5:
-                break
-            if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + 1e-6):
+            if not continue_after(loads, plan, self.rig_config, self.protocol.loading.load_tolerance_fraction):
                 break
             step += 1
         if self.advisor is not None:
