@@ -76,6 +76,7 @@ class Engine:
         self.bus = bus or ev.EventBus()
         self.control = control or RunControl()
         self.t0 = time.monotonic()
+        self.position = ev.Position(1, 0)
         acq = protocol.acquisition
         self.runlog = RunLog(writer, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
         self.call = GuardedCaller(acq.timeout_s, acq.retries,
@@ -106,7 +107,14 @@ class Engine:
         self.emit(ev.OperatorPrompted(self.now(), message, action, answer, position))
         return answer
 
+    def where(self) -> str:
+        """The position last passed (series, run, step), for a failure's message."""
+        p = self.position
+        parts = [f"series {p.series}"] + ([f"run {p.run}"] if p.run else []) + ([f"step {p.step}"] if p.step else [])
+        return " ".join(parts)
+
     def checkpoint(self, pos: ev.Position) -> None:
+        self.position = pos
         self.control.checkpoint(on_pause=lambda: self.emit(ev.Paused(self.now(), pos)),
                                 on_resume=lambda: self.emit(ev.Resumed(self.now(), pos)))
 
@@ -145,6 +153,11 @@ class Engine:
             outcome.status, outcome.message = "failed", str(exc)
         except KeyboardInterrupt:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
+        except Exception as exc:  # e.g. a world law failing at some load: the file says failed, where and why
+            outcome.status = "failed"
+            outcome.message = (f"failed at {self.where()}: {' '.join(str(exc).split()) or type(exc).__name__}; "
+                               "fix the cause, then --resume")
+            raise
         finally:
             self.call.close()
             outcome.curves = self.writer.curves()
