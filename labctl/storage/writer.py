@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, fields, is_dataclass
@@ -175,15 +176,38 @@ class CampaignWriter:
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
                config_files: Mapping[str, str], description: Mapping[str, Any]) -> CampaignWriter:
-        """A new file (refusing to overwrite an existing one)."""
+        """A new file (refusing to overwrite an existing one).
+
+        The file is made under a temporary name and renamed when its root attributes and configuration are
+        flushed, so a crash during creation leaves no campaign file that cannot be opened or resumed."""
         p = Path(path)
         if p.exists():
             raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
+        tmp = p.with_name(f".{p.name}.creating")
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
-            h5 = h5py.File(p, "w-")
+            h5 = h5py.File(tmp, "w")  # a leftover of a crashed creation is ours to replace
         except OSError as exc:
             raise InputError(f"{p}: cannot create the campaign file ({exc.strerror or exc})") from None
+        try:
+            cls._initialise(h5, protocol_name=protocol_name, backend=backend, seed=seed, config_files=config_files,
+                            description=description)
+            h5.close()
+            if p.exists():
+                raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
+            os.replace(tmp, p)
+        except BaseException:
+            discard(h5)
+            tmp.unlink(missing_ok=True)
+            raise
+        try:
+            return cls(h5py.File(p, "r+"))
+        except OSError as exc:
+            raise InputError(f"{p}: cannot open the new campaign file ({exc.strerror or exc})") from None
+
+    @staticmethod
+    def _initialise(h5: h5py.File, *, protocol_name: str, backend: str, seed: int | None,
+                    config_files: Mapping[str, str], description: Mapping[str, Any]) -> None:
         _attrs(h5, {"format": s.FORMAT, "format_version": s.FORMAT_VERSION, "software_version": __version__,
                     "created_utc": utc_now(), "backend": backend, "protocol_name": protocol_name,
                     "seed": -1 if seed is None else seed, "status": "running",
@@ -192,7 +216,6 @@ class CampaignWriter:
         for name, text in config_files.items():
             cfg.create_dataset(name, data=text, dtype=h5py.string_dtype())
         h5.flush()
-        return cls(h5)
 
     @classmethod
     def open_existing(cls, path: str | Path) -> CampaignWriter:
