@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
 
 from tests.cli_util import assert_one_line_error, labctl_here
@@ -48,6 +50,84 @@ def _hard_link(name: str, target: str) -> Callable[[Path], None]:
 
 def _text(name: str, text: str) -> Callable[[Path], None]:
     return lambda folder: (folder / name).write_text(text, encoding="utf-8")
+
+
+IMPACT = "series_01/run_01/step_001/impact_001"
+FORCE = f"{IMPACT}/force_n"
+
+
+def _crafted(edit: Callable[[h5py.File, Path], None]) -> Callable[[Path], None]:
+    """Edit the case's c.h5 in place (a file an attacker or a careless tool made); beside it a 'secret' file."""
+
+    def make(folder: Path) -> None:
+        (folder / "secret.bin").write_bytes(b"private data of someone else" * 4096)
+        with h5py.File(folder / "c.h5", "r+") as f:
+            edit(f, folder)
+
+    return make
+
+
+def _replace_force(f: h5py.File, make: Callable[[h5py.Group, str, dict], None]) -> None:
+    ds = f[FORCE]
+    attrs = dict(ds.attrs)
+    del f[FORCE]
+    make(f[IMPACT], "force_n", attrs)
+
+
+def _external_storage(f: h5py.File, folder: Path) -> None:
+    def make(g: h5py.Group, name: str, attrs: dict) -> None:
+        ds = g.create_dataset(name, shape=(8192,), dtype="<f4", external=[(str(folder / "secret.bin"), 0, 32768)])
+        ds.attrs.update({k: v for k, v in attrs.items() if k not in ("scale", "offset")})
+
+    _replace_force(f, make)
+
+
+def _virtual(f: h5py.File, folder: Path) -> None:
+    with h5py.File(folder / "other.h5", "w") as o:
+        o["x"] = np.arange(8192, dtype="<f4")
+
+    def make(g: h5py.Group, name: str, attrs: dict) -> None:
+        layout = h5py.VirtualLayout(shape=(8192,), dtype="<f4")
+        layout[:] = h5py.VirtualSource(str(folder / "other.h5"), "x", shape=(8192,))
+        g.create_virtual_dataset(name, layout)
+
+    _replace_force(f, make)
+
+
+def _external_link(f: h5py.File, folder: Path) -> None:
+    with h5py.File(folder / "other.h5", "w") as o:
+        o["x"] = np.arange(8192, dtype="<f4")
+    _replace_force(f, lambda g, name, attrs: g.__setitem__(name, h5py.ExternalLink(str(folder / "other.h5"), "/x")))
+
+
+def _soft_link(f: h5py.File, folder: Path) -> None:
+    f["series_01/run_01/step_001/impact_002/force_n"]  # noqa: B018 — exists
+    _replace_force(f, lambda g, name, attrs: g.__setitem__(name, h5py.SoftLink(
+        "/series_01/run_01/step_001/impact_002/force_n")))
+
+
+def _unknown_filter(f: h5py.File, folder: Path) -> None:
+    def make(g: h5py.Group, name: str, attrs: dict) -> None:
+        ds = g.create_dataset(name, data=np.zeros(8192, "<f4"), chunks=(8192,), compression=32004,
+                              allow_unknown_filter=True)
+        ds.attrs.update({k: v for k, v in attrs.items() if k not in ("scale", "offset")})
+
+    _replace_force(f, make)
+
+
+def _attr(name: str, value: object) -> Callable[[h5py.File, Path], None]:
+    def edit(f: h5py.File, folder: Path) -> None:
+        if value is None:
+            del f[FORCE].attrs[name]
+        else:
+            f[FORCE].attrs[name] = value
+
+    return edit
+
+
+def _log_entries_wrong(f: h5py.File, folder: Path) -> None:
+    del f["log/entries"]
+    f["log/entries"] = np.arange(3.0)
 
 
 def _catalogue(folder: Path) -> None:
@@ -87,6 +167,27 @@ CASES = [
          _foreign_db),
     Case("archive index text file as db", "archive index c.h5 --db notes.db", ("--db notes.db", "not an SQLite"),
          _text("notes.db", "shopping list\n")),
+    # a crafted campaign never makes labctl read another file, load a plug-in, or use unreadable values
+    Case("process external storage", "process c.h5", (FORCE, "external file", "secret.bin"),
+         _crafted(_external_storage)),
+    Case("export external storage", "export c.h5 --uff e.uff", (FORCE, "external file"), _crafted(_external_storage)),
+    Case("report external storage", "report c.h5 --out r", (FORCE, "external file"), _crafted(_external_storage)),
+    Case("process virtual dataset", "process c.h5", (FORCE, "virtual dataset"), _crafted(_virtual)),
+    Case("process external link", "process c.h5", (FORCE, "external link", "other.h5"), _crafted(_external_link)),
+    Case("resume external link", "run quick_check --out c.h5 --resume", (FORCE, "external link"),
+         _crafted(_external_link)),
+    Case("process soft link", "process c.h5", (FORCE, "soft link"), _crafted(_soft_link)),
+    Case("process unknown filter", "process c.h5", (FORCE, "filter 32004"), _crafted(_unknown_filter)),
+    Case("export scale as text", "export c.h5 --uff e.uff", (FORCE, "'scale'", "expected a number"),
+         _crafted(_attr("scale", "0.001"))),
+    Case("export scale missing", "export c.h5 --uff e.uff", (FORCE, "without their 'scale'"),
+         _crafted(_attr("scale", None))),
+    Case("export scale NaN", "export c.h5 --uff e.uff", (FORCE, "'scale'", "not a finite number"),
+         _crafted(_attr("scale", float("nan")))),
+    Case("process scale per channel wrong", "process c.h5", (FORCE, "'scale' has 2 values"),
+         _crafted(_attr("scale", [1e-3, 2e-3]))),
+    Case("process log entries wrong type", "process c.h5", ("/log/entries", "not a run log table"),
+         _crafted(_log_entries_wrong)),
 ]
 
 

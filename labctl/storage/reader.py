@@ -33,6 +33,7 @@ from labctl.storage.records import (
     result_from_mapping,
 )
 from labctl.storage.runlog import LogEntry, read_entries
+from labctl.storage.safety import check_structure, number_attr
 
 OPERATOR_REASONS = ("operator_accepted", "operator_rejected")
 
@@ -66,16 +67,38 @@ def _where(group: h5py.Group | h5py.Dataset) -> str:
     return f"{group.file.filename}:{group.name}"
 
 
+MAX_TRACE_VALUES = 2**28
+"""More samples than this in one impact's trace (2 GiB as float64) is not a record a DAQ delivered."""
+
+
 def trace(ds: h5py.Dataset) -> np.ndarray:
-    """A stored trace in physical units: counts × scale + offset (per channel), or the stored floats."""
-    raw = ds[()]
-    if "scale" not in ds.attrs:
-        return np.asarray(raw, dtype=float)
-    scale = np.asarray(ds.attrs["scale"], dtype=float)
-    offset = np.asarray(ds.attrs.get("offset", 0.0), dtype=float)
+    """A stored trace in physical units: counts × scale + offset (per channel), or the stored floats.
+
+    Refused with one line naming the dataset: not numbers, not 1-D or 2-D, implausibly large, integer counts
+    without their ``scale``, a ``scale`` or ``offset`` that is not one finite number per channel."""
+    where = _where(ds)
+    if ds.dtype.kind not in "iuf" or ds.ndim not in (1, 2):
+        raise InputError(f"{where}: expected a 1-D or 2-D array of numbers, found {ds.ndim}-D {ds.dtype}")
+    if ds.size > MAX_TRACE_VALUES:
+        raise InputError(f"{where}: {ds.size} samples, more than the {MAX_TRACE_VALUES} a record may hold")
+    rows = ds.shape[0] if ds.ndim == 2 else 1
+    scale = number_attr(ds, "scale")
+    if scale is None:
+        if ds.dtype.kind in "iu":
+            raise InputError(f"{where}: integer ADC counts without their 'scale' attribute (the step per "
+                             "count); the samples cannot be read back as physical values")
+        return np.asarray(ds[()], dtype=float)
+    offset = number_attr(ds, "offset", default=np.zeros(rows))
+    for name, values in (("scale", scale), ("offset", offset)):
+        if values.size not in (1, rows) or (ds.ndim == 1 and values.size != 1):
+            raise InputError(f"{where}: attribute {name!r} has {values.size} values for {rows} channel(s)")
+    if not np.all(scale != 0):
+        raise InputError(f"{where}: attribute 'scale' is 0; the samples cannot be read back")
+    raw = ds[()].astype(float)
     if raw.ndim == 2:
-        return raw.astype(float) * scale[:, None] + np.broadcast_to(offset, scale.shape)[:, None]
-    return raw.astype(float) * float(scale) + float(offset)
+        return raw * np.broadcast_to(scale.reshape(-1), (rows,))[:, None] + np.broadcast_to(
+            offset.reshape(-1), (rows,))[:, None]
+    return raw * float(scale.reshape(-1)[0]) + float(offset.reshape(-1)[0])
 
 
 def impact_info(g: h5py.Group) -> ImpactInfo:
@@ -228,6 +251,11 @@ class CampaignReader:
             raise InputError(f"{self.path}: format_version {version!r} is not one this labctl reads "
                              f"({', '.join(map(str, s.READABLE_VERSIONS))}); update labctl")
         self.format_version = int(version)
+        try:
+            check_structure(self.h5, self.path)
+        except BaseException:
+            self.h5.close()
+            raise
 
     def close(self) -> None:
         if self.h5.id.valid:

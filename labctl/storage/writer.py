@@ -38,6 +38,7 @@ from labctl.storage.records import (
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
+from labctl.storage.safety import check_structure
 from labctl.storage.table import specimen_point
 
 T = TypeVar("T")
@@ -235,6 +236,11 @@ class CampaignWriter:
             h5.close()
             raise InputError(f"{p}: written with campaign format {version}; --resume continues only format "
                              f"{s.FORMAT_VERSION} files (process, report and export still read it)")
+        try:
+            check_structure(h5, p)
+        except BaseException:
+            h5.close()
+            raise
         writer = cls(h5)
         writer._drop_incomplete()
         h5.attrs["status"] = "running"
