@@ -34,7 +34,7 @@ def load_operator_script(path: str | Path) -> ScriptedOperator:
     """
     p = Path(path)
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+        doc = tomllib.loads(p.read_text(encoding="utf-8-sig"))  # a byte-order mark is not content
     except FileNotFoundError:
         raise InputError(f"{p}: operator script not found") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
@@ -112,6 +112,25 @@ def rig_factory(backend: str, rig: RigConfig, *, world: str | Path | None = None
     return make
 
 
+def _check_world_loads(sim_world: Any, proto: Protocol, rig_config: RigConfig, world: str | Path | None) -> None:
+    """A world law must give every roller specimen a usable stiffness over the loads the protocol will set
+    (preload to cap), checked before a file is made: a law failing at step 2 is a bad world file, not a run."""
+    import numpy as np
+
+    from labctl.physics.world_laws import WorldLaw
+
+    if not isinstance(sim_world.law, WorldLaw):
+        return
+    for spec in proto.specimens:
+        if spec.kind != "roller":
+            continue
+        loads = np.linspace(rig_config.preload_per_roller_n, spec.max_load_n, 16)
+        try:
+            sim_world.law.stiffness_n_per_m(spec.case(), loads)
+        except ValueError as exc:
+            raise InputError(f"{world}: {exc}") from None
+
+
 def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: str = "sim", resume: bool = False,
                  world: str | Path | None = None, seed: int | None = None, rig: str | Path | None = None,
                  devices: str | Path | None = None, operator: Operator | None = None,
@@ -170,9 +189,10 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
             spec.case()
             plan_steps(proto, spec, rig_config)
         if backend == "sim":
-            load_world(world)
+            sim_world = load_world(world)
             if any(spec.kind == "ball" for spec in proto.specimens) and world is None:
                 load_world("balls")
+            _check_world_loads(sim_world, proto, rig_config, world)
         if backend == "hw":
             from labctl.hardware import find_devices_file, load_devices
 

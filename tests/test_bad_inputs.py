@@ -130,12 +130,62 @@ def _log_entries_wrong(f: h5py.File, folder: Path) -> None:
     f["log/entries"] = np.arange(3.0)
 
 
+CHANNELS = np.array(["A1X", "A2X", "A3X", "A4X"])
+
+
+def _npz(name: str, edit: Callable[[bytearray], None] | None = None, *, compressed: bool = False,
+         force: np.ndarray | None = None) -> Callable[[Path], None]:
+    """An impacts NPZ (random samples unless ``force`` is given), its bytes then edited (a damaged file)."""
+
+    def make(folder: Path) -> None:
+        rng = np.random.default_rng(1)
+        f = rng.normal(size=(2, 4096)) if force is None else force
+        save = np.savez_compressed if compressed else np.savez
+        save(folder / name, fs=np.float64(20480.0), force=f, accel=rng.normal(size=(f.shape[0], 4, f.shape[1])),
+             channels=CHANNELS)
+        if edit is not None:
+            raw = bytearray((folder / name).read_bytes())
+            edit(raw)
+            (folder / name).write_bytes(bytes(raw))
+
+    return make
+
+
+def _npz_huge_header(folder: Path) -> None:
+    """'force' announces 10^13 float64 samples (73 TiB) in a 200-byte member."""
+    import io
+    import zipfile
+
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": (10**13,)})
+    with zipfile.ZipFile(folder / "huge.npz", "w") as z:
+        z.writestr("force.npy", head.getvalue() + bytes(64))
+        for key, value in (("fs", np.float64(20480.0)), ("accel", np.zeros((1, 4, 8))), ("channels", CHANNELS)):
+            b = io.BytesIO()
+            np.save(b, value)
+            z.writestr(f"{key}.npy", b.getvalue())
+
+
+def _flip(at: float) -> Callable[[bytearray], None]:
+    def edit(raw: bytearray) -> None:
+        i = int(len(raw) * at)
+        raw[i] ^= 0xFF
+        raw[i + 1] ^= 0x55
+
+    return edit
+
+
+def _world(expression: str) -> Callable[[Path], None]:
+    return _text("w.toml", f'[baseline]\nmodel = "expression"\nexpression = "{expression}"\n')
+
+
 def _catalogue(folder: Path) -> None:
     from labctl.archive import index
 
     index(folder / "arc.db", [folder / "c.h5"])
 
 
+RUN = "run quick_check --out n.h5 --quiet"
 CASES = [
     # an output naming an input (or linking to it) is refused before anything is written
     Case("process csv over campaign", "process c.h5 --csv c.h5", ("--csv c.h5", "is the input c.h5")),
@@ -188,6 +238,28 @@ CASES = [
          _crafted(_attr("scale", [1e-3, 2e-3]))),
     Case("process log entries wrong type", "process c.h5", ("/log/entries", "not a run log table"),
          _crafted(_log_entries_wrong)),
+    # NPZ inputs: limits are checked before anything is decompressed or allocated
+    Case("npz header announcing 73 TiB", "identify huge.npz", ("huge.npz", "'force'", "announces shape"),
+         _npz_huge_header),
+    Case("npz CRC error", "identify crc.npz", ("crc.npz", "damaged"), _npz("crc.npz", _flip(0.5))),
+    Case("npz bad deflate stream", "identify d.npz", ("d.npz", "damaged"),
+         _npz("d.npz", _flip(0.3), compressed=True)),
+    Case("npz zip bomb", "identify bomb.npz", ("bomb.npz", "'force'", "zip bomb"),
+         _npz("bomb.npz", compressed=True, force=np.zeros((1, 2_600_000)))),
+    # world expressions: bounded parse and evaluation, clean errors
+    Case("world 400-digit integer", f"{RUN} --world w.toml", ("w.toml", "too large"),
+         _world("1" * 400 + " * F")),
+    Case("world 1000 nested unary minus", f"{RUN} --world w.toml", ("w.toml", "terms"),
+         _world("-" * 1000 + "F")),
+    Case("world 5000-term sum", f"{RUN} --world w.toml", ("w.toml", "characters"),
+         _world(" + ".join(["F"] * 5000))),
+    Case("world 1e300*F", f"{RUN} --world w.toml", ("w.toml", "out of range"), _world("1e300*F")),
+    Case("world 1e-300*F", f"{RUN} --world w.toml", ("w.toml", "stiffness of 3.79", "expected 1000"),
+         _world("1e-300*F")),
+    Case("world table extrapolating to 0", f"{RUN} --world w.toml",
+         ("w.toml", "world law 'table'", "expected 1000"),
+         _text("w.toml", '[baseline]\nmodel = "table"\n[[baseline.tables]]\nroller_type = 1\n'
+                         'load_n = [10, 20]\nstiffness_n_per_m = [1e8, 1e5]\n')),
 ]
 
 
@@ -215,4 +287,7 @@ def test_bad_input_is_one_line_and_changes_nothing(case: Case, campaign: Path, t
     before = _digests(tmp_path)
     proc = labctl_here(capsys, *case.argv.split())
     assert_one_line_error(proc, *case.fragments)
-    assert _digests(tmp_path) == before  # no file changed, none added (no half-written output left behind)
+    after = _digests(tmp_path)
+    assert {name: after.get(name) for name in before} == before  # no file that was there changed
+    assert not [n for n in after if n not in before and n.startswith(".")]  # no temporary file left behind
+    assert after.keys() == before.keys()  # no output appeared (a refused run makes no campaign file)

@@ -148,19 +148,36 @@ def test_a_write_failing_mid_impact_is_rolled_back(protocol: Path, tmp_path: Pat
     _stored_vs_processed(capsys, out)
 
 
-def test_an_error_at_step_2_marks_the_file_failed_there_and_resume_completes(protocol: Path, tmp_path: Path,
-                                                                              capsys):
-    bad, good = tmp_path / "bad.toml", tmp_path / "good.toml"
+def test_a_world_law_failing_at_step_2_is_refused_before_a_file_is_made(protocol: Path, tmp_path: Path, capsys):
+    bad = tmp_path / "bad.toml"
     bad.write_text('[baseline]\nmodel = "expression"\nexpression = "3e5 * (110 - F)"\n', encoding="utf-8")
-    good.write_text('[baseline]\nmodel = "expression"\nexpression = "3e5 * (310 - F)"\n', encoding="utf-8")
     out = tmp_path / "c.h5"
     proc = labctl_here(capsys, "run", str(protocol), "--out", str(out), "--world", str(bad), "--seed", "1",
                        "--quiet")
-    assert proc.returncode == 2 and "non-positive" in proc.stderr
+    assert proc.returncode == 2 and "bad.toml" in proc.stderr and "non-positive" in proc.stderr
+    assert not out.exists()
+
+
+def test_an_error_at_step_2_marks_the_file_failed_there_and_resume_completes(protocol: Path, tmp_path: Path,
+                                                                              capsys, monkeypatch):
+    import labctl.engine.steps as steps
+
+    real, calls = steps.process_step, []
+
+    def faulty(*args, **kw):  # an unexpected error while identifying the second step
+        calls.append(1)
+        if len(calls) == 2:
+            raise ValueError("simulated fault in step identification")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(steps, "process_step", faulty)
+    out = tmp_path / "c.h5"
+    proc = labctl_here(capsys, "run", str(protocol), "--out", str(out), "--seed", "1", "--quiet")
+    assert proc.returncode == 2 and "simulated fault" in proc.stderr
     status, message = _status(out)
     assert status == "failed" and "step 2" in message and "--resume" in message
-    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--world", str(good), "--resume",
-                            "--quiet")
+    monkeypatch.setattr(steps, "process_step", real)  # the cause fixed
+    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
     assert done["status"] == "complete" and [s for s, *_ in _plan(out)] == [1, 2, 3]
 
 
