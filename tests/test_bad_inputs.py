@@ -246,6 +246,10 @@ CASES = [
          _npz("d.npz", _flip(0.3), compressed=True)),
     Case("npz zip bomb", "identify bomb.npz", ("bomb.npz", "'force'", "zip bomb"),
          _npz("bomb.npz", compressed=True, force=np.zeros((1, 2_600_000)))),
+    # models refuse loads where the contact is no longer elastic (Tripp went negative at 1e12 N)
+    Case("model tripp at 1e12 N", "model tripp --roller-type 1 --load-n 1e12", ("tripp", "1e+12", "validity")),
+    Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
+    Case("model palmgren at 0 N", "model palmgren --roller-type 1 --load-n 0", ("palmgren", "load 0 N")),
     # world expressions: bounded parse and evaluation, clean errors
     Case("world 400-digit integer", f"{RUN} --world w.toml", ("w.toml", "too large"),
          _world("1" * 400 + " * F")),
