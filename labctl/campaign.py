@@ -82,6 +82,35 @@ def _review_entry(entry: Any, where: str) -> tuple[tuple[int, int, int, int], st
     return key, str(values["verdict"]), reason.strip()
 
 
+def _check_reviews(operator: Operator | None, proto: Protocol, rig_config: RigConfig, added_steps: int) -> None:
+    """Every scripted verdict must name an impact the protocol can take (else it would silently never apply):
+    a series and repetition it has, a step within its plan (with an adaptive campaign's added steps), an
+    attempt within the impacts and re-hits of a step."""
+    from labctl.engine.plan import EXTRA_STEPS
+
+    reviews = getattr(operator, "reviews", None)
+    if not reviews:
+        return
+    acq = proto.acquisition
+    attempts = acq.impacts_per_step + acq.max_rehits + 1
+    for series, run, step, attempt in sorted(reviews):
+        where = f"{getattr(operator, 'name', 'operator')}: [[review]] series {series} run {run} step {step} " \
+                f"attempt {attempt}"
+        if series > len(proto.specimens):
+            raise InputError(f"{where}: the protocol has {len(proto.specimens)} specimen series; this verdict "
+                             "would never apply")
+        if run > proto.repetitions.count:
+            raise InputError(f"{where}: the protocol has {proto.repetitions.count} repetition(s); this verdict "
+                             "would never apply")
+        steps = plan_steps(proto, proto.specimens[series - 1], rig_config).steps_estimate + EXTRA_STEPS + added_steps
+        if step > steps:
+            raise InputError(f"{where}: series {series} has at most {steps} load steps; this verdict would never "
+                             "apply")
+        if attempt > attempts:
+            raise InputError(f"{where}: a step takes at most {attempts} impacts ({acq.impacts_per_step} and "
+                             f"{acq.max_rehits} re-hits); this verdict would never apply")
+
+
 def _text(path: str | Path | None) -> str:
     return "" if path is None else Path(path).read_text(encoding="utf-8")
 
@@ -188,6 +217,7 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
         for spec in proto.specimens:
             spec.case()
             plan_steps(proto, spec, rig_config)
+        _check_reviews(operator, proto, rig_config, budget_steps if adaptive else 0)
         if backend == "sim":
             sim_world = load_world(world)
             if any(spec.kind == "ball" for spec in proto.specimens) and world is None:

@@ -179,6 +179,11 @@ def _world(expression: str) -> Callable[[Path], None]:
     return _text("w.toml", f'[baseline]\nmodel = "expression"\nexpression = "{expression}"\n')
 
 
+def _review(series: int = 1, run: int = 1, step: int = 1, attempt: int = 1) -> Callable[[Path], None]:
+    return _text("op.toml", f"[[review]]\nseries = {series}\nrun = {run}\nstep = {step}\nattempt = {attempt}\n"
+                            'verdict = "reject"\nreason = "the hammer slipped"\n')
+
+
 def _catalogue(folder: Path) -> None:
     from labctl.archive import index
 
@@ -246,6 +251,15 @@ CASES = [
          _npz("d.npz", _flip(0.3), compressed=True)),
     Case("npz zip bomb", "identify bomb.npz", ("bomb.npz", "'force'", "zip bomb"),
          _npz("bomb.npz", compressed=True, force=np.zeros((1, 2_600_000)))),
+    # scripted verdicts that could never apply are refused before the run (they were silently ignored)
+    Case("operator review of a missing series", f"{RUN} --operator op.toml", ("op.toml", "series 3", "never apply"),
+         _review(series=3)),
+    Case("operator review of a missing step", f"{RUN} --operator op.toml", ("op.toml", "step 40", "never apply"),
+         _review(step=40)),
+    Case("operator review of a missing repetition", f"{RUN} --operator op.toml", ("op.toml", "run 2", "never apply"),
+         _review(run=2)),
+    Case("operator review of a missing attempt", f"{RUN} --operator op.toml",
+         ("op.toml", "attempt 99", "never apply"), _review(attempt=99)),
     # models refuse loads where the contact is no longer elastic (Tripp went negative at 1e12 N)
     Case("model tripp at 1e12 N", "model tripp --roller-type 1 --load-n 1e12", ("tripp", "1e+12", "validity")),
     Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
