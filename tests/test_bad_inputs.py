@@ -260,6 +260,11 @@ CASES = [
          _review(run=2)),
     Case("operator review of a missing attempt", f"{RUN} --operator op.toml",
          ("op.toml", "attempt 99", "never apply"), _review(attempt=99)),
+    # the same campaign given twice would count twice (degrees of freedom 51 -> 105, σ shrinking)
+    Case("calibrate the same file twice", "calibrate c.h5 c.h5", ("c.h5", "given twice")),
+    Case("calibrate a file and its copy", "calibrate c.h5 copy.h5", ("copy.h5", "same campaign as c.h5"),
+         lambda f: shutil.copy(f / "c.h5", f / "copy.h5")),
+    Case("calibrate a file and a link to it", "calibrate c.h5 l.h5", ("l.h5", "given twice"), _link("l.h5", "c.h5")),
     # models refuse loads where the contact is no longer elastic (Tripp went negative at 1e12 N)
     Case("model tripp at 1e12 N", "model tripp --roller-type 1 --load-n 1e12", ("tripp", "1e+12", "validity")),
     Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
