@@ -184,6 +184,34 @@ def _review(series: int = 1, run: int = 1, step: int = 1, attempt: int = 1) -> C
                             'verdict = "reject"\nreason = "the hammer slipped"\n')
 
 
+BALL_PROTOCOL = """[protocol]
+name = "one_ball"
+description = "a 6 mm ball, short records"
+version = 1
+
+[specimen]
+kind = "ball"
+ball_diameter_mm = 6.0
+rail_ra_um = 0.03
+max_load_n = 120.0
+knob_step_deg = 360.0
+
+[acquisition]
+samples = 8192
+impacts_per_step = 2
+
+[repetitions]
+count = 1
+"""
+
+
+def _ball_campaign(folder: Path) -> None:
+    from labctl.campaign import run_campaign
+
+    (folder / "ball.toml").write_text(BALL_PROTOCOL, encoding="utf-8")
+    assert run_campaign(folder / "ball.toml", out=folder / "b.h5", backend="sim", seed=2).status == "complete"
+
+
 def _catalogue(folder: Path) -> None:
     from labctl.archive import index
 
@@ -265,6 +293,9 @@ CASES = [
     Case("calibrate a file and its copy", "calibrate c.h5 copy.h5", ("copy.h5", "same campaign as c.h5"),
          lambda f: shutil.copy(f / "c.h5", f / "copy.h5")),
     Case("calibrate a file and a link to it", "calibrate c.h5 l.h5", ("l.h5", "given twice"), _link("l.h5", "c.h5")),
+    # ball campaigns are balls downstream: never rows of a roller stiffness table, never planned as rollers
+    Case("process --csv of a ball campaign", "process b.h5 --csv b.csv", ("--csv b.csv", "balls"), _ball_campaign),
+    Case("plan from a ball campaign", "plan b.h5", ("b.h5", "series 1 are balls"), _ball_campaign),
     # models refuse loads where the contact is no longer elastic (Tripp went negative at 1e12 N)
     Case("model tripp at 1e12 N", "model tripp --roller-type 1 --load-n 1e12", ("tripp", "1e+12", "validity")),
     Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
