@@ -235,3 +235,32 @@ def _run_child_to_end(protocol: Path, out: Path, log: Path) -> None:
     proc.start()
     proc.join(120)
     assert proc.exitcode == 0, log.read_text()
+
+
+def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Path, capsys):
+    """While `labctl run` writes, `process` names the writer (pid, since when); a live read sees the impacts
+    stored so far, growing, and the writer finishes undisturbed."""
+    import labctl.cli.process  # noqa: F401 — imported before the run starts, so the reads below are quick
+    import labctl.reprocess  # noqa: F401
+    from labctl.storage.inuse import writer_info
+    from labctl.storage.reader import read_live
+
+    out, log = tmp_path / "c.h5", tmp_path / "log.txt"
+    proc = FORK.Process(target=_child, args=(["run", "quick_check", "--out", str(out), "--seed", "2", "--quiet"],
+                                             None, str(log)))
+    proc.start()
+    deadline = time.monotonic() + 60
+    while writer_info(out) is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    busy = labctl_here(capsys, "process", str(out))
+    counts = []
+    while proc.is_alive() and time.monotonic() < deadline:
+        counts.append(read_live(out, lambda r: sum(len(s.impacts) for run in r.runs(1) for s in run.steps)
+                                if r.series_indices() else 0))
+        time.sleep(0.01)
+    proc.join(60)
+    assert proc.exitcode == 0, log.read_text()
+    assert busy.returncode == 2 and f"pid {proc.pid}" in busy.stderr and "in use by" in busy.stderr, busy.stderr
+    assert len(counts) >= 3 and counts == sorted(counts)  # read while running, never going back
+    assert writer_info(out) is None  # the writer removed its sidecar
+    assert labctl_here_json(capsys, "process", str(out))["status"] == "complete"

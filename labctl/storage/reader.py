@@ -8,15 +8,18 @@ file: an unknown format version, a complete impact with a missing dataset, a mis
 from __future__ import annotations
 
 import json
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
 
 from labctl.errors import InputError
 from labctl.storage import schema as s
+from labctl.storage.inuse import in_use_message, is_lock_error
 from labctl.storage.records import (
     CHECKS,
     OPERATOR,
@@ -234,13 +237,17 @@ def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
 class CampaignReader:
     """Read-only view of a campaign file; errors on corrupt or foreign files name the file."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, live: bool = False) -> None:
+        """``live``: read a file a running campaign is writing, without taking HDF5's lock (see ``read_live``;
+        the writer is not disturbed, but a read may meet a half-flushed impact and must be retried)."""
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
         try:
-            self.h5 = h5py.File(self.path, "r")
+            self.h5 = h5py.File(self.path, "r", locking=False) if live else h5py.File(self.path, "r")
         except OSError as exc:
+            if is_lock_error(exc):
+                raise InputError(in_use_message(self.path)) from None
             raise InputError(f"{self.path}: not a readable HDF5 campaign file ({exc})") from None
         if _decode(self.h5.attrs.get("format")) != s.FORMAT:
             self.h5.close()
@@ -330,6 +337,31 @@ class CampaignReader:
     def curves(self) -> list[RepetitionCurve]:
         """The stored curve of every finished repetition, in series and run order."""
         return curves_of(self.h5)
+
+
+T = TypeVar("T")
+LIVE_ATTEMPTS = 5
+LIVE_RETRY_S = 0.2
+
+
+def read_live(path: str | Path, read: Callable[[CampaignReader], T], *, attempts: int = LIVE_ATTEMPTS,
+              retry_s: float = LIVE_RETRY_S) -> T:
+    """``read(reader)`` on a campaign a running ``labctl run`` may be writing, without disturbing it.
+
+    The file is opened read-only without HDF5's lock (the writer keeps its own); the writer flushes after
+    every impact, so what a read sees is the file as of some flush, unless it met a flush in progress: then
+    HDF5 or the reader's checks raise, and the read is done again on a fresh handle after ``retry_s``. Only
+    groups marked complete are read, so a half-written impact is never data. InputError after ``attempts``."""
+    last: BaseException | None = None
+    for attempt in range(attempts):
+        try:
+            with CampaignReader(path, live=True) as reader:
+                return read(reader)
+        except (OSError, KeyError, RuntimeError, ValueError, InputError) as exc:
+            last = exc
+            if attempt + 1 < attempts:
+                time.sleep(retry_s)
+    raise InputError(f"{path}: no consistent read of the running campaign in {attempts} attempts ({last})")
 
 
 @dataclass

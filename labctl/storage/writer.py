@@ -28,6 +28,7 @@ from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
 from labctl.storage.diskspace import RESERVE_BYTES, DiskFull, discard, is_full, reserve, trim
+from labctl.storage.inuse import clear_writer, in_use_message, is_lock_error, mark_writer
 from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
     ImpactInfo,
@@ -202,9 +203,11 @@ class CampaignWriter:
             tmp.unlink(missing_ok=True)
             raise
         try:
-            return cls(h5py.File(p, "r+"))
+            writer = cls(h5py.File(p, "r+"))
         except OSError as exc:
             raise InputError(f"{p}: cannot open the new campaign file ({exc.strerror or exc})") from None
+        mark_writer(p)
+        return writer
 
     @staticmethod
     def _initialise(h5: h5py.File, *, protocol_name: str, backend: str, seed: int | None,
@@ -227,6 +230,8 @@ class CampaignWriter:
         try:
             h5 = h5py.File(p, "r+")
         except OSError as exc:
+            if is_lock_error(exc):
+                raise InputError(in_use_message(p)) from None
             raise InputError(f"{p}: cannot open the campaign file for resuming ({exc})") from None
         if h5.attrs.get("format") != s.FORMAT:
             h5.close()
@@ -242,6 +247,7 @@ class CampaignWriter:
             h5.close()
             raise
         writer = cls(h5)
+        mark_writer(p)
         writer._drop_incomplete()
         h5.attrs["status"] = "running"
         h5.attrs["resumed_utc"] = utc_now()
@@ -487,6 +493,7 @@ class CampaignWriter:
 
     def close(self) -> None:
         if self.h5 is None or not self.h5.id.valid:
+            clear_writer(self.path)
             return
         try:
             self.h5.flush()
@@ -494,6 +501,7 @@ class CampaignWriter:
             self.h5.close()
         except (OSError, RuntimeError):
             discard(self.h5)  # never a half-written flush: the file stays as of its last good one
+        clear_writer(self.path)
 
     def __enter__(self) -> CampaignWriter:
         return self
