@@ -175,6 +175,19 @@ def _flip(at: float) -> Callable[[bytearray], None]:
     return edit
 
 
+def _uff_huge(folder: Path) -> None:
+    """An exported UFF whose first data set's header announces 10^10 points."""
+    from labctl.uff.writer import Selection, export_campaign
+
+    export_campaign(folder / "c.h5", folder / "x.uff", selection=Selection(step=1), binary=False)
+    lines = (folder / "x.uff").read_text().split("\n")
+    i = next(k for k, line in enumerate(lines) if line.strip() == "58")
+    count = lines[i + 7].split()[1]
+    lines[i + 7] = lines[i + 7].replace(count.rjust(10), "9999999999", 1)
+    (folder / "huge.uff").write_text("\n".join(lines))
+    (folder / "x.uff").unlink()
+
+
 def _world(expression: str) -> Callable[[Path], None]:
     return _text("w.toml", f'[baseline]\nmodel = "expression"\nexpression = "{expression}"\n')
 
@@ -300,6 +313,8 @@ CASES = [
     Case("model tripp at 1e12 N", "model tripp --roller-type 1 --load-n 1e12", ("tripp", "1e+12", "validity")),
     Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
     Case("model palmgren at 0 N", "model palmgren --roller-type 1 --load-n 0", ("palmgren", "load 0 N")),
+    Case("uff announcing 10^10 points", "identify huge.uff", ("huge.uff", "announces 9999999999 points")
+         , _uff_huge),
     # world expressions: bounded parse and evaluation, clean errors
     Case("world 400-digit integer", f"{RUN} --world w.toml", ("w.toml", "too large"),
          _world("1" * 400 + " * F")),
