@@ -10,15 +10,13 @@ processable and resumable.
 
 from __future__ import annotations
 
-import functools
 import json
 import os
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
-from dataclasses import asdict, fields, is_dataclass
+from collections.abc import Mapping
+from dataclasses import fields
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import h5py
 import numpy as np
@@ -27,7 +25,9 @@ from labctl import __version__
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
-from labctl.storage.diskspace import RESERVE_BYTES, DiskFull, discard, is_full, reserve, trim
+from labctl.storage.diskspace import DiskFull, discard, trim
+from labctl.storage.encode import COHERENCE_DECIMALS, COMPRESS, _attrs, _write_trace
+from labctl.storage.guard import WriteGuard, guarded
 from labctl.storage.inuse import clear_writer, in_use_message, is_lock_error, mark_writer
 from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
@@ -42,138 +42,22 @@ from labctl.storage.runlog import LogEntry, append_entry, read_entries
 from labctl.storage.safety import check_structure
 from labctl.storage.table import specimen_point
 
-T = TypeVar("T")
-
 
 def utc_now() -> str:
     return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
-def _attrs(obj: h5py.Group | h5py.Dataset, values: Mapping[str, Any]) -> None:
-    for key, value in values.items():
-        if value is not None:
-            obj.attrs[key] = _attr_value(value)
-
-
-def _dumps(value: Any) -> Any:
-    """JSON for nested values (dataclasses included)."""
-    return json.dumps(value, default=lambda o: asdict(o) if is_dataclass(o) else str(o))
-
-
-def _attr_value(value: Any) -> Any:
-    if is_dataclass(value) and not isinstance(value, type):
-        return _dumps(value)
-    if isinstance(value, list | tuple | dict) and not (isinstance(value, list | tuple) and value
-                                                         and all(isinstance(v, int | float) for v in value)):
-        return _dumps(value)
-    return value
-
-
 IMPACT_SLACK_BYTES = 256 * 2**10
 """An impact's metadata beyond its samples (group, two dataset headers, chunk index, attributes), generously."""
-ADC_BITS = (24, 16, 18, 20, 22, 12, 14)  # common converter resolutions, most likely first
-COMPRESS = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
-COHERENCE_DECIMALS = 4  # the stored coherence (derived, recomputable from the raw impacts) is kept to 1e-4
 
 
-def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, float] | None:
-    """``x`` as integer counts of an ADC spanning ±``range_units`` and the step per count, if that is exact.
-
-    Exact means counts × step reproduces every sample bit for bit, so storing counts loses nothing.
-    """
-    if range_units is None or not np.isfinite(range_units) or range_units <= 0 or not np.isfinite(x).all():
-        return None
-    probe = x[:256]
-    for bits in ADC_BITS:
-        step = 2.0 * float(range_units) / 2.0**bits
-        if not np.array_equal(np.rint(probe / step) * step, probe):  # cheap refusal on the first samples
-            continue
-        k = np.rint(x / step)
-        if np.abs(k).max(initial=0.0) <= 2.0**31 - 1 and np.array_equal(k * step, x):
-            return k.astype(np.int32), step
-    return None
-
-
-def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float | None]) -> h5py.Dataset:
-    """A trace as integer counts with per-channel ``scale`` (scale-offset filter) when the samples are exact
-    ADC steps, else as float32 with shuffle + gzip."""
-    x = np.asarray(x, dtype=float)
-    rows = x.reshape(-1, x.shape[-1])
-    coded = [adc_counts(row, r) for row, r in zip(rows, ranges, strict=True)] if len(ranges) == len(rows) else [None]
-    n = x.shape[-1]
-    chunks = (1, min(n, s.TRACE_CHUNK)) if x.ndim == 2 else (min(n, s.TRACE_CHUNK),)
-    if all(c is not None for c in coded):
-        counts = np.stack([c[0] for c in coded]).reshape(x.shape)  # type: ignore[index]
-        scale = [c[1] for c in coded]  # type: ignore[index]
-        ds = g.create_dataset(name, data=counts, chunks=chunks, scaleoffset=0)
-        ds.attrs["scale"] = scale if x.ndim == 2 else scale[0]
-        ds.attrs["offset"] = [0.0] * len(scale) if x.ndim == 2 else 0.0
-        return ds
-    return g.create_dataset(name, data=x.astype(np.float32), chunks=chunks, **COMPRESS)
-
-
-def _guarded(method: Callable[..., T]) -> Callable[..., T]:
-    """A writing method: a failed write reopens the file as of its last flush and raises DiskFull."""
-
-    @functools.wraps(method)
-    def wrapper(self: CampaignWriter, *args: Any, **kw: Any) -> T:
-        with self._writing():
-            return method(self, *args, **kw)
-
-    return wrapper
-
-
-class CampaignWriter:
+class CampaignWriter(WriteGuard):
     """An open campaign file; create a new one with ``create`` or continue one with ``open_existing``."""
 
     def __init__(self, h5: h5py.File) -> None:
         self.h5 = h5
         self.path = str(h5.filename)
         self._accepted: int | None = None  # accepted impacts in the file, counted once then kept up to date
-
-    # --- disk-full safety ---------------------------------------------------------------------------------
-    def _kept(self) -> int:
-        try:
-            return sum(len(complete_impacts(st)) for st in s.all_steps(self.h5))
-        except Exception:  # noqa: BLE001 — only for the message
-            return 0
-
-    def ensure_room(self, need_bytes: int) -> None:
-        """Reserve room for ``need_bytes`` plus ``RESERVE_BYTES`` (what ends a step and the run) or raise
-        DiskFull with nothing written."""
-        try:
-            reserve(self.h5, need_bytes + RESERVE_BYTES)
-        except DiskFull as exc:
-            raise DiskFull(f"{self.path}: {exc}: {self._kept()} impacts kept; free space and --resume") from None
-
-    @contextmanager
-    def _writing(self) -> Iterator[None]:
-        """Run a write; when it fails, reopen the file as of its last flush and raise DiskFull."""
-        try:
-            yield
-        except DiskFull:
-            raise
-        except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            if not isinstance(exc, OSError | RuntimeError) and self.h5 is not None and self.h5.id.valid:
-                raise  # a programming error on a healthy file, not a failed write
-            what = "disk full" if is_full(exc) else f"write failed ({' '.join(str(exc).split())[:200]})"
-            self._recover()
-            raise DiskFull(f"{self.path}: {what}: {self._kept()} impacts kept; free space and --resume") from None
-
-    def _recover(self) -> None:
-        """Drop the failed handle unflushed, reopen the file as of its last flush, remove partial groups."""
-        discard(self.h5)
-        self._accepted = None
-        try:
-            self.h5 = h5py.File(self.path, "r+")
-            self._drop_incomplete()
-            self.h5.flush()
-        except Exception:  # noqa: BLE001 — still no room: keep the file as it is on disk, read-only
-            discard(self.h5)
-            try:
-                self.h5 = h5py.File(self.path, "r")
-            except OSError:
-                self.h5 = None  # type: ignore[assignment]
 
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
@@ -274,7 +158,7 @@ class CampaignWriter:
     def has_series(self) -> bool:
         return any(k.startswith("series_") for k in self.h5)
 
-    @_guarded
+    @guarded
     def _group(self, *names: str, attrs: Mapping[str, Any] | None = None) -> h5py.Group:
         g = self.h5
         for n in names:
@@ -295,7 +179,7 @@ class CampaignWriter:
         g = self.h5.get(s.series_name(series))
         return bool(g is not None and g.attrs.get("mounted", False))
 
-    @_guarded
+    @guarded
     def mark_mounted(self, series: int) -> None:
         self.h5[s.series_name(series)].attrs["mounted"] = True
         self.h5.flush()
@@ -321,7 +205,7 @@ class CampaignWriter:
             return None
         return float(g.attrs["load_n"])
 
-    @_guarded
+    @guarded
     def update_step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
         _attrs(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)], attrs)
         self.h5.flush()
@@ -382,14 +266,14 @@ class CampaignWriter:
         g.attrs["verdict_reason"] = verdict.reason
         g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
 
-    @_guarded
+    @guarded
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
         self._verdict(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)],
                       verdict)
         self.h5.flush()
 
-    @_guarded
+    @guarded
     def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
         """Store a step's result (and its FRF up to ``FRF_MAX_HZ``), then mark the step complete."""
         stg = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
@@ -428,7 +312,7 @@ class CampaignWriter:
         g = self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}")
         return {} if g is None else attrs_of(g)
 
-    @_guarded
+    @guarded
     def set_run_attrs(self, series: int, run: int, attrs: Mapping[str, Any]) -> None:
         """Set attributes of a started repetition (nested values are stored as JSON)."""
         _attrs(self.h5[f"{s.series_name(series)}/{s.run_name(run)}"], attrs)
@@ -446,7 +330,7 @@ class CampaignWriter:
                                                      result))
         return points
 
-    @_guarded
+    @guarded
     def store_curve(self, series: int, run: int) -> RepetitionCurve:
         """Build a repetition's stiffness-vs-load table from its stored step results, store it, return it."""
         label = str(self.h5[s.series_name(series)].attrs.get("label", ""))
@@ -467,7 +351,7 @@ class CampaignWriter:
         """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
         return [] if self.h5 is None else curves_of(self.h5)
 
-    @_guarded
+    @guarded
     def append_log(self, entry: LogEntry) -> None:
         """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""
         append_entry(self.h5, entry)
