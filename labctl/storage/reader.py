@@ -237,9 +237,11 @@ def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
 class CampaignReader:
     """Read-only view of a campaign file; errors on corrupt or foreign files name the file."""
 
-    def __init__(self, path: str | Path, *, live: bool = False) -> None:
+    def __init__(self, path: str | Path, *, live: bool = False, attrs_only: bool = False) -> None:
         """``live``: read a file a running campaign is writing, without taking HDF5's lock (see ``read_live``;
-        the writer is not disturbed, but a read may meet a half-flushed impact and must be retried)."""
+        the writer is not disturbed, but a read may meet a half-flushed impact and must be retried).
+        ``attrs_only``: the caller reads only the root attributes (stored in the file's own root header), so
+        the walk over every link that guards data reads (``check_structure``) is skipped."""
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
@@ -258,6 +260,8 @@ class CampaignReader:
             raise InputError(f"{self.path}: format_version {version!r} is not one this labctl reads "
                              f"({', '.join(map(str, s.READABLE_VERSIONS))}); update labctl")
         self.format_version = int(version)
+        if attrs_only:
+            return
         try:
             check_structure(self.h5, self.path)
         except BaseException:
