@@ -261,6 +261,8 @@ CASES = [
          ("--db other.db", "another application"), _foreign_db),
     Case("archive query foreign sqlite", "archive query --db other.db", ("--db other.db", "another application"),
          _foreign_db),
+    Case("archive process into a foreign sqlite", "archive process c.h5 --workers 0 --db other.db --quiet",
+         ("--db other.db", "another application"), _foreign_db),
     Case("archive index text file as db", "archive index c.h5 --db notes.db", ("--db notes.db", "not an SQLite"),
          _text("notes.db", "shopping list\n")),
     # a crafted campaign never makes labctl read another file, load a plug-in, or use unreadable values

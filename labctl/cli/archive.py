@@ -131,9 +131,12 @@ def run_process(args: argparse.Namespace) -> int:
     files = campaign_files(args.paths)
     if not files:
         raise InputError(f"no campaign files (*.h5) in {', '.join(args.paths)}")
+    from labctl.archive.catalogue import check_catalogue
     from labctl.storage.outputs import check_outputs
 
     check_outputs([("--db", args.db)], files, allow_campaign=True)
+    if args.db:
+        check_catalogue(args.db)  # before any file is processed, not after
     workers = args.workers
     if workers is None and not args.scheduler:
         import os
