@@ -12,8 +12,10 @@ import h5py
 import numpy as np
 
 from labctl.storage import schema as s
+from labctl.storage.records import ImpactRecord
 
-__all__ = ["ADC_BITS", "COHERENCE_DECIMALS", "COMPRESS", "_attrs", "_write_trace", "adc_counts"]
+__all__ = ["ADC_BITS", "COHERENCE_DECIMALS", "COMPRESS", "_attrs", "_write_trace", "adc_counts", "impact_attrs",
+           "write_frf"]
 
 
 def _attrs(obj: h5py.Group | h5py.Dataset, values: Mapping[str, Any]) -> None:
@@ -77,3 +79,26 @@ def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float
         return ds, x  # counts × scale reproduce every sample (adc_counts checked it)
     stored = x.astype(np.float32)
     return g.create_dataset(name, data=stored, chunks=chunks, **COMPRESS), stored.astype(float)
+
+
+def impact_attrs(record: ImpactRecord) -> dict[str, Any]:
+    """An impact group's attributes: its acquisition facts, the checks' findings and the verdict."""
+    info = record.info
+    return {"attempt": record.attempt, "sample_rate_hz": info.sample_rate_hz,
+            "trigger_index": info.trigger_index, "timestamp_utc": info.timestamp_utc,
+            "clipped": list(info.clipped), "check_accepted": bool(info.checks.accepted),
+            "peak_force_n": info.checks.peak_force_n, "pulse_width_s": info.checks.pulse_width_s,
+            "accepted": bool(info.verdict.accepted), "verdict_source": info.verdict.source,
+            "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)}
+
+
+def write_frf(g: h5py.Group, frf: Any) -> None:
+    """A step's FRF up to ``FRF_MAX_HZ`` at about ``FRF_SPACING_HZ`` (H1 as complex64, coherence to 1e-4)."""
+    f_hz = np.asarray(frf.frequencies_hz)
+    stride = max(1, round(s.FRF_SPACING_HZ / (f_hz[1] - f_hz[0]))) if f_hz.size > 1 else 1
+    keep = np.flatnonzero(f_hz <= s.FRF_MAX_HZ)[::stride]
+    g.create_dataset("frequencies_hz", data=np.asarray(frf.frequencies_hz)[keep], **COMPRESS)
+    g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
+    coh = np.asarray(frf.coherence)[..., keep].astype(np.float32)  # 0..1: four decimals are all it carries
+    g.create_dataset("coherence", data=coh, scaleoffset=COHERENCE_DECIMALS,
+                     chunks=coh.shape if coh.ndim == 1 else (1, coh.shape[-1]))

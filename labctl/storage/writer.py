@@ -19,14 +19,13 @@ from pathlib import Path
 from typing import Any
 
 import h5py
-import numpy as np
 
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
 from labctl.storage.diskspace import DiskFull, discard, trim
-from labctl.storage.encode import COHERENCE_DECIMALS, COMPRESS, _attrs, _write_trace
+from labctl.storage.encode import _attrs, _write_trace, impact_attrs, write_frf
 from labctl.storage.guard import WriteGuard, guarded
 from labctl.storage.inuse import clear_writer, in_use_message, is_lock_error, mark_writer
 from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
@@ -256,12 +255,7 @@ class CampaignWriter(WriteGuard):
                    "range_units": cal.accel_range_m_per_s2})
         if self._accepted is not None:
             self._accepted += int(info.verdict.accepted)
-        _attrs(g, {"attempt": record.attempt, "sample_rate_hz": info.sample_rate_hz,
-                   "trigger_index": info.trigger_index, "timestamp_utc": info.timestamp_utc,
-                   "clipped": list(info.clipped), "check_accepted": bool(info.checks.accepted),
-                   "peak_force_n": info.checks.peak_force_n, "pulse_width_s": info.checks.pulse_width_s,
-                   "accepted": bool(info.verdict.accepted), "verdict_source": info.verdict.source,
-                   "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)})
+        _attrs(g, impact_attrs(record))
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
         return replace(record, force_n=force_n, accel_m_per_s2=accel)
@@ -288,16 +282,8 @@ class CampaignWriter(WriteGuard):
         if s.RESULT in stg:
             del stg[s.RESULT]
         g = stg.create_group(s.RESULT)
-        frf = result.frf
-        if frf is not None:
-            f_hz = np.asarray(frf.frequencies_hz)
-            stride = max(1, round(s.FRF_SPACING_HZ / (f_hz[1] - f_hz[0]))) if f_hz.size > 1 else 1
-            keep = np.flatnonzero(f_hz <= s.FRF_MAX_HZ)[::stride]
-            g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep], **COMPRESS)
-            g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
-            coh = np.asarray(frf.coherence)[..., keep].astype(np.float32)  # 0..1: four decimals are all it carries
-            g.create_dataset("coherence", data=coh, scaleoffset=COHERENCE_DECIMALS,
-                             chunks=coh.shape if coh.ndim == 1 else (1, coh.shape[-1]))
+        if result.frf is not None:
+            write_frf(g, result.frf)
         _attrs(g, {f.name: getattr(result, f.name) for f in fields(result) if f.name != "frf"})
         if result.error:
             stg.attrs["failed"] = result.error
