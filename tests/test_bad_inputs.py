@@ -40,6 +40,15 @@ def _foreign_db(folder: Path) -> None:
     conn.close()
 
 
+def _newer_catalogue(folder: Path) -> None:
+    """A labctl catalogue of a schema version newer than this labctl writes."""
+    _catalogue(folder)
+    conn = sqlite3.connect(folder / "arc.db")
+    with conn:
+        conn.execute("UPDATE catalogue_info SET value = '99' WHERE key = 'schema_version'")
+    conn.close()
+
+
 def _link(name: str, target: str) -> Callable[[Path], None]:
     return lambda folder: (folder / name).symlink_to(target)
 
@@ -263,6 +272,8 @@ CASES = [
          _foreign_db),
     Case("archive process into a foreign sqlite", "archive process c.h5 --workers 0 --db other.db --quiet",
          ("--db other.db", "another application"), _foreign_db),
+    Case("archive index into a newer catalogue", "archive index c.h5 --db arc.db",
+         ("--db arc.db", "schema version 99", "not changed"), _newer_catalogue),
     Case("archive index text file as db", "archive index c.h5 --db notes.db", ("--db notes.db", "not an SQLite"),
          _text("notes.db", "shopping list\n")),
     # a crafted campaign never makes labctl read another file, load a plug-in, or use unreadable values

@@ -168,9 +168,9 @@ def check_catalogue(db: str | Path) -> None:
     if version is None:
         raise InputError(f"--db {p}: an SQLite database of another application (no labctl catalogue_info "
                          "table); it was not changed; choose another --db")
-    if str(version[0]) != str(SCHEMA_VERSION):
+    if not str(version[0]).isdigit() or not 1 <= int(version[0]) <= SCHEMA_VERSION:  # older ones are upgraded
         raise InputError(f"--db {p}: catalogue schema version {version[0]}, this labctl writes "
-                         f"{SCHEMA_VERSION}; it was not changed")
+                         f"{SCHEMA_VERSION} (and upgrades older ones); it was not changed")
 
 
 def connect(db: str | Path) -> sqlite3.Connection:
