@@ -35,7 +35,7 @@ def load_operator_script(path: str | Path) -> ScriptedOperator:
     """
     p = Path(path)
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+        doc = tomllib.loads(p.read_text(encoding="utf-8-sig"))  # a byte-order mark is not content
     except FileNotFoundError:
         raise InputError(f"{p}: operator script not found") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
@@ -83,6 +83,35 @@ def _review_entry(entry: Any, where: str) -> tuple[tuple[int, int, int, int], st
     return key, str(values["verdict"]), reason.strip()
 
 
+def _check_reviews(operator: Operator | None, proto: Protocol, rig_config: RigConfig, added_steps: int) -> None:
+    """Every scripted verdict must name an impact the protocol can take (else it would silently never apply):
+    a series and repetition it has, a step within its plan (with an adaptive campaign's added steps), an
+    attempt within the impacts and re-hits of a step."""
+    from labctl.engine.plan import EXTRA_STEPS
+
+    reviews = getattr(operator, "reviews", None)
+    if not reviews:
+        return
+    acq = proto.acquisition
+    attempts = acq.impacts_per_step + acq.max_rehits + 1
+    for series, run, step, attempt in sorted(reviews):
+        where = f"{getattr(operator, 'name', 'operator')}: [[review]] series {series} run {run} step {step} " \
+                f"attempt {attempt}"
+        if series > len(proto.specimens):
+            raise InputError(f"{where}: the protocol has {len(proto.specimens)} specimen series; this verdict "
+                             "would never apply")
+        if run > proto.repetitions.count:
+            raise InputError(f"{where}: the protocol has {proto.repetitions.count} repetition(s); this verdict "
+                             "would never apply")
+        steps = plan_steps(proto, proto.specimens[series - 1], rig_config).steps_estimate + EXTRA_STEPS + added_steps
+        if step > steps:
+            raise InputError(f"{where}: series {series} has at most {steps} load steps; this verdict would never "
+                             "apply")
+        if attempt > attempts:
+            raise InputError(f"{where}: a step takes at most {attempts} impacts ({acq.impacts_per_step} and "
+                             f"{acq.max_rehits} re-hits); this verdict would never apply")
+
+
 def _text(path: str | Path | None) -> str:
     return "" if path is None else Path(path).read_text(encoding="utf-8")
 
@@ -111,6 +140,25 @@ def rig_factory(backend: str, rig: RigConfig, *, world: str | Path | None = None
                         devices=devices)
 
     return make
+
+
+def _check_world_loads(sim_world: Any, proto: Protocol, rig_config: RigConfig, world: str | Path | None) -> None:
+    """A world law must give every roller specimen a usable stiffness over the loads the protocol will set
+    (preload to cap), checked before a file is made: a law failing at step 2 is a bad world file, not a run."""
+    import numpy as np
+
+    from labctl.physics.world_laws import WorldLaw
+
+    if not isinstance(sim_world.law, WorldLaw):
+        return
+    for spec in proto.specimens:
+        if spec.kind != "roller":
+            continue
+        loads = np.linspace(rig_config.preload_per_roller_n, spec.max_load_n, 16)
+        try:
+            sim_world.law.stiffness_n_per_m(spec.case(), loads)
+        except ValueError as exc:
+            raise InputError(f"{world}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -151,6 +199,7 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
         asked = CampaignRequest(proto, out, backend, world, seed, rig, devices)
         request = _continued(asked, writer) if writer is not None else _fresh(asked, adaptive, budget_steps)
         rig_config, devices = _checked_inputs(request)
+        _check_reviews(operator, proto, rig_config, request.budget_steps)
         if writer is None:
             writer, created = _create_file(request, rig_config, devices), True
         engine = _engine(request, rig_config, devices, writer, operator, subscribers, control, conditions)
@@ -201,8 +250,8 @@ def _fresh(asked: CampaignRequest, adaptive: bool, budget_steps: int | None) -> 
 
 
 def _checked_inputs(request: CampaignRequest) -> tuple[RigConfig, str | Path | None]:
-    """Read and check every input before anything is written: the rig, each specimen's plan, the world (sim)
-    or the devices file (hw, returned as found)."""
+    """Read and check every input before anything is written: the rig, each specimen's plan, the world (sim,
+    its law usable over the protocol's loads) or the devices file (hw, returned as found)."""
     proto, devices = request.protocol, request.devices
     rig_config = load_rig(request.rig)
     if request.budget_steps:
@@ -214,9 +263,10 @@ def _checked_inputs(request: CampaignRequest) -> tuple[RigConfig, str | Path | N
         spec.case()
         plan_steps(proto, spec, rig_config)
     if request.backend == "sim":
-        load_world(request.world)
+        sim_world = load_world(request.world)
         if any(spec.kind == "ball" for spec in proto.specimens) and request.world is None:
             load_world("balls")
+        _check_world_loads(sim_world, proto, rig_config, request.world)
     if request.backend == "hw":
         from labctl.hardware import find_devices_file, load_devices
 

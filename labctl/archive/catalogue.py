@@ -136,9 +136,48 @@ def campaign_files(paths: Iterable[str | Path]) -> list[Path]:
     return sorted(found)
 
 
-def connect(db: str | Path) -> sqlite3.Connection:
-    """Open (creating if needed) a catalogue for writing."""
+def check_catalogue(db: str | Path) -> None:
+    """Refuse (InputError) an existing file that is not a labctl catalogue, before anything is written to it.
+
+    A catalogue is an SQLite file whose ``catalogue_info`` table holds ``schema_version``; an empty file is
+    a new catalogue. Another application's database, an HDF5 file or a text file is left untouched."""
     p = Path(db)
+    if not p.exists():
+        return
+    if p.is_dir():
+        raise InputError(f"--db {p}: is a folder; expected an archive catalogue file")
+    try:
+        size = p.stat().st_size
+        with p.open("rb") as fh:
+            head = fh.read(16)
+    except OSError as exc:
+        raise InputError(f"--db {p}: cannot read the catalogue ({exc.strerror or exc})") from None
+    if size == 0:
+        return
+    if head != b"SQLite format 3\x00":
+        raise InputError(f"--db {p}: not an SQLite file, so not a labctl archive catalogue; choose another --db")
+    try:
+        ro = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            names = {r[0] for r in ro.execute("SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")}
+            version = (ro.execute("SELECT value FROM catalogue_info WHERE key = 'schema_version'").fetchone()
+                       if "catalogue_info" in names else None)
+        finally:
+            ro.close()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"--db {p}: not a usable archive catalogue ({exc})") from None
+    if version is None:
+        raise InputError(f"--db {p}: an SQLite database of another application (no labctl catalogue_info "
+                         "table); it was not changed; choose another --db")
+    if not str(version[0]).isdigit() or not 1 <= int(version[0]) <= SCHEMA_VERSION:  # older ones are upgraded
+        raise InputError(f"--db {p}: catalogue schema version {version[0]}, this labctl writes "
+                         f"{SCHEMA_VERSION} (and upgrades older ones); it was not changed")
+
+
+def connect(db: str | Path) -> sqlite3.Connection:
+    """Open (creating if needed) a catalogue for writing; a file that is not a catalogue is refused first."""
+    p = Path(db)
+    check_catalogue(p)
     try:
         conn = sqlite3.connect(p)
         conn.execute("PRAGMA foreign_keys = ON")
@@ -201,6 +240,12 @@ def index(db: str | Path, paths: Sequence[str | Path]) -> IndexReport:
 
 
 def _index_one(conn: sqlite3.Connection, path: Path, report: IndexReport) -> None:
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:  # a name the catalogue (UTF-8 text) cannot hold: skipped, named, the rest indexed
+        shown = str(path).encode("utf-8", "backslashreplace").decode("utf-8")
+        report.failed.append((shown, f"{shown}: file name is not valid UTF-8; rename the file to catalogue it"))
+        return
     st = _stat(path)
     row = conn.execute("SELECT size_bytes, mtime_ns, root_sha256, results_size, results_mtime_ns, error "
                        "FROM campaign_file WHERE path = ?", (str(path),)).fetchone()

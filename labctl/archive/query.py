@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from labctl.archive.catalogue import VIEWS
+from labctl.archive.catalogue import VIEWS, check_catalogue
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 
@@ -40,6 +40,7 @@ def read_only_connection(db: str | Path) -> sqlite3.Connection:
     p = Path(db)
     if not p.is_file():
         raise InputError(f"{p}: no archive catalogue (build one with 'labctl archive index DIR --db {p}')")
+    check_catalogue(p)
     conn = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
     conn.set_authorizer(_authorize)
     return conn

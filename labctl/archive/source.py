@@ -71,8 +71,8 @@ class Reprocessed:
 
 
 def root_sha256(path: str | Path) -> str:
-    """Hash of a campaign's root attributes (opens the file, reads no data)."""
-    with CampaignReader(path) as reader:
+    """Hash of a campaign's root attributes (opens the file, reads no data, so skips the structure walk)."""
+    with CampaignReader(path, attrs_only=True) as reader:
         return attrs_sha256(reader.attrs)
 
 

@@ -126,10 +126,31 @@ def _rms_rel(residuals: list[dict], mode: str) -> float | None:
     return math.sqrt(float(np.mean(np.square(d)))) if d else None
 
 
+def _refuse_duplicates(paths: Sequence[str | Path]) -> None:
+    """The same campaign given twice (the same file, a link to it, or a copy: same creation time, protocol and
+    seed) would count its steps twice and shrink every σ as if twice the data were there: refused."""
+    from labctl.storage import CampaignReader
+    from labctl.storage.outputs import same_file
+
+    seen: list[tuple[str | Path, tuple[object, ...]]] = []
+    for p in paths:
+        with CampaignReader(p) as reader:
+            a = reader.attrs
+        identity = (a.get("created_utc"), a.get("protocol_name"), a.get("seed"), a.get("backend"))
+        for q, other in seen:
+            if same_file(p, q):
+                raise InputError(f"{p}: given twice (also as {q}); give each campaign once")
+            if identity == other and identity[0]:
+                raise InputError(f"{p}: the same campaign as {q} (created {identity[0]}, same protocol and seed): "
+                                 "a copy would count its steps twice; give each campaign once")
+        seen.append((p, identity))
+
+
 def calibrate(paths: Sequence[str | Path], rig: str | Path | None = None, *, use_tilt: bool = True) -> Calibration:
     """Fit the rig to the ball steps of the campaign files, against ``rig`` (default: the campaigns' stored rig)."""
     if not paths:
         raise InputError("no campaign files given")
+    _refuse_duplicates(paths)
     campaigns = [read_ball_steps(p) for p in paths]
     if rig is not None:
         load_rig(rig)  # names the file and the field of any error

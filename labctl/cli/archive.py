@@ -55,8 +55,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_index(args: argparse.Namespace) -> int:
-    from labctl.archive import index
+    from labctl.archive import campaign_files, index
+    from labctl.storage.outputs import check_outputs
 
+    check_outputs([("--db", args.db)], campaign_files(args.paths), allow_campaign=True)
     report = index(args.db, args.paths)
     result = {"db": args.db, **report.to_dict()}
 
@@ -81,7 +83,9 @@ def _fmt(value: Any) -> str:
 def run_query(args: argparse.Namespace) -> int:
     from labctl.archive import query, stiffness_points
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.outputs import atomic_output, check_outputs
 
+    check_outputs([("--csv", args.csv)], [args.db])
     res = query(args.db, args.where, view=args.view)
     columns = tuple(c.strip() for c in args.columns.split(",")) if args.columns else _TEXT_COLUMNS[args.view]
     unknown = [c for c in columns if c not in res.columns]
@@ -96,7 +100,8 @@ def run_query(args: argparse.Namespace) -> int:
         if not points:
             raise InputError(f"query {args.where!r}: no identified roller stiffness among {len(res.rows)} rows; "
                              "no stiffness table written")
-        write_stiffness_table(args.csv, points)
+        with atomic_output(args.csv) as tmp:
+            write_stiffness_table(tmp, points)
         points_written = len(points)
     result = {"view": res.view, "where": res.where, "count": len(res.rows), "columns": list(res.columns),
               "rows": res.rows, "csv": args.csv, "points": points_written, "left_out": left_out}
@@ -126,6 +131,12 @@ def run_process(args: argparse.Namespace) -> int:
     files = campaign_files(args.paths)
     if not files:
         raise InputError(f"no campaign files (*.h5) in {', '.join(args.paths)}")
+    from labctl.archive.catalogue import check_catalogue
+    from labctl.storage.outputs import check_outputs
+
+    check_outputs([("--db", args.db)], files, allow_campaign=True)
+    if args.db:
+        check_catalogue(args.db)  # before any file is processed, not after
     workers = args.workers
     if workers is None and not args.scheduler:
         import os

@@ -26,12 +26,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from labctl.calibration.calibrate import calibrate
+    from labctl.storage.outputs import atomic_output, check_outputs
 
+    check_outputs([("--out", args.out)], [*args.files, args.rig])
     cal = calibrate(args.files, args.rig, use_tilt=not args.no_tilt)
     result = cal.to_dict()
     result["rig_out"] = None
     if args.out:
-        Path(args.out).write_text(cal.rig_text(), encoding="utf-8")
+        with atomic_output(args.out) as tmp:
+            Path(tmp).write_text(cal.rig_text(), encoding="utf-8")
         result["rig_out"] = str(args.out)
     emit(result, args.json, _text)
     return 0

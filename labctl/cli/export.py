@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.storage.outputs import check_outputs
     from labctl.uff.mapping import parse_node_map
     from labctl.uff.writer import Selection, export_campaign
 
@@ -41,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise InputError(f"--{name} {value}: expected a number from 1")
+    check_outputs([("--uff", args.uff), ("--manifest", args.manifest)], [args.file])
     selection = Selection(series=args.series, run=args.run, step=args.step, all_impacts=args.all_impacts,
                           time=not args.no_time, frf=not args.no_frf)
     binary = True if args.binary else (False if args.ascii else None)

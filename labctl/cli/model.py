@@ -27,7 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _model(args: argparse.Namespace) -> Any:
+    """The chosen model, after checking the loads lie where it applies (labctl.physics.validity)."""
     from labctl.physics import FITS, EmpiricalFit, HertzBallContact, PalmgrenContact, TrippContact, material, roller
+    from labctl.physics.validity import ball_load_limit_n, check_loads, roller_load_limit_n
 
     rail = material(args.rail_material)
     if args.model == "hertz":
@@ -35,10 +37,13 @@ def _model(args: argparse.Namespace) -> Any:
             raise InputError("hertz needs --ball-diameter-mm D (the ball's diameter in mm)")
         if not args.ball_diameter_mm > 0:
             raise InputError(f"--ball-diameter-mm {args.ball_diameter_mm}: expected a positive diameter in mm")
-        return HertzBallContact(args.ball_diameter_mm * 1e-3, material(args.ball_material), rail)
+        ball = material(args.ball_material)
+        check_loads("hertz", args.load_n, ball_load_limit_n(args.ball_diameter_mm * 1e-3, ball, rail))
+        return HertzBallContact(args.ball_diameter_mm * 1e-3, ball, rail)
     if args.roller_type is None:
         raise InputError(f"{args.model} needs --roller-type N (a roller type of Table 1)")
     r = roller(args.roller_type)
+    check_loads(args.model, args.load_n, roller_load_limit_n(r, rail))
     if args.model == "tripp":
         if not args.depth_mm > 0:
             raise InputError(f"--depth-mm {args.depth_mm}: expected a positive evaluation depth in mm")

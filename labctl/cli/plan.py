@@ -41,6 +41,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _refuse_ball_campaigns(paths: list[str]) -> None:
+    """The planner ranks roller measurements: a campaign of ball specimens would enter as rollers whose
+    contact length is the ball's diameter. Refused, naming the file and series."""
+    from labctl.storage import CampaignReader
+
+    for path in paths:
+        try:
+            with open(path, "rb") as fh:
+                if fh.read(8) != b"\x89HDF\r\n\x1a\n":
+                    continue  # a stiffness table (CSV): rollers by its columns
+        except OSError:
+            continue  # the reader below names a missing file
+        with CampaignReader(path) as reader:
+            balls = [s for s in reader.series_indices() if reader.specimen(s).kind == "ball"]
+        if balls:
+            raise InputError(f"{path}: series {', '.join(map(str, balls))} are balls (Hertz point contacts); the "
+                             "planner ranks roller measurements: leave ball campaigns out (they calibrate the rig: "
+                             "labctl calibrate)")
+
+
 def run(args: argparse.Namespace) -> int:
     from labctl.discrepancy import load_points  # heavy (scipy): only when used
     from labctl.discrepancy.data import campaign_setup_stiffness
@@ -48,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from labctl.planning import parse_candidates, plan_measurements
     from labctl.protocol import load_protocol
 
+    _refuse_ball_campaigns(args.measured)
     candidates = parse_candidates(args.candidates)
     rig = load_rig(args.rig)
     protocol = load_protocol(args.protocol)

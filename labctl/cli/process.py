@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from labctl.cli.common import add_json, emit
+from labctl.errors import InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,16 +18,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _roller_points(path: str, done: Any) -> tuple[list[Any], list[int]]:
+    """The stiffness-table points of the roller series (a ball series is a Hertz point contact: its diameter is
+    no contact length), and the ball series left out."""
+    from labctl.storage import CampaignReader
+
+    with CampaignReader(path) as reader:
+        balls = [s for s in reader.series_indices() if reader.specimen(s).kind == "ball"]
+    identified = [r for r in done.rows if r.result.identified]
+    return [p for r, p in zip(identified, done.points, strict=True) if r.series not in balls], balls
+
+
 def run(args: argparse.Namespace) -> int:
     from labctl.report.notes import step_events
     from labctl.reprocess import process_campaign
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.outputs import atomic_output, check_outputs
     from labctl.storage.records import result_summary
     from labctl.storage.runlog import summarize
 
+    check_outputs([("--csv", args.csv)], [args.file, args.rig])
     done = process_campaign(args.file, rig=args.rig)
+    points, balls = done.points, []
     if args.csv:
-        write_stiffness_table(args.csv, done.points)
+        points, balls = _roller_points(args.file, done)
+        if not points:
+            raise InputError(f"--csv {args.csv}: {args.file} holds no identified roller step (series "
+                             f"{', '.join(map(str, balls)) or '-'} are balls: Hertz point contacts, not rows of a "
+                             "stiffness table of line contacts; see labctl report or labctl calibrate)")
+        with atomic_output(args.csv) as tmp:
+            write_stiffness_table(tmp, points)
     steps = []
     for r in done.rows:
         item = {"series": r.series, "specimen": r.specimen, "run": r.run, "step": r.step, "load_n": r.load_n,
@@ -35,13 +57,17 @@ def run(args: argparse.Namespace) -> int:
             item.update(step_events(r.info, r.result).to_dict())
         steps.append(item)
     log = summarize(done.log)
-    result = {"path": done.path, "status": done.status, "steps": steps, "points": len(done.points),
-              "csv": args.csv, "log": {"entries": log.entries, "by_kind": log.by_kind, "by_level": log.by_level,
+    result = {"path": done.path, "status": done.status, "steps": steps, "points": len(points),
+              "csv": args.csv, "ball_series_left_out": balls,
+              "log": {"entries": log.entries, "by_kind": log.by_kind, "by_level": log.by_level,
                                        "warnings": log.warnings, "errors": log.errors}}
 
     def text(res: dict) -> str:
         lines = [f"{res['path']} ({res['status']}): {res['points']} stiffness points"
                  + (f" → {res['csv']}" if res["csv"] else "")]
+        if res["ball_series_left_out"]:
+            lines.append(f"  ball series {', '.join(map(str, res['ball_series_left_out']))} left out of the CSV "
+                         "(point contacts, not rows of a roller stiffness table)")
         lg = res["log"]
         kinds = ", ".join(f"{n} {k}" for k, n in lg["by_kind"].items())
         lines.append(f"  run log: {lg['warnings']} warning(s), {lg['errors']} error(s)"

@@ -33,12 +33,30 @@ def _step(text: str | None) -> tuple[int, int, int] | None:
     return s, r, n
 
 
+REPORT_NAMES = ("report.html", "stiffness.csv")
+FIGURE_SUFFIXES = (".png", ".svg")
+
+
+def _refuse_input_in_out(file: str, out: str) -> None:
+    """The report writes report.html, stiffness.csv and *.png/*.svg into --out: never over the campaign file."""
+    from pathlib import Path
+
+    from labctl.storage.outputs import same_file
+
+    inp, folder = Path(file), Path(out)
+    if (inp.is_file() and folder.is_dir() and same_file(inp.parent, folder)
+            and (inp.name in REPORT_NAMES or inp.suffix.lower() in FIGURE_SUFFIXES)):
+        raise InputError(f"--out {out}: the report writes {inp.name} there, which is the input {file}; "
+                         "choose another --out folder (an output never overwrites an input)")
+
+
 def run(args: argparse.Namespace) -> int:
     from labctl.report import build_report
 
     if args.band is not None and not 0 < args.band < 100:
         raise InputError(f"--band {args.band:g}: expected a percentage between 0 and 100")
     band = None if args.band is None else args.band / 100
+    _refuse_input_in_out(args.file, args.out)
     result = build_report(args.file, args.out, _step(args.frf_step), band).to_dict()
     emit(result, args.json, _text)
     return 0

@@ -64,7 +64,10 @@ def run(args: argparse.Namespace) -> int:
     from labctl.campaign import load_operator_script, run_campaign
     from labctl.cli.progress import ProgressPrinter
     from labctl.engine import RunControl
+    from labctl.storage.outputs import check_outputs
 
+    check_outputs([("--out", args.out)], [args.protocol, args.world, args.rig, args.devices, args.operator],
+                  allow_campaign=True)
     operator = load_operator_script(args.operator) if args.operator else None
     control = RunControl()
     install_sigint(control)

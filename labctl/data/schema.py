@@ -353,6 +353,6 @@ def _describe(spec: Spec) -> str:
 def parse_toml(text: str, source: str) -> dict[str, Any]:
     """Parse TOML text; a syntax error names ``source`` (the file, or e.g. a campaign's stored copy)."""
     try:
-        return tomllib.loads(text)
+        return tomllib.loads(text.removeprefix("\ufeff"))  # a UTF-8 byte-order mark is not content
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{source}: not valid TOML ({exc})") from None

@@ -47,6 +47,26 @@ def next_load_n(loads: list[float], step_angle_deg: float, rig: RigConfig) -> fl
     return loads[-1] + rig.load_per_knob_degree_n * step_angle_deg
 
 
+EXTRA_STEPS = 5
+"""Base steps a repetition may run past the plan's estimate while the measured loads stay clearly under the cap."""
+
+
+def continue_after(loads: list[float], plan: StepPlan, rig: RigConfig, margin: float) -> bool:
+    """Whether a repetition runs another base step after the steps whose loads are ``loads``.
+
+    The plan's estimate (from the rig's load per knob degree) decides, unless the measured loads say clearly,
+    by more than ``margin`` of the cap, that the next step would pass the cap (stop early) or stay under it
+    (go on, at most ``EXTRA_STEPS`` more). Load noise within the margin never changes the plan, so a
+    repetition resumed after a crash runs the steps an uninterrupted one would have run."""
+    k = len(loads)
+    if k >= plan.steps_estimate + EXTRA_STEPS:
+        return False
+    expected = next_load_n(loads, plan.step_angle_deg, rig)
+    if k < plan.steps_estimate:
+        return expected <= plan.cap_n * (1 + margin)
+    return expected <= plan.cap_n * (1 - margin)
+
+
 @dataclass(frozen=True)
 class AddedStep:
     """A load step an adaptive campaign adds after a repetition's base steps, and why."""

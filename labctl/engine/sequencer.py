@@ -20,7 +20,7 @@ from labctl.engine.calls import GuardedCaller, HardwareFailure
 from labctl.engine.conditions import DEFAULT_CONDITIONS, Condition
 from labctl.engine.control import RunControl, StopRequested
 from labctl.engine.eta import campaign_estimator
-from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, next_load_n, plan_steps
+from labctl.engine.plan import AddedStep, StepAdvisor, StepPlan, continue_after, plan_steps
 from labctl.engine.runlog import RunLog
 from labctl.engine.static import open_sensor, store_static_curve
 from labctl.engine.steps import Interlock, StepProcessor, StepRunner
@@ -29,6 +29,7 @@ from labctl.physics.references import reference_curves
 from labctl.physics.rig_config import RigConfig
 from labctl.protocol import Protocol, SpecimenSpec
 from labctl.recording import process_step
+from labctl.storage.diskspace import DiskFull
 from labctl.storage.records import RepetitionCurve
 from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.store import CampaignStore, StepRow
@@ -37,10 +38,6 @@ RigFactory = Callable[[SpecimenSpec, int], Rig]
 ADDED_ATTR = "added_steps"
 """Run attribute: JSON list of the steps an adaptive campaign added to the repetition (``AddedStep`` fields)."""
 NOTHING_LEFT = "nothing left to do: every repetition of this campaign is complete"
-EXTRA_STEPS_ALLOWED = 5
-"""Steps a repetition may take beyond the plan's estimate (softer springs than the rig file says) before it stops."""
-CAP_MARGIN = 1e-6
-"""Relative margin on the load cap: a next step predicted at the cap itself (rounding) is still taken."""
 RATE_TOLERANCE = 1e-9
 """Relative difference between the asked and the set sample rate below which the DAQ is said to have obeyed."""
 ACQUIRE_GRACE_S = 10.0
@@ -104,6 +101,7 @@ class Engine:
         self.bus = bus or ev.EventBus()
         self.control = control or RunControl()
         self.t0 = time.monotonic()
+        self.position = ev.Position(1, 0)
         acq = protocol.acquisition
         self.runlog = RunLog(store, lambda m: self.bus.publish(ev.Notice(self.now(), "error", m, kind="log")))
         self.call = GuardedCaller(acq.timeout_s, acq.retries,
@@ -137,7 +135,14 @@ class Engine:
         self.emit(ev.OperatorPrompted(self.now(), message, action, answer, position))
         return answer
 
+    def where(self) -> str:
+        """The position last passed (series, run, step), for a failure's message."""
+        p = self.position
+        parts = [f"series {p.series}"] + ([f"run {p.run}"] if p.run else []) + ([f"step {p.step}"] if p.step else [])
+        return " ".join(parts)
+
     def checkpoint(self, pos: ev.Position) -> None:
+        self.position = pos
         self.control.checkpoint(on_pause=lambda: self.emit(ev.Paused(self.now(), pos)),
                                 on_resume=lambda: self.emit(ev.Resumed(self.now(), pos)))
 
@@ -170,10 +175,17 @@ class Engine:
             outcome.status, outcome.message = stop.status, f"stopped by request ({stop.status}); resume with --resume"
         except Interlock as exc:
             outcome.status, outcome.message = "interlock", str(exc)
+        except DiskFull as exc:  # the file holds every impact but the one in flight: resumable once there is room
+            outcome.status, outcome.message = "interrupted", str(exc)
         except (LabctlError, DeviceError) as exc:
             outcome.status, outcome.message = "failed", str(exc)
         except KeyboardInterrupt:
             outcome.status, outcome.message = "interrupted", "interrupted; resume with --resume"
+        except Exception as exc:  # e.g. a world law failing at some load: the file says failed, where and why
+            outcome.status = "failed"
+            outcome.message = (f"failed at {self.where()}: {' '.join(str(exc).split()) or type(exc).__name__}; "
+                               "fix the cause, then --resume")
+            raise
         finally:
             self.call.close()
             resumed_runs = resumed and any(self.store.complete_runs(i) for i in range(1, len(self.plans) + 1))
@@ -237,9 +249,7 @@ class Engine:
                 self.checkpoint(ev.Position(series, run, step))
                 load = steps.run_step(step, (step - 1) * plan.step_angle_deg, plan.steps_estimate)
             loads.append(load)
-            if step >= plan.steps_estimate + EXTRA_STEPS_ALLOWED:
-                break
-            if next_load_n(loads, plan.step_angle_deg, self.rig_config) > plan.cap_n * (1 + CAP_MARGIN):
+            if not continue_after(loads, plan, self.rig_config, self.protocol.loading.load_tolerance_fraction):
                 break
             step += 1
         if self.advisor is not None:

@@ -139,12 +139,48 @@ _BINARY: dict[type, Callable[[Any, Any], Any]] = {
 }
 
 
+MAX_EXPRESSION_CHARS = 2000
+MAX_EXPRESSION_NODES = 400
+MAX_EXPRESSION_DEPTH = 40
+MAX_CONSTANT = 1e100
+"""Bounds of a world expression: text length, syntax-tree size and depth, constants' magnitude. A contact
+law is a line or two of arithmetic; these keep parsing and evaluating small and the numbers finite."""
+STIFFNESS_RANGE_N_PER_M = (1e3, 1e13)
+"""Stiffness a world law may give a roller: far wider than any steel contact (about 1e7 to 1e10 N/m), narrow
+enough that the rig's modes stay finite numbers."""
+
+
+def _depth(tree: ast.AST) -> int:
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, d = stack.pop()
+        deepest = max(deepest, d)
+        stack.extend((child, d + 1) for child in ast.iter_child_nodes(node))
+    return deepest
+
+
 def check_expression(text: str) -> ast.Expression:
-    """Parse ``text`` and refuse anything but numbers, the fixed names, + - * / **, unary ± and the functions."""
+    """Parse ``text`` and refuse anything but numbers, the fixed names, + - * / **, unary ± and the functions,
+    and anything beyond the bounds above (a ValueError saying which)."""
+    if len(text) > MAX_EXPRESSION_CHARS:
+        raise ValueError(f"{len(text)} characters, more than the {MAX_EXPRESSION_CHARS} an expression may have")
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise ValueError(f"not an expression: {exc.msg}") from None
+    except (RecursionError, MemoryError):
+        raise ValueError(f"nested too deeply (at most {MAX_EXPRESSION_DEPTH} levels)") from None
+    nodes = sum(1 for _ in ast.walk(tree))
+    if nodes > MAX_EXPRESSION_NODES:
+        raise ValueError(f"{nodes} terms and operators, more than the {MAX_EXPRESSION_NODES} an expression may have")
+    if _depth(tree) > MAX_EXPRESSION_DEPTH:
+        raise ValueError(f"nested more than {MAX_EXPRESSION_DEPTH} levels deep")
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(node.value, bool):
+            if isinstance(node.value, int) and node.value.bit_length() > 400:
+                raise ValueError(f"the integer {str(node.value)[:12]}… is too large (at most {MAX_CONSTANT:g})")
+            if not abs(float(node.value)) <= MAX_CONSTANT:
+                raise ValueError(f"the number {node.value:.6g} is out of range (at most {MAX_CONSTANT:g})")
     callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         if isinstance(node, (ast.Expression, ast.Load)) or type(node) in _BINARY:
@@ -231,10 +267,20 @@ class WorldLaw:
         return self.base.name
 
     def stiffness_n_per_m(self, case: ContactCase, load_n: ArrayLike) -> FloatArray:
+        """The law's stiffness; a value outside ``STIFFNESS_RANGE_N_PER_M`` (or not finite) is a ValueError
+        naming the law, the roller type and the loads, not a number the rig model cannot use."""
         f = as_load(load_n, self.base.name)
         k = np.asarray(self.base.stiffness_n_per_m(case, f), dtype=float)
         for effect in self.effects:
             k = effect.apply(case, f, k)
+        lo, hi = STIFFNESS_RANGE_N_PER_M
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.isfinite(k) & (k >= lo) & (k <= hi))
+        if np.any(bad):
+            at = np.broadcast_to(f, np.shape(k))[bad]
+            raise ValueError(f"world law {self.base.name!r} gives a stiffness of {np.asarray(k)[bad].flat[0]:.4g} N/m "
+                             f"for roller type {case.roller.type_id} at {at.min():g} N; expected {lo:g} to "
+                             f"{hi:g} N/m (check the law's numbers and the loads it covers)")
         return k
 
     @property

@@ -1,20 +1,31 @@
 """Reader for the impacts NPZ contract (docs/contracts.md): ``fs``, ``force``, ``accel``, ``channels``.
 
-Loaded with ``allow_pickle=False``: a file that hides Python objects is refused, never executed. Every
-error names the file, the key and what was expected.
+Loaded with ``allow_pickle=False``: a file that hides Python objects is refused, never executed. Before
+anything is decompressed, every member's stated size and every array's header are checked against limits
+(``MAX_NPZ_BYTES``, ``MAX_RATIO``), so a zip bomb or a header announcing terabytes is refused without
+allocating; a damaged member (CRC error, bad deflate stream) is one line. Every error names the file, the
+key and what was expected.
 """
 
 from __future__ import annotations
 
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
 from labctl.errors import InputError
 
 KEYS = ("fs", "force", "accel", "channels")
+MAX_NPZ_BYTES = 2**30
+"""Largest uncompressed impacts NPZ read (a step of 10 blows, 16 channels, 262 144 samples is 0.35 GiB)."""
+MAX_RATIO = 100.0
+"""Largest compression ratio of a member above ``RATIO_FROM_BYTES``: measured samples (noise in every bit)
+hardly compress; a member a hundred times smaller than it unpacks to is a zip bomb."""
+RATIO_FROM_BYTES = 2**24
 
 
 @dataclass(frozen=True)
@@ -38,6 +49,9 @@ def _read(data: np.lib.npyio.NpzFile, key: str, where: str) -> np.ndarray:
             raise InputError(f"{where}: key '{key}' holds pickled Python objects; expected a plain numeric or "
                              "string array (files are read with allow_pickle=False)") from None
         raise InputError(f"{where}: key '{key}' cannot be read ({exc})") from None
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError) as exc:
+        raise InputError(f"{where}: key '{key}' is damaged ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:120]})") from None
 
 
 def _numeric(value: np.ndarray, key: str, ndim: int, layout: str, where: str) -> np.ndarray:
@@ -54,9 +68,57 @@ def _numeric(value: np.ndarray, key: str, ndim: int, layout: str, where: str) ->
     return out
 
 
+def _check_members(path: str | Path, where: str) -> None:
+    """Refuse an NPZ whose members would unpack to more than the limits allow, or whose arrays' headers do
+    not match their members' sizes, reading only the zip directory and each array's header."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            total = sum(i.file_size for i in infos)
+            if total > MAX_NPZ_BYTES:
+                raise InputError(f"{where}: unpacks to {total / 2**20:.0f} MiB, more than the "
+                                 f"{MAX_NPZ_BYTES / 2**20:.0f} MiB an impacts NPZ may hold")
+            for info in infos:
+                key = info.filename.removesuffix(".npy")
+                if info.file_size > RATIO_FROM_BYTES and info.file_size > MAX_RATIO * max(info.compress_size, 1):
+                    raise InputError(f"{where}: key '{key}' unpacks {info.file_size / info.compress_size:.0f}-fold "
+                                     f"to {info.file_size / 2**20:.0f} MiB; refused as a zip bomb (measured "
+                                     "samples do not compress like that)")
+                with zf.open(info) as fh:
+                    _check_header(fh, info, key, where)
+    except zipfile.BadZipFile as exc:
+        raise InputError(f"{where}: not a readable NPZ file ({exc})") from None
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(f"{where}: damaged NPZ file ({type(exc).__name__}: {exc})") from None
+
+
+def _check_header(fh: IO[bytes], info: zipfile.ZipInfo, key: str, where: str) -> None:
+    """An array member's header must announce exactly the bytes the member holds."""
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh, max_header_size=10000)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh, max_header_size=10000)
+    except (ValueError, SyntaxError) as exc:
+        raise InputError(f"{where}: key '{key}' has no readable array header ({' '.join(str(exc).split())[:120]})"
+                         ) from None
+    count = 1
+    for n in shape:
+        count *= int(n)
+    if dtype.hasobject:
+        return  # refused with its own message when read (allow_pickle=False)
+    data_bytes = count * dtype.itemsize
+    if data_bytes > info.file_size:
+        raise InputError(f"{where}: key '{key}' announces shape {shape} ({data_bytes / 2**20:.0f} MiB) but its "
+                         f"member holds {info.file_size} bytes; damaged or crafted file")
+
+
 def load_impacts_npz(path: str | Path) -> ImpactSet:
     """Read and validate an impacts NPZ; shapes must agree and channel names must be unique strings."""
     where = str(path)
+    if Path(path).is_file() and zipfile.is_zipfile(path):
+        _check_members(path, where)
     try:
         data = np.load(path, allow_pickle=False)
     except FileNotFoundError:

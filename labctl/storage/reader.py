@@ -8,15 +8,18 @@ file: an unknown format version, a complete impact with a missing dataset, a mis
 from __future__ import annotations
 
 import json
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
 
 from labctl.errors import InputError
 from labctl.storage import schema as s
+from labctl.storage.inuse import in_use_message, is_lock_error
 from labctl.storage.records import (
     CHECKS,
     OPERATOR,
@@ -33,6 +36,7 @@ from labctl.storage.records import (
     result_from_mapping,
 )
 from labctl.storage.runlog import LogEntry, read_entries
+from labctl.storage.safety import check_structure, number_attr
 from labctl.storage.specimen import SpecimenRecord
 
 OPERATOR_REASONS = ("operator_accepted", "operator_rejected")
@@ -67,16 +71,38 @@ def _where(group: h5py.Group | h5py.Dataset) -> str:
     return f"{group.file.filename}:{group.name}"
 
 
+MAX_TRACE_VALUES = 2**28
+"""More samples than this in one impact's trace (2 GiB as float64) is not a record a DAQ delivered."""
+
+
 def trace(ds: h5py.Dataset) -> np.ndarray:
-    """A stored trace in physical units: counts × scale + offset (per channel), or the stored floats."""
-    raw = ds[()]
-    if "scale" not in ds.attrs:
-        return np.asarray(raw, dtype=float)
-    scale = np.asarray(ds.attrs["scale"], dtype=float)
-    offset = np.asarray(ds.attrs.get("offset", 0.0), dtype=float)
+    """A stored trace in physical units: counts × scale + offset (per channel), or the stored floats.
+
+    Refused with one line naming the dataset: not numbers, not 1-D or 2-D, implausibly large, integer counts
+    without their ``scale``, a ``scale`` or ``offset`` that is not one finite number per channel."""
+    where = _where(ds)
+    if ds.dtype.kind not in "iuf" or ds.ndim not in (1, 2):
+        raise InputError(f"{where}: expected a 1-D or 2-D array of numbers, found {ds.ndim}-D {ds.dtype}")
+    if ds.size > MAX_TRACE_VALUES:
+        raise InputError(f"{where}: {ds.size} samples, more than the {MAX_TRACE_VALUES} a record may hold")
+    rows = ds.shape[0] if ds.ndim == 2 else 1
+    scale = number_attr(ds, "scale")
+    if scale is None:
+        if ds.dtype.kind in "iu":
+            raise InputError(f"{where}: integer ADC counts without their 'scale' attribute (the step per "
+                             "count); the samples cannot be read back as physical values")
+        return np.asarray(ds[()], dtype=float)
+    offset = number_attr(ds, "offset", default=np.zeros(rows))
+    for name, values in (("scale", scale), ("offset", offset)):
+        if values.size not in (1, rows) or (ds.ndim == 1 and values.size != 1):
+            raise InputError(f"{where}: attribute {name!r} has {values.size} values for {rows} channel(s)")
+    if not np.all(scale != 0):
+        raise InputError(f"{where}: attribute 'scale' is 0; the samples cannot be read back")
+    raw = ds[()].astype(float)
     if raw.ndim == 2:
-        return raw.astype(float) * scale[:, None] + np.broadcast_to(offset, scale.shape)[:, None]
-    return raw.astype(float) * float(scale) + float(offset)
+        return raw * np.broadcast_to(scale.reshape(-1), (rows,))[:, None] + np.broadcast_to(
+            offset.reshape(-1), (rows,))[:, None]
+    return raw * float(scale.reshape(-1)[0]) + float(offset.reshape(-1)[0])
 
 
 def impact_info(g: h5py.Group) -> ImpactInfo:
@@ -212,15 +238,21 @@ def curves_of(h5: h5py.File) -> list[RepetitionCurve]:
 class CampaignReader:
     """Read-only view of a campaign file; errors on corrupt or foreign files name the file."""
 
-    def __init__(self, path: str | Path, *, locking: bool | None = None) -> None:
-        """``locking=False``: open without HDF5's file lock, to look at a file another process is writing
-        (``labctl tui --watch`` re-reads it each time and retries a read that caught a flush half-way)."""
+    def __init__(self, path: str | Path, *, live: bool = False, attrs_only: bool = False,
+                 locking: bool | None = None) -> None:
+        """``live`` (or ``locking=False``): read a file a running campaign is writing, without taking HDF5's lock
+        (see ``read_live``; the writer is not disturbed, but a read may meet a half-flushed impact and must be
+        retried; ``labctl tui --watch`` does so). ``attrs_only``: the caller reads only the root attributes (stored
+        in the file's own root header), so the walk over every link that guards data reads is skipped."""
+        live = live or locking is False
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
         try:
-            self.h5 = h5py.File(self.path, "r", **({} if locking is None else {"locking": locking}))
+            self.h5 = h5py.File(self.path, "r", locking=False) if live else h5py.File(self.path, "r")
         except OSError as exc:
+            if is_lock_error(exc):
+                raise InputError(in_use_message(self.path)) from None
             raise InputError(f"{self.path}: not a readable HDF5 campaign file ({exc})") from None
         if _decode(self.h5.attrs.get("format")) != s.FORMAT:
             self.h5.close()
@@ -231,6 +263,13 @@ class CampaignReader:
             raise InputError(f"{self.path}: format_version {version!r} is not one this labctl reads "
                              f"({', '.join(map(str, s.READABLE_VERSIONS))}); update labctl")
         self.format_version = int(version)
+        if attrs_only:
+            return
+        try:
+            check_structure(self.h5, self.path)
+        except BaseException:
+            self.h5.close()
+            raise
 
     def close(self) -> None:
         if self.h5.id.valid:
@@ -309,6 +348,31 @@ class CampaignReader:
     def curves(self) -> list[RepetitionCurve]:
         """The stored curve of every finished repetition, in series and run order."""
         return curves_of(self.h5)
+
+
+T = TypeVar("T")
+LIVE_ATTEMPTS = 5
+LIVE_RETRY_S = 0.2
+
+
+def read_live(path: str | Path, read: Callable[[CampaignReader], T], *, attempts: int = LIVE_ATTEMPTS,
+              retry_s: float = LIVE_RETRY_S) -> T:
+    """``read(reader)`` on a campaign a running ``labctl run`` may be writing, without disturbing it.
+
+    The file is opened read-only without HDF5's lock (the writer keeps its own); the writer flushes after
+    every impact, so what a read sees is the file as of some flush, unless it met a flush in progress: then
+    HDF5 or the reader's checks raise, and the read is done again on a fresh handle after ``retry_s``. Only
+    groups marked complete are read, so a half-written impact is never data. InputError after ``attempts``."""
+    last: BaseException | None = None
+    for attempt in range(attempts):
+        try:
+            with CampaignReader(path, live=True) as reader:
+                return read(reader)
+        except (OSError, KeyError, RuntimeError, ValueError, InputError) as exc:
+            last = exc
+            if attempt + 1 < attempts:
+                time.sleep(retry_s)
+    raise InputError(f"{path}: no consistent read of the running campaign in {attempts} attempts ({last})")
 
 
 @dataclass

@@ -15,6 +15,8 @@ from dataclasses import astuple, dataclass, fields
 import h5py
 import numpy as np
 
+from labctl.errors import InputError
+
 LOG = "log"
 ENTRIES = "entries"
 LOG_CHUNK = 64  # rows per chunk of the log table
@@ -63,9 +65,16 @@ def read_entries(h5: h5py.File) -> list[LogEntry]:
     table = None if group is None else group.get(ENTRIES)
     if table is None:
         return []
+    names = getattr(table.dtype, "names", None) or ()
+    if not isinstance(table, h5py.Dataset) or table.ndim != 1 or set(names) != set(DTYPE.names or ()):
+        raise InputError(f"{h5.filename}:/{LOG}/{ENTRIES}: not a run log table (expected a 1-D table with "
+                         f"columns {', '.join(DTYPE.names or ())})")
     out = []
-    for row in table[()]:
-        values = {f.name: int(row[f.name]) if f.type == "int" else _text(row[f.name]) for f in fields(LogEntry)}
+    for i, row in enumerate(table[()]):
+        try:
+            values = {f.name: int(row[f.name]) if f.type == "int" else _text(row[f.name]) for f in fields(LogEntry)}
+        except (TypeError, ValueError, UnicodeDecodeError) as exc:
+            raise InputError(f"{h5.filename}:/{LOG}/{ENTRIES} row {i}: unreadable ({exc})") from None
         out.append(LogEntry(**values))
     return out
 

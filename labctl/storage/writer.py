@@ -2,25 +2,32 @@
 
 HDF5 keeps changed metadata in memory until a flush, so a process killed between flushes leaves the file as
 it was at the last flush. Each group gets ``complete = True`` as its last write; resume deletes groups
-without it.
+without it. Before each impact the writer checks there is room for it (``labctl.storage.diskspace``); a
+write that fails anyway (disk full, file-size limit, I/O error) is not flushed: the file is reopened as it
+was at the last flush, the partial impact dropped, and ``DiskFull`` raised, so the campaign stays
+processable and resumable.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, fields, is_dataclass, replace
+import os
+from collections.abc import Mapping
+from dataclasses import fields, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import h5py
-import numpy as np
 
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.stiffness_table import StiffnessPoint
 from labctl.storage import schema as s
+from labctl.storage.diskspace import DiskFull, discard, trim
+from labctl.storage.encode import _attrs, _write_trace, impact_attrs, write_frf
+from labctl.storage.guard import WriteGuard, guarded
+from labctl.storage.inuse import clear_writer, in_use_message, is_lock_error, mark_writer
 from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
 from labctl.storage.records import (
     ImpactInfo,
@@ -31,6 +38,7 @@ from labctl.storage.records import (
     curve_from_steps,
 )
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
+from labctl.storage.safety import check_structure
 from labctl.storage.specimen import SpecimenRecord
 from labctl.storage.store import StepRow, StepStamp, first_impact_s
 
@@ -39,70 +47,11 @@ def utc_now() -> str:
     return datetime.now(UTC).isoformat(timespec="milliseconds")
 
 
-def _attrs(obj: h5py.Group | h5py.Dataset, values: Mapping[str, Any]) -> None:
-    for key, value in values.items():
-        if value is not None:
-            obj.attrs[key] = _attr_value(value)
+IMPACT_SLACK_BYTES = 256 * 2**10
+"""An impact's metadata beyond its samples (group, two dataset headers, chunk index, attributes), generously."""
 
 
-def _dumps(value: Any) -> Any:
-    """JSON for nested values (dataclasses included)."""
-    return json.dumps(value, default=lambda o: asdict(o) if is_dataclass(o) else str(o))
-
-
-def _attr_value(value: Any) -> Any:
-    if is_dataclass(value) and not isinstance(value, type):
-        return _dumps(value)
-    if isinstance(value, list | tuple | dict) and not (isinstance(value, list | tuple) and value
-                                                         and all(isinstance(v, int | float) for v in value)):
-        return _dumps(value)
-    return value
-
-
-ADC_BITS = (24, 16, 18, 20, 22, 12, 14)  # common converter resolutions, most likely first
-COMPRESS = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
-COHERENCE_DECIMALS = 4  # the stored coherence (derived, recomputable from the raw impacts) is kept to 1e-4
-
-
-def adc_counts(x: np.ndarray, range_units: float | None) -> tuple[np.ndarray, float] | None:
-    """``x`` as integer counts of an ADC spanning ±``range_units`` and the step per count, if that is exact.
-
-    Exact means counts × step reproduces every sample bit for bit, so storing counts loses nothing.
-    """
-    if range_units is None or not np.isfinite(range_units) or range_units <= 0 or not np.isfinite(x).all():
-        return None
-    probe = x[:256]
-    for bits in ADC_BITS:
-        step = 2.0 * float(range_units) / 2.0**bits
-        if not np.array_equal(np.rint(probe / step) * step, probe):  # cheap refusal on the first samples
-            continue
-        k = np.rint(x / step)
-        if np.abs(k).max(initial=0.0) <= 2.0**31 - 1 and np.array_equal(k * step, x):
-            return k.astype(np.int32), step
-    return None
-
-
-def _write_trace(g: h5py.Group, name: str, x: np.ndarray, ranges: Sequence[float | None]
-                 ) -> tuple[h5py.Dataset, np.ndarray]:
-    """A trace as integer counts with per-channel ``scale`` (scale-offset filter) when the samples are exact
-    ADC steps, else as float32 with shuffle + gzip; with the values a reader will get back (no read needed)."""
-    x = np.asarray(x, dtype=float)
-    rows = x.reshape(-1, x.shape[-1])
-    coded = [adc_counts(row, r) for row, r in zip(rows, ranges, strict=True)] if len(ranges) == len(rows) else [None]
-    n = x.shape[-1]
-    chunks = (1, min(n, s.TRACE_CHUNK)) if x.ndim == 2 else (min(n, s.TRACE_CHUNK),)
-    if all(c is not None for c in coded):
-        counts = np.stack([c[0] for c in coded]).reshape(x.shape)  # type: ignore[index]
-        scale = [c[1] for c in coded]  # type: ignore[index]
-        ds = g.create_dataset(name, data=counts, chunks=chunks, scaleoffset=0)
-        ds.attrs["scale"] = scale if x.ndim == 2 else scale[0]
-        ds.attrs["offset"] = [0.0] * len(scale) if x.ndim == 2 else 0.0
-        return ds, x  # counts × scale reproduce every sample (adc_counts checked it)
-    stored = x.astype(np.float32)
-    return g.create_dataset(name, data=stored, chunks=chunks, **COMPRESS), stored.astype(float)
-
-
-class CampaignWriter:
+class CampaignWriter(WriteGuard):
     """An open campaign file; create a new one with ``create`` or continue one with ``open_existing``."""
 
     def __init__(self, h5: h5py.File) -> None:
@@ -113,15 +62,40 @@ class CampaignWriter:
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
                config_files: Mapping[str, str], description: Mapping[str, Any]) -> CampaignWriter:
-        """A new file (refusing to overwrite an existing one)."""
+        """A new file (refusing to overwrite an existing one).
+
+        The file is made under a temporary name and renamed when its root attributes and configuration are
+        flushed, so a crash during creation leaves no campaign file that cannot be opened or resumed."""
         p = Path(path)
         if p.exists():
             raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
+        tmp = p.with_name(f".{p.name}.creating")
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
-            h5 = h5py.File(p, "w-")
+            h5 = h5py.File(tmp, "w")  # a leftover of a crashed creation is ours to replace
         except OSError as exc:
             raise InputError(f"{p}: cannot create the campaign file ({exc.strerror or exc})") from None
+        try:
+            cls._initialise(h5, protocol_name=protocol_name, backend=backend, seed=seed, config_files=config_files,
+                            description=description)
+            h5.close()
+            if p.exists():
+                raise InputError(f"{p}: already exists; use --resume to continue it or choose another --out")
+            os.replace(tmp, p)
+        except BaseException:
+            discard(h5)
+            tmp.unlink(missing_ok=True)
+            raise
+        try:
+            writer = cls(h5py.File(p, "r+"))
+        except OSError as exc:
+            raise InputError(f"{p}: cannot open the new campaign file ({exc.strerror or exc})") from None
+        mark_writer(p)
+        return writer
+
+    @staticmethod
+    def _initialise(h5: h5py.File, *, protocol_name: str, backend: str, seed: int | None,
+                    config_files: Mapping[str, str], description: Mapping[str, Any]) -> None:
         _attrs(h5, {"format": s.FORMAT, "format_version": s.FORMAT_VERSION, "software_version": __version__,
                     "created_utc": utc_now(), "backend": backend, "protocol_name": protocol_name,
                     "seed": -1 if seed is None else seed, "status": "running",
@@ -130,7 +104,6 @@ class CampaignWriter:
         for name, text in config_files.items():
             cfg.create_dataset(name, data=text, dtype=h5py.string_dtype())
         h5.flush()
-        return cls(h5)
 
     @classmethod
     def open_existing(cls, path: str | Path) -> CampaignWriter:
@@ -141,6 +114,8 @@ class CampaignWriter:
         try:
             h5 = h5py.File(p, "r+")
         except OSError as exc:
+            if is_lock_error(exc):
+                raise InputError(in_use_message(p)) from None
             raise InputError(f"{p}: cannot open the campaign file for resuming ({exc})") from None
         if h5.attrs.get("format") != s.FORMAT:
             h5.close()
@@ -150,7 +125,13 @@ class CampaignWriter:
             h5.close()
             raise InputError(f"{p}: written with campaign format {version}; --resume continues only format "
                              f"{s.FORMAT_VERSION} files (process, report and export still read it)")
+        try:
+            check_structure(h5, p)
+        except BaseException:
+            h5.close()
+            raise
         writer = cls(h5)
+        mark_writer(p)
         writer._drop_incomplete()
         h5.attrs["status"] = "running"
         h5.attrs["resumed_utc"] = utc_now()
@@ -177,6 +158,7 @@ class CampaignWriter:
     def has_series(self) -> bool:
         return any(k.startswith("series_") for k in self.h5)
 
+    @guarded
     def _group(self, *names: str, attrs: Mapping[str, Any] | None = None) -> h5py.Group:
         g = self.h5
         for n in names:
@@ -197,6 +179,7 @@ class CampaignWriter:
         g = self.h5.get(s.series_name(series))
         return bool(g is not None and g.attrs.get("mounted", False))
 
+    @guarded
     def mark_mounted(self, series: int) -> None:
         self.h5[s.series_name(series)].attrs["mounted"] = True
         self.h5.flush()
@@ -222,6 +205,7 @@ class CampaignWriter:
             return None
         return float(g.attrs["load_n"])
 
+    @guarded
     def update_step(self, series: int, run: int, step: int, attrs: Mapping[str, Any]) -> None:
         _attrs(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)], attrs)
         self.h5.flush()
@@ -249,7 +233,15 @@ class CampaignWriter:
 
     def write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> ImpactRecord:
         """Store one blow (accepted or not) and flush; ``complete`` is written last. Returns the record as a
-        reader will read it back (traces at their stored precision), so the caller needs no read-back."""
+        reader will read it back (traces at their stored precision), so the caller needs no read-back.
+
+        Raises DiskFull before writing when there is no room for it (with the reserve), and after a failed
+        write, with the file reopened as of the previous impact."""
+        self.ensure_room(4 * (record.force_n.size + record.accel_m_per_s2.size) + IMPACT_SLACK_BYTES)
+        with self._writing():
+            return self._write_impact(series, run, step, record)
+
+    def _write_impact(self, series: int, run: int, step: int, record: ImpactRecord) -> ImpactRecord:
         g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].create_group(
             s.impact_name(record.attempt))
         cal, info = record.calibration, record.info
@@ -263,12 +255,7 @@ class CampaignWriter:
                    "range_units": cal.accel_range_m_per_s2})
         if self._accepted is not None:
             self._accepted += int(info.verdict.accepted)
-        _attrs(g, {"attempt": record.attempt, "sample_rate_hz": info.sample_rate_hz,
-                   "trigger_index": info.trigger_index, "timestamp_utc": info.timestamp_utc,
-                   "clipped": list(info.clipped), "check_accepted": bool(info.checks.accepted),
-                   "peak_force_n": info.checks.peak_force_n, "pulse_width_s": info.checks.pulse_width_s,
-                   "accepted": bool(info.verdict.accepted), "verdict_source": info.verdict.source,
-                   "verdict_reason": info.verdict.reason, "reasons": list(info.reasons)})
+        _attrs(g, impact_attrs(record))
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
         return replace(record, force_n=force_n, accel_m_per_s2=accel)
@@ -281,28 +268,22 @@ class CampaignWriter:
         g.attrs["verdict_reason"] = verdict.reason
         g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
 
+    @guarded
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
         self._verdict(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)],
                       verdict)
         self.h5.flush()
 
+    @guarded
     def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
         """Store a step's result (and its FRF up to ``FRF_MAX_HZ``), then mark the step complete."""
         stg = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)]
         if s.RESULT in stg:
             del stg[s.RESULT]
         g = stg.create_group(s.RESULT)
-        frf = result.frf
-        if frf is not None:
-            f_hz = np.asarray(frf.frequencies_hz)
-            stride = max(1, round(s.FRF_SPACING_HZ / (f_hz[1] - f_hz[0]))) if f_hz.size > 1 else 1
-            keep = np.flatnonzero(f_hz <= s.FRF_MAX_HZ)[::stride]
-            g.create_dataset("frequencies_hz", data=frf.frequencies_hz[keep], **COMPRESS)
-            g.create_dataset("h1", data=np.asarray(frf.h1)[..., keep].astype(np.complex64), **COMPRESS)
-            coh = np.asarray(frf.coherence)[..., keep].astype(np.float32)  # 0..1: four decimals are all it carries
-            g.create_dataset("coherence", data=coh, scaleoffset=COHERENCE_DECIMALS,
-                             chunks=coh.shape if coh.ndim == 1 else (1, coh.shape[-1]))
+        if result.frf is not None:
+            write_frf(g, result.frf)
         _attrs(g, {f.name: getattr(result, f.name) for f in fields(result) if f.name != "frf"})
         if result.error:
             stg.attrs["failed"] = result.error
@@ -310,6 +291,7 @@ class CampaignWriter:
         stg.attrs[s.COMPLETE] = True
         self.h5.flush()
 
+    @guarded
     def complete_step(self, series: int, run: int, step: int) -> None:
         """Mark a step complete without a hammer result (a static-only step)."""
         self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)].attrs[s.COMPLETE] = True
@@ -330,6 +312,7 @@ class CampaignWriter:
         g = self.h5.get(f"{s.series_name(series)}/{s.run_name(run)}")
         return {} if g is None else attrs_of(g)
 
+    @guarded
     def set_run_attrs(self, series: int, run: int, attrs: Mapping[str, Any]) -> None:
         """Set attributes of a started repetition (nested values are stored as JSON)."""
         _attrs(self.h5[f"{s.series_name(series)}/{s.run_name(run)}"], attrs)
@@ -348,6 +331,7 @@ class CampaignWriter:
                                                  load_std))
         return points
 
+    @guarded
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
         """Build a repetition's stiffness-vs-load table (from ``steps`` when given, else from the stored step
         results), store it, return it."""
@@ -367,7 +351,7 @@ class CampaignWriter:
 
     def curves(self) -> list[RepetitionCurve]:
         """Every stored repetition curve, in series and run order (the whole campaign, resumed or not)."""
-        return curves_of(self.h5)
+        return [] if self.h5 is None else curves_of(self.h5)
 
     def completed_steps(self) -> list[StepStamp]:
         """Every completed step with its first impact's time (what the ETA needs)."""
@@ -375,6 +359,7 @@ class CampaignWriter:
                           first_impact_s(impact_info(ig) for ig in complete_impacts(st)))
                 for st in s.all_steps(self.h5) if st.attrs.get(s.COMPLETE)]
 
+    @guarded
     def append_log(self, entry: LogEntry) -> None:
         """Append one entry to the run log (``/log``) and flush; earlier entries are never rewritten."""
         append_entry(self.h5, entry)
@@ -383,15 +368,32 @@ class CampaignWriter:
         return read_entries(self.h5)
 
     def set_status(self, status: str, message: str = "") -> None:
-        self.h5.attrs["status"] = status
-        self.h5.attrs["status_message"] = message
-        self.h5.attrs["status_utc"] = utc_now()
-        self.h5.flush()
+        """Record how the run ended; after a failed write it is tried once more on the reopened file, and if
+        there is still no room the file keeps its last flushed status (``--resume`` and ``process`` read it)."""
+        for _ in range(2):
+            if self.h5 is None or self.h5.mode != "r+":
+                return
+            try:
+                with self._writing():
+                    self.h5.attrs["status"] = status
+                    self.h5.attrs["status_message"] = message
+                    self.h5.attrs["status_utc"] = utc_now()
+                    self.h5.flush()
+                return
+            except DiskFull:
+                continue
 
     def close(self) -> None:
-        if self.h5.id.valid:
+        if self.h5 is None or not self.h5.id.valid:
+            clear_writer(self.path)
+            return
+        try:
             self.h5.flush()
+            trim(self.h5)
             self.h5.close()
+        except (OSError, RuntimeError):
+            discard(self.h5)  # never a half-written flush: the file stays as of its last good one
+        clear_writer(self.path)
 
     def __enter__(self) -> CampaignWriter:
         return self

@@ -192,6 +192,10 @@ class UffFile:
             d = _extract58(bytes(self._mm[b.start:b.body]), header_only=True)
         except Exception as exc:  # pyuff raises bare Exception
             raise InputError(f"{self.path}: data set {index + 1} cannot be read ({exc})") from None
+        points, room = _int(d, "num_pts"), b.end - b.body
+        if not 1 <= points <= room:  # every value takes at least a byte: a larger count is refused before any read
+            raise InputError(f"{self.path}: data set {index + 1} announces {points} points in {room} bytes of "
+                             "data (file truncated, corrupt or crafted)")
         return Header(index=index, func_type=_int(d, "func_type"), load_case_id=_int(d, "load_case_id"),
                       node=_int(d, "rsp_node"), direction=_int(d, "rsp_dir"), ref_node=_int(d, "ref_node"),
                       ordinate_type=_int(d, "ordinate_spec_data_type"),

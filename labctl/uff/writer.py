@@ -24,6 +24,7 @@ import numpy as np
 from labctl import __version__
 from labctl.errors import InputError
 from labctl.storage import CampaignReader
+from labctl.storage.outputs import atomic_output, check_outputs
 from labctl.storage.specimen import SpecimenRecord
 from labctl.uff import mapping as m
 from labctl.uff.manifest import MANIFEST_COLUMNS, format_load_cases
@@ -150,6 +151,7 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
     out = Path(out)
     if out.is_dir():
         raise InputError(f"{out}: is a directory, expected a .uff file name")
+    check_outputs([("--uff", out), ("--manifest", manifest)], [path])
     tmp = out.with_name(f".{out.name}.part")
     with CampaignReader(path) as reader:
         protocol = str(reader.attrs.get("protocol_name", ""))
@@ -261,7 +263,7 @@ def _manifest_row(file: str, specimen: SpecimenRecord, run: int, step: Any, load
 
 def write_manifest(path: str | Path, rows: list[dict[str, Any]]) -> None:
     """The manifest CSV ``labctl import`` reads: one row per load step, units in the column names."""
-    with Path(path).open("w", newline="", encoding="utf-8") as fh:
+    with atomic_output(path) as tmp, Path(tmp).open("w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=list(MANIFEST_COLUMNS))
         w.writeheader()
         for row in rows:

@@ -1,0 +1,272 @@
+"""No campaign lost: a full disk (a file-size limit in a child process, at three sizes), a write that fails
+mid-impact, an error at step 2 and SIGKILLs at random moments all leave a file that `process` reads and
+`--resume` completes, with the status telling the truth and the step plan of an uninterrupted run.
+
+The campaigns are quick_check with short records (8192 samples) so that each runs in about a second.
+"""
+
+from __future__ import annotations
+
+import errno
+import multiprocessing
+import os
+import resource
+import signal
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from labctl.storage import CampaignReader
+from tests.cli_util import labctl_here, labctl_here_json
+
+SMALL = """[protocol]
+name = "quick_check_small"
+description = "quick_check with short records"
+version = 1
+
+[specimen]
+kind = "roller"
+roller_type = 1
+rail_ra_um = 0.2
+max_load_n = 200.0
+knob_step_deg = 360.0
+
+[acquisition]
+samples = 8192
+impacts_per_step = 2
+
+[repetitions]
+count = 1
+"""
+FORK = multiprocessing.get_context("fork")
+
+
+@pytest.fixture(scope="module")
+def protocol(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("proto") / "small.toml"
+    path.write_text(SMALL, encoding="utf-8")
+    return path
+
+
+def _status(path: Path) -> tuple[str, str]:
+    with CampaignReader(path) as r:
+        return str(r.attrs.get("status")), str(r.attrs.get("status_message", ""))
+
+
+def _impacts(path: Path) -> int:
+    with h5py.File(path, "r") as f:
+        return sum(1 for name in _names(f) if name.rsplit("/", 1)[-1].startswith("impact_"))
+
+
+def _names(f: h5py.File) -> list[str]:
+    out: list[str] = []
+    f.visit(out.append)
+    return out
+
+
+def _plan(path: Path) -> list[tuple[int, float, float]]:
+    """(step, knob angle, measured load) of every step of the campaign."""
+    with CampaignReader(path) as r:
+        return [(s.step, s.knob_angle_deg, s.load_n) for run in r.runs(1) for s in run.steps]
+
+
+def _stored_vs_processed(capsys, path: Path) -> None:
+    """`labctl process` identifies every step as the run stored it."""
+    with CampaignReader(path) as r:
+        stored = {s.step: s.result.roller_stiffness_n_per_m for run in r.runs(1) for s in run.steps
+                  if s.result is not None and s.result.identified}
+    done = labctl_here_json(capsys, "process", str(path))
+    again = {s["step"]: s["roller_stiffness_n_per_m"] for s in done["steps"] if not s["error"]}
+    assert stored and again.keys() == stored.keys()
+    for step, k in stored.items():
+        assert again[step] == pytest.approx(k, rel=1e-9), step
+
+
+def _child(argv: list[str], limit: int | None, log: str) -> None:
+    """A forked `labctl` (no interpreter start-up): optional file-size limit, output to ``log``."""
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    sys.stdout = sys.stderr = os.fdopen(os.dup(fd), "w", buffering=1)  # not pytest's capture
+    if limit is not None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # as CPython sets it at start-up: EFBIG, not death
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+    from labctl.cli import main
+
+    code = main(argv)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+@pytest.mark.parametrize("limit_mb", [5.0, 5.4, 5.8])
+def test_a_full_disk_stops_cleanly_and_resume_completes(limit_mb: float, protocol: Path, tmp_path: Path, capsys):
+    out, log = tmp_path / "c.h5", tmp_path / "log.txt"
+    proc = FORK.Process(target=_child, args=(["run", str(protocol), "--out", str(out), "--seed", "4", "--quiet"],
+                                             int(limit_mb * 1e6), str(log)))
+    proc.start()
+    proc.join(120)
+    text = log.read_text()
+    assert proc.exitcode == 130, text  # interrupted, not a crash (no segfault: exit code -11)
+    assert "Traceback" not in text and "disk full" in text and "free space and --resume" in text
+    status, message = _status(out)
+    assert status == "interrupted" and "disk full" in message
+    kept = _impacts(out)
+    assert 0 <= kept < 6
+    assert labctl_here(capsys, "process", str(out)).returncode == 0  # what was kept is processable
+
+    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
+    assert done["status"] == "complete"
+    assert _status(out)[0] == "complete" and _impacts(out) >= 6
+    _stored_vs_processed(capsys, out)
+
+
+def test_a_write_failing_mid_impact_is_rolled_back(protocol: Path, tmp_path: Path, capsys, monkeypatch):
+    import labctl.storage.writer as writer
+
+    real, calls = writer._write_trace, []
+
+    def failing(*args, **kw):  # the third trace written (the second impact's force) meets a full disk
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(writer, "_write_trace", failing)
+    out = tmp_path / "c.h5"
+    proc = labctl_here(capsys, "run", str(protocol), "--out", str(out), "--seed", "4", "--quiet")
+    assert proc.returncode == 130 and "disk full: 1 impacts kept" in proc.stdout, proc
+    assert _status(out)[0] == "interrupted"
+    assert _impacts(out) == 1  # the half-written impact is gone, the first one kept
+    monkeypatch.setattr(writer, "_write_trace", real)
+    assert labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")["status"] == \
+        "complete"
+    _stored_vs_processed(capsys, out)
+
+
+def test_a_world_law_failing_at_step_2_is_refused_before_a_file_is_made(protocol: Path, tmp_path: Path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[baseline]\nmodel = "expression"\nexpression = "3e5 * (110 - F)"\n', encoding="utf-8")
+    out = tmp_path / "c.h5"
+    proc = labctl_here(capsys, "run", str(protocol), "--out", str(out), "--world", str(bad), "--seed", "1",
+                       "--quiet")
+    assert proc.returncode == 2 and "bad.toml" in proc.stderr and "non-positive" in proc.stderr
+    assert not out.exists()
+
+
+def test_an_error_at_step_2_marks_the_file_failed_there_and_resume_completes(protocol: Path, tmp_path: Path,
+                                                                              capsys, monkeypatch):
+    import labctl.campaign as campaign
+    from labctl.recording import process_step
+
+    real_engine, calls = campaign._engine, []
+
+    def faulty(*args, **kw):  # an unexpected error while identifying the second step
+        calls.append(1)
+        if len(calls) == 2:
+            raise ValueError("simulated fault in step identification")
+        return process_step(*args, **kw)
+
+    def faulty_engine(*args, **kw):  # the engine's step pipeline (its identify_step) meets the fault
+        engine = real_engine(*args, **kw)
+        engine.identify_step = faulty
+        return engine
+
+    monkeypatch.setattr(campaign, "_engine", faulty_engine)
+    out = tmp_path / "c.h5"
+    proc = labctl_here(capsys, "run", str(protocol), "--out", str(out), "--seed", "1", "--quiet")
+    assert proc.returncode == 2 and "simulated fault" in proc.stderr
+    status, message = _status(out)
+    assert status == "failed" and "step 2" in message and "--resume" in message
+    monkeypatch.setattr(campaign, "_engine", real_engine)  # the cause fixed
+    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
+    assert done["status"] == "complete" and [s for s, *_ in _plan(out)] == [1, 2, 3]
+
+
+def _run_child(protocol: Path, out: Path, seed: int, log: Path) -> None:
+    argv = ["run", str(protocol), "--out", str(out), "--seed", str(seed), "--quiet"]
+    _child([*argv, "--resume"] if out.exists() else argv, None, str(log))
+
+
+def test_twenty_sigkills_at_random_moments_keep_the_step_plan(protocol: Path, tmp_path: Path):
+    """Campaigns killed (up to twice each) at random moments from creation to the last step until 20 SIGKILLs
+    were sent, each then resumed to the end: each has the steps and knob angles of an uninterrupted run of
+    its seed, and its measured loads within the load cell's noise of that run's."""
+    from labctl.campaign import run_campaign
+
+    rng = np.random.default_rng(27)
+    t0 = time.monotonic()
+    reference = tmp_path / "ref.h5"
+    run_campaign(protocol, out=reference, backend="sim", seed=11)
+    duration = time.monotonic() - t0
+    ref_plan = _plan(reference)
+    assert [s for s, *_ in ref_plan] == [1, 2, 3]
+    kills = early = 0
+    for k in range(20):
+        if kills >= 20:
+            break
+        out, log = tmp_path / f"c{k}.h5", tmp_path / f"log{k}.txt"
+        for n in range(2):
+            proc = FORK.Process(target=_run_child, args=(protocol, out, 11, log))
+            proc.start()
+            time.sleep(rng.uniform(0.0, 0.9 if n == 0 else 0.5) * duration)
+            if not proc.is_alive():
+                proc.join()
+                break
+            os.kill(proc.pid, signal.SIGKILL)
+            kills += 1
+            proc.join(60)
+            if out.exists():
+                try:
+                    with CampaignReader(out) as r:
+                        early += all(not s.complete for run in r.runs(1) for s in run.steps)
+                except Exception:  # noqa: BLE001, S110 — a killed writer's file is checked by the resume below
+                    pass
+            else:
+                early += 1
+        _run_child_to_end(protocol, out, log)
+        assert _status(out)[0] == "complete", log.read_text()
+        plan = _plan(out)
+        assert [(s, a) for s, a, _ in plan] == [(s, a) for s, a, _ in ref_plan], (k, plan, ref_plan)
+        assert np.allclose([x for *_, x in plan], [x for *_, x in ref_plan], rtol=0.03), (k, plan, ref_plan)
+    assert kills >= 20 and early >= 2  # some kills inside the first step (or before the file existed)
+
+
+def _run_child_to_end(protocol: Path, out: Path, log: Path) -> None:
+    proc = FORK.Process(target=_run_child, args=(protocol, out, 11, log))
+    proc.start()
+    proc.join(120)
+    assert proc.exitcode == 0, log.read_text()
+
+
+def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Path, capsys):
+    """While `labctl run` writes, `process` names the writer (pid, since when); a live read sees the impacts
+    stored so far, growing, and the writer finishes undisturbed."""
+    import labctl.cli.process  # noqa: F401 — imported before the run starts, so the reads below are quick
+    import labctl.reprocess  # noqa: F401
+    from labctl.storage.inuse import writer_info
+    from labctl.storage.reader import read_live
+
+    out, log = tmp_path / "c.h5", tmp_path / "log.txt"
+    proc = FORK.Process(target=_child, args=(["run", "quick_check", "--out", str(out), "--seed", "2", "--quiet"],
+                                             None, str(log)))
+    proc.start()
+    deadline = time.monotonic() + 60
+    while writer_info(out) is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    busy = labctl_here(capsys, "process", str(out))
+    counts = []
+    while proc.is_alive() and time.monotonic() < deadline:
+        counts.append(read_live(out, lambda r: sum(len(s.impacts) for run in r.runs(1) for s in run.steps)
+                                if r.series_indices() else 0))
+        time.sleep(0.01)
+    proc.join(60)
+    assert proc.exitcode == 0, log.read_text()
+    assert busy.returncode == 2 and f"pid {proc.pid}" in busy.stderr and "in use by" in busy.stderr, busy.stderr
+    assert len(counts) >= 3 and counts == sorted(counts)  # read while running, never going back
+    assert writer_info(out) is None  # the writer removed its sidecar
+    assert labctl_here_json(capsys, "process", str(out))["status"] == "complete"
