@@ -298,6 +298,8 @@ CASES = [
     Case("process log entries wrong type", "process c.h5", ("/log/entries", "not a run log table"),
          _crafted(_log_entries_wrong)),
     # NPZ inputs: limits are checked before anything is decompressed or allocated
+    Case("identify given a campaign file", "identify any.h5", ("any.h5", "HDF5 campaign file", "labctl process any.h5"),
+         lambda folder: h5py.File(folder / "any.h5", "w").close()),
     Case("npz header announcing 73 TiB", "identify huge.npz", ("huge.npz", "'force'", "announces shape"),
          _npz_huge_header),
     Case("npz CRC error", "identify crc.npz", ("crc.npz", "damaged"), _npz("crc.npz", _flip(0.5))),

@@ -64,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise InputError(f"--{name.replace('_', '-')} {value!r}: expected a positive full scale")
+    if _is_hdf5(args.file):
+        raise InputError(f"{args.file}: is an HDF5 campaign file, not one step's impacts: reprocess a campaign with "
+                         f"'labctl process {args.file}' (identify takes an impacts .npz or UFF58 file)")
     contact = _contact(args)
     rig = load_rig(args.rig)
     if str(args.file).lower().endswith((".uff", ".unv")):  # UFF58 time records (docs/contracts.md)
@@ -121,3 +124,12 @@ def _text(r: dict[str, Any]) -> str:
                      f"{1e3 * imp['pulse_width_s']:.3f} ms — {verdict}")
     lines.extend(f"warning: {w}" for w in r["warnings"])
     return "\n".join(lines)
+
+
+def _is_hdf5(path: str) -> bool:
+    """The file starts with HDF5's signature (a campaign file given where impacts are expected)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return False
