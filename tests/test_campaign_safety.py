@@ -13,6 +13,7 @@ import os
 import resource
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -260,10 +261,29 @@ def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Pa
         time.sleep(0.02)
     busy = labctl_here(capsys, "process", str(out))
     counts = []
-    while proc.is_alive() and time.monotonic() < deadline:
-        counts.append(read_live(out, lambda r: sum(len(s.impacts) for run in r.runs(1) for s in run.steps)
-                                if r.series_indices() else 0))
-        time.sleep(0.01)
+    pacing = threading.Event()
+
+    def pace() -> None:
+        """The twin runs on virtual time (a quick_check takes well under a second): stop the writer 0.1 s in
+        every 0.15 s so the reads below see it at several moments, as they would a run on the real rig."""
+        while not pacing.is_set() and proc.is_alive():
+            os.kill(proc.pid, signal.SIGSTOP)
+            time.sleep(0.1)
+            os.kill(proc.pid, signal.SIGCONT)
+            time.sleep(0.05)
+
+    pacer = threading.Thread(target=pace, daemon=True)
+    pacer.start()
+    try:
+        while proc.is_alive() and time.monotonic() < deadline:
+            counts.append(read_live(out, lambda r: sum(len(s.impacts) for run in r.runs(1) for s in run.steps)
+                                    if r.series_indices() else 0))
+            time.sleep(0.01)
+    finally:
+        pacing.set()
+        pacer.join()
+        if proc.is_alive():
+            os.kill(proc.pid, signal.SIGCONT)
     proc.join(60)
     assert proc.exitcode == 0, log.read_text()
     assert busy.returncode == 2 and f"pid {proc.pid}" in busy.stderr and "in use by" in busy.stderr, busy.stderr
