@@ -2,8 +2,7 @@
 
 Reads schema 2 (integer ADC counts with per-channel scale and offset, typed verdicts) and schema 1 (float32
 traces, verdict folded into ``reasons``). Refuses what it does not understand with an InputError naming the
-file: an unknown format version, a complete impact with a missing dataset, a missing stored configuration.
-"""
+file: an unknown format version, a complete impact with a missing dataset, a missing stored configuration."""
 
 from __future__ import annotations
 
@@ -240,10 +239,9 @@ class CampaignReader:
 
     def __init__(self, path: str | Path, *, live: bool = False, attrs_only: bool = False,
                  locking: bool | None = None) -> None:
-        """``live`` (or ``locking=False``): read a file a running campaign is writing, without taking HDF5's lock
-        (see ``read_live``; the writer is not disturbed, but a read may meet a half-flushed impact and must be
-        retried; ``labctl tui --watch`` does so). ``attrs_only``: the caller reads only the root attributes (stored
-        in the file's own root header), so the walk over every link that guards data reads is skipped."""
+        """``live`` (or ``locking=False``): open a file a running campaign writes without HDF5's lock (a read may
+        meet a half-flushed impact and must be retried: ``read_live``). ``attrs_only``: only the root attributes
+        are read, so the walk over every link that guards data reads is skipped."""
         live = live or locking is False
         self.path = Path(path)
         if not self.path.is_file():
@@ -357,12 +355,9 @@ LIVE_RETRY_S = 0.2
 
 def read_live(path: str | Path, read: Callable[[CampaignReader], T], *, attempts: int = LIVE_ATTEMPTS,
               retry_s: float = LIVE_RETRY_S) -> T:
-    """``read(reader)`` on a campaign a running ``labctl run`` may be writing, without disturbing it.
-
-    The file is opened read-only without HDF5's lock (the writer keeps its own); the writer flushes after
-    every impact, so what a read sees is the file as of some flush, unless it met a flush in progress: then
-    HDF5 or the reader's checks raise, and the read is done again on a fresh handle after ``retry_s``. Only
-    groups marked complete are read, so a half-written impact is never data. InputError after ``attempts``."""
+    """``read(reader)`` on a campaign a running ``labctl run`` may be writing, read-only without HDF5's lock: a
+    read that meets a flush in progress raises and is done again on a fresh handle after ``retry_s`` (only
+    groups marked complete are data). InputError after ``attempts`` (docs/storage.md)."""
     last: BaseException | None = None
     for attempt in range(attempts):
         try:

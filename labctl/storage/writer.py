@@ -326,15 +326,13 @@ class CampaignWriter(WriteGuard):
             for rg in s.children(sg, "run_"):
                 for step, load, _, result in self.step_results(s.number(sg), s.number(rg)):
                     if result.identified:
-                        load_std = attrs_of(rg[s.step_name(step)]).get("load_std_n")
                         points.append(spec.point(s.number(rg), load, result.roller_stiffness_n_per_m, result,
-                                                 load_std))
+                                                 attrs_of(rg[s.step_name(step)]).get("load_std_n")))
         return points
 
     @guarded
     def store_curve(self, series: int, run: int, steps: list[StepRow] | None = None) -> RepetitionCurve:
-        """Build a repetition's stiffness-vs-load table (from ``steps`` when given, else from the stored step
-        results), store it, return it."""
+        """Store and return a repetition's stiffness-vs-load table (from ``steps``, else the stored results)."""
         label = SpecimenRecord.from_attrs(attrs_of(self.h5[s.series_name(series)])).label
         curve = curve_from_steps(series, run, label, self.step_results(series, run) if steps is None else steps)
         rg = self.h5[s.series_name(series)][s.run_name(run)]
