@@ -336,3 +336,18 @@ def test_catalogue_points_keep_the_rails_material_and_tell_rail_materials_apart(
     assert left_out == 0
     assert [p.rail_material for p in points] == ["1.4034", None]
     assert [p.repetition for p in points] == [1, 1]
+
+
+def test_a_person_at_a_terminal_is_told_before_the_scheduler_wait(archive, tmp_path, capsys, monkeypatch):
+    """`archive process --scheduler` on an unreachable address waited 15 s in silence; at a terminal it now says
+    what it waits for first (scripts and --json still get the one-line error alone)."""
+    import sys
+
+    monkeypatch.setattr("labctl.archive.runner.CONNECT_TIMEOUT_S", 1.0)
+    (f,) = _copy(archive, tmp_path, ["type1/ra0.2_seed1.h5"])
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    proc = labctl_here(capsys, "archive", "process", str(f), "--scheduler", "tcp://127.0.0.1:9")
+    lines = proc.stderr.splitlines()
+    assert proc.returncode == 2 and len(lines) == 2
+    assert lines[0].startswith("connecting to the Dask scheduler tcp://127.0.0.1:9 (gives up after 1 s)")
+    assert "error" in lines[1] and "tcp://127.0.0.1:9" in lines[1]

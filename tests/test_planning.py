@@ -301,3 +301,14 @@ def test_a_kinked_parameter_is_spread_over_the_kink_positions_the_data_allow(tmp
     assert abs(0.05 + 0.95 * dense.kink_mean - 0.30) < 0.002
     bracketed, _ = gain([37.9, 159.4, 280.9, 382.2])
     assert bracketed.sd > 20 * dense.sd
+
+
+def test_a_person_at_a_terminal_is_told_the_plan_is_being_computed(capsys, monkeypatch, short_roller_csv):
+    """`labctl plan` was silent for tens of seconds; at a terminal it says so once its inputs are read."""
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    proc = labctl_here(capsys, "plan", str(short_roller_csv), "--budget-steps", "2", "--candidates",
+                       "end_effects,surface_roughness")
+    assert proc.returncode == 0 and proc.stderr.startswith(f"planning: scoring candidate rollers, rails and loads "
+                                                           f"for {short_roller_csv}")

@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from labctl.cli.common import add_json, emit
+from labctl.cli.common import add_json, emit, say
 from labctl.errors import InputError
 
 DEFAULT_DB = "labctl-archive.db"
@@ -142,6 +142,10 @@ def run_process(args: argparse.Namespace) -> int:
         import os
 
         workers = os.cpu_count() or 1
+    if args.scheduler and not (args.quiet or args.json):
+        from labctl.archive.runner import CONNECT_TIMEOUT_S
+
+        say(f"connecting to the Dask scheduler {args.scheduler} (gives up after {CONNECT_TIMEOUT_S:g} s)...")
     outcomes = process_files(files, workers=workers, scheduler=args.scheduler,
                              progress=None if args.quiet or args.json else sys.stderr)
     failed = [o for o in outcomes if not o.ok]

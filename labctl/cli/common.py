@@ -81,3 +81,11 @@ def step_bar(what: str, quiet: bool = False) -> Iterator[Callable[[int, int], No
     finally:
         if bar is not None:
             bar.close()
+
+
+def say(message: str) -> None:
+    """A progress line on stderr before a long silent stretch, for a person at a terminal only (scripts and
+    ``--json`` readers see stderr stay empty or hold just the one-line error)."""
+    if sys.stderr.isatty():
+        sys.stderr.write(message.rstrip("\n") + "\n")
+        sys.stderr.flush()

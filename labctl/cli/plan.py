@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from labctl.cli.common import add_json, emit
+from labctl.cli.common import add_json, emit, say
 from labctl.errors import InputError
 
 
@@ -75,7 +75,10 @@ def run(args: argparse.Namespace) -> int:
     if not any(s.kind == "roller" for s in protocol.specimens):
         raise InputError(f"--protocol {args.protocol}: expected a roller protocol (its C0 cap rules the loads)")
     k_setup = rig.setup_stiffness_n_per_m if args.rig else campaign_setup_stiffness(args.measured)
-    plan = plan_measurements(load_points(args.measured), setup_stiffness_n_per_m=k_setup, candidates=candidates,
+    points = load_points(args.measured)
+    if not args.json:
+        say(f"planning: scoring candidate rollers, rails and loads for {', '.join(args.measured)} (up to a minute)...")
+    plan = plan_measurements(points, setup_stiffness_n_per_m=k_setup, candidates=candidates,
                              budget_steps=args.budget_steps, rig=rig, protocol=protocol)
     emit(plan.to_dict(), args.json, lambda _d: plan.summary_text())
     return 0
