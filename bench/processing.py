@@ -5,20 +5,13 @@ Run by hand, never in CI (the peers are bench-only installs, not labctl dependen
     pip install -e '.[bench]'      # pyFRF and sdypy-EMA
     python bench/processing.py [--seeds 100] [--quick] [--no-peers] [--peers-all]
 
-Every condition synthesises impact sets with known truth (tests/synth_impacts.py: modal superposition of
-the rig's modes, bounce 745 Hz, tilt pair 580/582 Hz, ζ 0.018, 3 impacts × 65 536 samples at 20 480 Hz),
-fresh noise for every set and condition: the responses' at an SNR taken over the contact modes' decay, the
-force's as peak to noise (a real hammer: 40–60 dB). It runs, in this one process and on the same arrays:
-
-* ours: ``labctl.processing.identify`` (checks, windows, H1, mode fit, stiffness: the whole step);
-* pyFRF (H1 + coherence, force and exponential windows, ``is_data_ok`` per impact) followed by sdypy-EMA
-  (LSCF poles, ``select_closest_poles`` at the nominal frequencies), as their documentation shows;
-* the floor: ``numpy.fft.rfft`` of the same force and response arrays, nothing else;
-* the Cramér–Rao bound of the bounce frequency for the same signal model (force known, white noise).
-
-Besides the bounce error (against the bound, with 95 % intervals), it reports how often the stated σ
-covers the truth, per-roller errors with unequal rollers, the bias small second hits leave, and the
-double-hit / overload detection against pyFRF's ``is_data_ok``.
+Every condition synthesises impact sets with known truth (tests/synth_impacts.py: bounce 745 Hz, tilt pair
+580/582 Hz, ζ 0.018, 3 impacts × 65 536 samples at 20 480 Hz), fresh noise per set (responses at an SNR over the
+modes' decay, force as peak to noise, 40–60 dB), and runs on the same arrays: ours (``identify``, the whole step);
+pyFRF H1 + sdypy-EMA LSCF as their documentation shows; a bare ``numpy.fft.rfft`` (the floor); the Cramér–Rao
+bound of the bounce frequency. It reports the bounce error against the bound (95 % intervals), how often the
+stated σ covers the truth, per-roller errors, second-hit bias and double-hit / overload detection.
+``--blind N``: the tables on files from the generator written by another hand (bench/processing_blind.py).
 """
 
 from __future__ import annotations
@@ -339,13 +332,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.blind:
         from processing_blind import main as blind_main
-
         return blind_main([str(args.blind)])
     if args.independent:
         r = independent_coverage(args.independent)
-        print(f"independent generator, {r['files']} files, 40 dB over the decay, force 40-60 dB peak to noise: "
-              f"|error| ≤ 2σ in {share(r['cover'])}; rms(error/σ) {r['rms_z']:.2f} {ci(r['rms_z_ci'], '.2f')}; "
-              f"mean(error/σ) {r['mean_z']:+.2f}")
+        print(f"independent generator, {r['files']} files, 40 dB, force 40-60 dB: |error| ≤ 2σ in {share(r['cover'])}; "
+              f"rms(error/σ) {r['rms_z']:.2f} {ci(r['rms_z_ci'], '.2f')}; mean(error/σ) {r['mean_z']:+.2f}")
         return 0
     peers = not args.no_peers
     if peers:

@@ -10,7 +10,6 @@ the input's range is refused: the probe is out of its stroke and the average wou
 from __future__ import annotations
 
 import contextlib
-import importlib
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any, Protocol
@@ -23,7 +22,7 @@ from drivers.errors import DeviceDisconnected, DeviceError
 from drivers.hw import mcc_protocol as mcc
 from drivers.hw.lifecycle import Lifecycle
 from drivers.hw.mcc_usb import usb_error
-from drivers.hw.nidaq import ni_error
+from drivers.hw.nidaq import import_nidaqmx, ni_error
 
 _CONTROL_TIMEOUT_MS = 1000
 
@@ -113,11 +112,7 @@ class NiVoltageWindow:
 
     def _module(self) -> Any:
         if self._ni is None:
-            try:
-                self._ni = importlib.import_module("nidaqmx")
-            except ImportError:
-                raise DeviceError(self.name, "open", "the nidaqmx package is not installed "
-                                  "(pip install 'labctl[hw]')") from None
+            self._ni = import_nidaqmx(self.name)
         return self._ni
 
 

@@ -37,6 +37,14 @@ GONE_CODES = {-201003: "device cannot be accessed", -200220: "device identifier 
 UNREACHABLE_CODE = -201401  # RETRIEVING_NETWORK_DEVICE_PROPERTIES: a network chassis did not answer
 
 
+def import_nidaqmx(device: str) -> Any:
+    """The nidaqmx package, or a DeviceError saying how to install it (it is an optional extra)."""
+    try:
+        return importlib.import_module("nidaqmx")
+    except ImportError:
+        raise DeviceError(device, "open", "the nidaqmx package is not installed (pip install 'labctl[hw]')") from None
+
+
 def ni_error(device: str, action: str, exc: Exception) -> DeviceError:
     """A DAQmx error as the typed error, keeping NI's code and message."""
     code = getattr(exc, "error_code", None)
@@ -245,11 +253,7 @@ class NiDaq(Lifecycle):
 
     def _module(self) -> Any:
         if self._ni is None:
-            try:
-                self._ni = importlib.import_module("nidaqmx")
-            except ImportError:
-                raise DeviceError(self.name, "open", "the nidaqmx package is not installed "
-                                  "(pip install 'labctl[hw]')") from None
+            self._ni = import_nidaqmx(self.name)
         return self._ni
 
     @contextlib.contextmanager

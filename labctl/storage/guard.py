@@ -38,9 +38,8 @@ class WriteGuard:
     h5: h5py.File
     path: str
     _accepted: int | None
-
-    def _drop_incomplete(self) -> None:
-        raise NotImplementedError
+    _drop_incomplete: Callable[[], None]
+    """The writer's own: remove an impact whose write did not finish (``CampaignWriter._drop_incomplete``)."""
 
     def _kept(self) -> int:
         try:
