@@ -116,7 +116,9 @@ class SimSettings:
     base_clock_hz: float = 0.0  # > 0: the DAQ sets base_clock / integer, like an NI 9234 (51.2 kS/s ÷ n)
     pulse_width_min_s: float = 0.25e-3
     pulse_width_max_s: float = 0.45e-3
-    peak_force_n: float = 250.0
+    peak_force_n: float = 250.0  # the hammer's mean peak force (the cap when it follows the load)
+    peak_force_per_load: float = 1.0  # > 0: the technician matches the blow to the load, mean peak = ratio × load
+    peak_force_min_n: float = 60.0  # ... per roller, within [peak_force_min_n, peak_force_n]; 0: always peak_force_n
     peak_force_rel: float = 0.2
     impact_scatter_m: float = 2e-3
     load_cell_noise_n: float = 0.3
@@ -139,3 +141,6 @@ class SimSettings:
                 f"simulator settings: pulse width range {self.pulse_width_min_s!r}..{self.pulse_width_max_s!r} s "
                 "must be positive and increasing"
             )
+        if self.peak_force_per_load > 0 and not self.peak_force_min_n <= self.peak_force_n:
+            raise ValueError(f"simulator settings: peak_force_min_n {self.peak_force_min_n!r} N above peak_force_n "
+                             f"{self.peak_force_n!r} N: the hammer's usable range must be increasing")

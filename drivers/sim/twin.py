@@ -221,7 +221,7 @@ class RigTwin:
         """Deliver one blow: force and width vary hit to hit, the impact point scatters around the nominal."""
         s, rng = self.settings, self._rng_blow
         width = rng.uniform(s.pulse_width_min_s, s.pulse_width_max_s)
-        peak = s.peak_force_n * math.exp(s.peak_force_rel * rng.standard_normal())
+        peak = self.hammer_level_n() * math.exp(s.peak_force_rel * rng.standard_normal())
         dx, dy = rng.normal(0.0, s.impact_scatter_m, 2) if s.impact_scatter_m > 0 else (0.0, 0.0)
         phase = rng.uniform(0.0, 1.0)
         if self._next_peak_n is not None:
@@ -239,6 +239,14 @@ class RigTwin:
         self._next_double = self._next_overload = None
         self.strikes.append(strike)
         return strike
+
+    def hammer_level_n(self) -> float:
+        """The mean peak force the technician aims at now: a light blow at a light load (the paper's practice),
+        ``peak_force_per_load`` × the load per roller within the hammer's usable range, else ``peak_force_n``."""
+        s = self.settings
+        if s.peak_force_per_load <= 0:
+            return s.peak_force_n
+        return min(s.peak_force_n, max(s.peak_force_min_n, s.peak_force_per_load * self.load_per_roller_n()))
 
     def _random_double(self) -> tuple[float, float]:
         f, rng = self.faults, self._rng_fault

@@ -38,7 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--impacts", type=int, default=3, help="number of impacts (default 3)")
     i.add_argument("--world", help="world scenario: a TOML file or a shipped name (default: default)")
     i.add_argument("--hammer-level", type=float, metavar="N",
-                   help="the hammer's mean peak force, N (default: the world's [instruments] peak_force_n, else 250)")
+                   help="the hammer's mean peak force, N (default: the technician matches the blow to the load, "
+                        "the world's [instruments] peak_force_per_load × load within peak_force_min_n..peak_force_n, "
+                        "by default 1.0 × load within 60..250 N)")
     i.add_argument("--seed", type=int, help="random seed (default: fresh; the one used is printed)")
     i.add_argument("--rail-ra-um", type=float, default=0.2, help="rail roughness Ra, µm (default 0.2)")
     i.add_argument("--rail-material", help="rail material (default: the catalogue's bearing steel)")
@@ -88,7 +90,7 @@ def run_impacts(args: argparse.Namespace) -> int:
                    seed=args.seed)
     twin = twin_of(rig)
     if args.hammer_level is not None:
-        twin.settings = replace(twin.settings, peak_force_n=args.hammer_level)
+        twin.settings = replace(twin.settings, peak_force_n=args.hammer_level, peak_force_per_load=0.0)
     if not args.load_n >= twin.preload_n:
         raise InputError(f"--load-n {args.load_n:g}: below the preload {twin.preload_n:.1f} N per roller "
                          "(the upper disc's weight)")
@@ -96,7 +98,7 @@ def run_impacts(args: argparse.Namespace) -> int:
     fs, force, accel, channels = strike_series(rig, args.impacts)
     np.savez(out, fs=np.float64(fs), force=force, accel=accel, channels=np.array(channels, dtype=np.str_))
     result: dict[str, Any] = {**twin.truth(), "seed": twin.seed, "world": rig.description["world"],
-                              "hammer_level_n": twin.settings.peak_force_n, "out": str(out)}
+                              "hammer_level_n": twin.hammer_level_n(), "out": str(out)}
     emit(result, args.json, _text)
     return 0
 
