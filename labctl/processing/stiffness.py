@@ -21,15 +21,31 @@ class Stiffness:
 
     value_n_per_m: float
     std_n_per_m: float
+    df_dk_hz_per_n_per_m: float = math.nan  # the bounce's slope there (from the bounce; NaN otherwise)
 
 
 def stiffness_from_bounce(rig: RigConfig, bounce_frequency_hz: float, bounce_std_hz: float = 0.0) -> Stiffness:
     """Per-roller stiffness k (equal rollers) for this bounce frequency, and σ_k from σ_f."""
     if not (math.isfinite(bounce_frequency_hz) and bounce_frequency_hz > 0):
         roller_stiffness_from_bounce(rig, bounce_frequency_hz)  # raises the model's domain error
-    k, df_dk = equal_roller_stiffness(rig, bounce_frequency_hz)
+    k, df_dk = _equal_roller_stiffness(rig, float(bounce_frequency_hz))
     std = abs(bounce_std_hz / df_dk) if df_dk > 0 and math.isfinite(bounce_std_hz) else math.inf
-    return Stiffness(k, std)
+    return Stiffness(k, std, df_dk)
+
+
+_last: tuple[RigConfig, float, tuple[float, float]] | None = None
+
+
+def _equal_roller_stiffness(rig: RigConfig, bounce_frequency_hz: float) -> tuple[float, float]:
+    """``equal_roller_stiffness``, remembered for the last (rig object, frequency): a step asks twice (the
+    blow's effect, then the result)."""
+    global _last
+    last = _last
+    if last is not None and last[0] is rig and last[1] == bounce_frequency_hz:
+        return last[2]
+    out = equal_roller_stiffness(rig, bounce_frequency_hz)
+    _last = (rig, bounce_frequency_hz, out)
+    return out
 
 
 def roller_only(measured: Stiffness, contact: TrippContact, load_n: float) -> Stiffness:
