@@ -268,12 +268,13 @@ def _checked_inputs(request: CampaignRequest) -> tuple[RigConfig, str | Path | N
             load_world("balls")
         _check_world_loads(sim_world, proto, rig_config, request.world)
     if request.backend == "hw":
-        from labctl.hardware import find_devices_file, load_devices
+        from labctl.hardware import find_devices_file, load_devices, rig_with_channel_cross_axis
 
         devices = find_devices_file(devices)
         if load_devices(devices)["load_cell"].kind == "none" and proto.loading.load_source != "springs":
             raise InputError(f"{devices}: no [load_cell]: a rig without one runs only protocols with [loading] "
                              f"load_source = \"springs\" ({proto.source_path} reads a load cell)")
+        rig_config = rig_with_channel_cross_axis(rig_config, _text(devices), str(devices))
     return rig_config, devices
 
 

@@ -12,8 +12,9 @@ import contextlib
 import math
 import os
 import re
+import tomllib
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,7 @@ from labctl.data import data_path, read_toml
 from labctl.data.schema import Integer, Number, Spec, Table, Tables, Text, Where, check_keys, read, value
 from labctl.data.units import MV, STANDARD_GRAVITY_M_PER_S2
 from labctl.errors import InputError, LabctlError
+from labctl.physics.rig_config import RigConfig
 
 DEVICES_ENV = "LABCTL_DEVICES"
 SECTIONS = ("load_cell", "daq", "hammer", "actuator")
@@ -281,7 +283,8 @@ def _channel(row: dict[str, Any], where: Where, daq_kind: str, conditioner_gain:
     force = kind == "force"
     sens_key, range_key = ("sensitivity_mv_per_n", "range_n") if force else ("sensitivity_mv_per_g", "range_g")
     t = read(row, {"name": Text(), "kind": Text(), "input": Integer() if daq_kind == "mcc_usb" else Text(),
-                   sens_key: Number(gt=0), range_key: Number(gt=0), "adc_range_v": Number(gt=0, default=None)}, where)
+                   sens_key: Number(gt=0), range_key: Number(gt=0), "adc_range_v": Number(gt=0, default=None),
+                   **({} if force else CROSS_AXIS)}, where)
     name = t["name"]
     if not force and not ACCEL_NAME.match(name):
         raise where.bad("name", name, "an accelerometer name A1X … A4Z")
@@ -291,6 +294,44 @@ def _channel(row: dict[str, Any], where: Where, daq_kind: str, conditioner_gain:
     sensitivity = t[sens_key] * MV / per_unit * conditioner_gain
     channel = Channel(name, kind, "N" if force else "m/s^2", sensitivity, t[range_key] * per_unit)
     return InputWiring(channel, str(t["input"]), t.get("adc_range_v"))
+
+
+# --- per-channel cross-axis coupling of the accelerometers (docs/processing.md, "Cross-axis coupling") ---------
+CROSS_AXIS: dict[str, Spec] = {"transverse_sensitivity": Number(ge=0, le=0.5, default=None),
+                               "mounting_angle_deg": Number(ge=0, le=30, unit="deg", default=None)}
+
+
+def channel_cross_axis(doc: dict[str, Any], where: Where) -> dict[str, tuple[float | None, float | None]]:
+    """Per accelerometer channel of a devices document: its transverse sensitivity and mounting angle (rad), each
+    None where the document gives none (the rig file's value then holds)."""
+    daq = doc.get("daq")
+    rows = daq.get("channels", []) if isinstance(daq, dict) else []
+    out: dict[str, tuple[float | None, float | None]] = {}
+    for i, row in enumerate(rows if isinstance(rows, list) else []):
+        t = read(row, CROSS_AXIS, where.at("daq").at("channels").at(i), unknown_ok=True)
+        if "transverse_sensitivity" in t or "mounting_angle_rad" in t:
+            out[str(row.get("name"))] = (t.get("transverse_sensitivity"), t.get("mounting_angle_rad"))
+    return out
+
+
+def rig_with_channel_cross_axis(rig: RigConfig, devices_text: str, source: str) -> RigConfig:
+    """The rig with a devices file's per-channel values (its text; ``source`` names it in errors) in its sensors.
+    The rig model holds one value per tri-axial sensor, so a sensor takes the largest given for its channels:
+    its σ is never understated."""
+    try:
+        doc = tomllib.loads(devices_text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{source}: not valid TOML ({exc})") from None
+    given = channel_cross_axis(doc, Where(source))
+    if not given:
+        return rig
+    sensors = []
+    for s in rig.sensors:
+        ts = [t for c, (t, _) in given.items() if c in s.channels and t is not None]
+        angles = [a for c, (_, a) in given.items() if c in s.channels and a is not None]
+        sensors.append(replace(s, transverse_sensitivity=max(ts) if ts else s.transverse_sensitivity,
+                               mounting_angle_rad=max(angles) if angles else s.mounting_angle_rad))
+    return replace(rig, sensors=tuple(sensors))
 
 
 DISPLACEMENT: dict[str, Spec] = {

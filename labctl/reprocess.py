@@ -41,8 +41,15 @@ class Processed:
 
 
 def rig_of(reader: CampaignReader) -> RigConfig:
-    """The rig description stored in the campaign (InputError when the file has none)."""
-    return rig_from_text(reader.required_config("rig.toml"), f"{reader.path}:/config/rig.toml")
+    """The rig description stored in the campaign (InputError when the file has none), with the stored devices
+    file's per-channel accelerometer cross-axis values when it gives any."""
+    rig = rig_from_text(reader.required_config("rig.toml"), f"{reader.path}:/config/rig.toml")
+    devices = reader.config_text("devices.toml")
+    if not devices:
+        return rig
+    from labctl.hardware import rig_with_channel_cross_axis
+
+    return rig_with_channel_cross_axis(rig, devices, f"{reader.path}:/config/devices.toml")
 
 
 def checks_of(reader: CampaignReader) -> CheckConfig:

@@ -344,7 +344,22 @@ CASES = [
          ("w.toml", "world law 'table'", "expected 1000"),
          _text("w.toml", '[baseline]\nmodel = "table"\n[[baseline.tables]]\nroller_type = 1\n'
                          'load_n = [10, 20]\nstiffness_n_per_m = [1e8, 1e5]\n')),
+    Case("devices transverse sensitivity 0.8", f"{RUN} --backend hw --devices d.toml",
+         ("d.toml", "transverse_sensitivity", "0.8", "0.5"),
+         lambda folder: _devices(folder, "A1Z", "transverse_sensitivity = 0.8")),
+    Case("devices cross-axis key on the hammer", f"{RUN} --backend hw --devices d.toml",
+         ("d.toml", "mounting_angle_deg"), lambda folder: _devices(folder, "F", "mounting_angle_deg = 2.0")),
 ]
+
+
+def _devices(folder: Path, channel: str, line: str) -> None:
+    """The example devices file with ``line`` added to channel ``channel``'s table."""
+    from labctl.data import data_path
+
+    text = data_path("devices.example.toml").read_text(encoding="utf-8")
+    head = f'name = "{channel}"'
+    at = text.index(head)
+    (folder / "d.toml").write_text(text[:at] + line + "\n" + text[at:], encoding="utf-8")
 
 
 @pytest.fixture(scope="module")
