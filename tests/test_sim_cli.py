@@ -130,3 +130,24 @@ def test_hammer_level_is_a_setting_and_out_names_the_file_written(tmp_path):
     proc = labctl("simulate", "impacts", "--roller-type", "1", "--load-n", "200", "--hammer-level", "0",
                   "--out", str(tmp_path / "z.npz"))
     assert_one_line_error(proc, "--hammer-level")
+
+
+def test_the_hammer_follows_the_load_unless_the_world_fixes_it(tmp_path):
+    """By default the technician hits 1.0 × the load per roller (within 60-250 N); a world's ``[instruments]``
+    ``peak_force_per_load = 0`` fixes the level at its ``peak_force_n``; an inverted usable range is refused."""
+    from labctl.data import data_path
+
+    r = labctl_json("simulate", "impacts", "--roller-type", "1", "--load-n", "100", "--impacts", "1", "--seed", "4",
+                    "--out", str(tmp_path / "a.npz"))
+    assert r["hammer_level_n"] == 100
+    default = data_path("worlds/default.toml").read_text(encoding="utf-8")
+    fixed, bad = tmp_path / "fixed.toml", tmp_path / "bad.toml"
+    fixed.write_text(default.replace("[instruments]\n", "[instruments]\npeak_force_per_load = 0.0\n"
+                                     "peak_force_n = 150.0\n"), encoding="utf-8")
+    bad.write_text(default.replace("[instruments]\n", "[instruments]\npeak_force_min_n = 300.0\n"), encoding="utf-8")
+    r = labctl_json("simulate", "impacts", "--roller-type", "1", "--load-n", "100", "--impacts", "1", "--seed", "4",
+                    "--world", str(fixed), "--out", str(tmp_path / "b.npz"))
+    assert r["hammer_level_n"] == 150
+    proc = labctl("simulate", "impacts", "--roller-type", "1", "--load-n", "100", "--world", str(bad),
+                  "--out", str(tmp_path / "c.npz"))
+    assert_one_line_error(proc, "bad.toml", "peak_force_min_n", "300")
