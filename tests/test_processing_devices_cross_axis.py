@@ -5,6 +5,7 @@ file without them leaves the rig as it is."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,3 +44,29 @@ def test_a_channels_transverse_sensitivity_sets_its_sensors_and_widens_its_varia
 def test_a_devices_file_without_the_keys_leaves_the_rig():
     rig = load_rig()
     assert rig_with_channel_cross_axis(rig, EXAMPLE, "d.toml") is rig
+
+
+class _StoredConfig:
+    """The two calls ``rig_of`` makes on a campaign reader, over stored configuration texts."""
+
+    path = "c.h5"
+
+    def __init__(self, files: dict[str, str]) -> None:
+        self.files = files
+
+    def config_text(self, name: str) -> str:
+        return self.files.get(name, "")
+
+    def required_config(self, name: str) -> str:
+        return self.files[name]
+
+
+def test_a_campaigns_stored_devices_file_reaches_the_rig_it_is_processed_with():
+    from labctl.reprocess import rig_of
+
+    rig_text = Path(load_rig().source).read_text(encoding="utf-8")
+    plain = rig_of(_StoredConfig({"rig.toml": rig_text}))
+    tuned = rig_of(_StoredConfig({"rig.toml": rig_text,
+                                  "devices.toml": with_line("A2Z", "transverse_sensitivity = 0.2")}))
+    assert {s.name: s.transverse_sensitivity for s in tuned.sensors}["A2"] == 0.2
+    assert {s.name: s.transverse_sensitivity for s in plain.sensors}["A2"] is None
