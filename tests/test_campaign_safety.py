@@ -244,13 +244,18 @@ def _run_child_to_end(protocol: Path, out: Path, log: Path) -> None:
     assert proc.exitcode == 0, log.read_text()
 
 
+def impacts_stored(reader) -> int:
+    """Impacts in series 1 (read_live runs this in its reading child: module level, picklable)."""
+    return sum(len(s.impacts) for run in reader.runs(1) for s in run.steps) if reader.series_indices() else 0
+
+
 def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Path, capsys):
     """While `labctl run` writes, `process` names the writer (pid, since when); a live read sees the impacts
     stored so far, growing, and the writer finishes undisturbed."""
     import labctl.cli.process  # noqa: F401 — imported before the run starts, so the reads below are quick
     import labctl.reprocess  # noqa: F401
     from labctl.storage.inuse import writer_info
-    from labctl.storage.reader import read_live
+    from labctl.storage.live import read_live
 
     out, log = tmp_path / "c.h5", tmp_path / "log.txt"
     proc = FORK.Process(target=_child, args=(["run", "quick_check", "--out", str(out), "--seed", "2", "--quiet"],
@@ -276,8 +281,7 @@ def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Pa
     pacer.start()
     try:
         while proc.is_alive() and time.monotonic() < deadline:
-            counts.append(read_live(out, lambda r: sum(len(s.impacts) for run in r.runs(1) for s in run.steps)
-                                    if r.series_indices() else 0))
+            counts.append(read_live(out, impacts_stored))
             time.sleep(0.01)
     finally:
         pacing.set()

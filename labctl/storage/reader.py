@@ -7,11 +7,9 @@ file: an unknown format version, a complete impact with a missing dataset, a mis
 from __future__ import annotations
 
 import json
-import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import h5py
 import numpy as np
@@ -346,28 +344,6 @@ class CampaignReader:
     def curves(self) -> list[RepetitionCurve]:
         """The stored curve of every finished repetition, in series and run order."""
         return curves_of(self.h5)
-
-
-T = TypeVar("T")
-LIVE_ATTEMPTS = 5
-LIVE_RETRY_S = 0.2
-
-
-def read_live(path: str | Path, read: Callable[[CampaignReader], T], *, attempts: int = LIVE_ATTEMPTS,
-              retry_s: float = LIVE_RETRY_S) -> T:
-    """``read(reader)`` on a campaign a running ``labctl run`` may be writing, read-only without HDF5's lock: a
-    read that meets a flush in progress raises and is done again on a fresh handle after ``retry_s`` (only
-    groups marked complete are data). InputError after ``attempts`` (docs/storage.md)."""
-    last: BaseException | None = None
-    for attempt in range(attempts):
-        try:
-            with CampaignReader(path, live=True) as reader:
-                return read(reader)
-        except (OSError, KeyError, RuntimeError, ValueError, InputError) as exc:
-            last = exc
-            if attempt + 1 < attempts:
-                time.sleep(retry_s)
-    raise InputError(f"{path}: no consistent read of the running campaign in {attempts} attempts ({last})")
 
 
 @dataclass

@@ -1,9 +1,10 @@
 """Follow a campaign file another process is writing (``labctl tui --watch FILE``), read-only.
 
 The writer flushes the file after every impact; the watcher re-opens it read-only without HDF5's file lock at
-each poll, reads what it needs, and closes it. A read that catches a flush half-way fails, or is not an earlier
-state of a second read taken right after it (the writer only appends); it is retried, and the screen keeps the
-last consistent snapshot meanwhile.
+each poll, in a child process (``labctl.storage.isolated``: HDF5 can crash on a torn read), reads what it needs,
+and closes it. A read that catches a flush half-way fails, crashes the child, or is not an earlier state of a
+second read taken right after it (the writer only appends); it is retried, and the screen keeps the last
+consistent snapshot meanwhile.
 Nothing here ever opens the file for writing.
 """
 
@@ -17,6 +18,7 @@ from pathlib import Path
 from labctl.errors import InputError
 from labctl.report.notes import step_events
 from labctl.storage import CampaignReader
+from labctl.storage.isolated import call_isolated
 
 FINAL = ("complete", "aborted", "interrupted", "interlock", "failed")
 
@@ -107,15 +109,15 @@ def read_snapshot(path: str | Path, attempts: int = 5, wait_s: float = 0.2) -> S
     last = ""
     for _ in range(attempts):
         try:
-            first = _read(p)
-            if first.finished or first.earlier_state_of(_read(p)):
+            first = call_isolated(_read, p)
+            if first.finished or first.earlier_state_of(call_isolated(_read, p)):
                 return first
             last = "the file changed while it was read"
         except InputError as exc:
             if not p.exists() or "not a labctl campaign" in str(exc) or "format_version" in str(exc):
                 raise
             last = str(exc)
-        except (OSError, KeyError, ValueError, RuntimeError) as exc:  # a flush caught half-way
+        except (OSError, KeyError, ValueError, RuntimeError) as exc:  # a flush caught half-way (TornRead too)
             last = f"{type(exc).__name__}: {exc}"
         time.sleep(wait_s)
     raise InputError(f"{p}: could not read a consistent state in {attempts} tries ({last})")
