@@ -267,9 +267,12 @@ def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Pa
         """The twin runs on virtual time (a quick_check takes well under a second): stop the writer 0.1 s in
         every 0.15 s so the reads below see it at several moments, as they would a run on the real rig."""
         while not pacing.is_set() and proc.is_alive():
-            os.kill(proc.pid, signal.SIGSTOP)
-            time.sleep(0.1)
-            os.kill(proc.pid, signal.SIGCONT)
+            try:
+                os.kill(proc.pid, signal.SIGSTOP)
+                time.sleep(0.1)
+                os.kill(proc.pid, signal.SIGCONT)
+            except ProcessLookupError:  # the writer finished in between
+                return
             time.sleep(0.05)
 
     pacer = threading.Thread(target=pace, daemon=True)
@@ -290,3 +293,32 @@ def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Pa
     assert len(counts) >= 3 and counts == sorted(counts)  # read while running, never going back
     assert writer_info(out) is None  # the writer removed its sidecar
     assert labctl_here_json(capsys, "process", str(out))["status"] == "complete"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_end_the_run_interrupted_and_resumable(sig: int, protocol: Path, tmp_path: Path,
+                                                                   capsys):
+    """A service stop (SIGTERM) or a dropped SSH session (SIGHUP) while the run writes: the run stops after the
+    current impact, the file says `interrupted` with the resume hint (not `running`), reads, and resumes."""
+    from labctl.storage.inuse import writer_info
+
+    out, log = tmp_path / "c.h5", tmp_path / "log.txt"
+    proc = FORK.Process(target=_child, args=(["run", str(protocol), "--out", str(out), "--seed", "4"], None,
+                                             str(log)))
+    proc.start()
+    deadline = time.monotonic() + 60
+    while writer_info(out) is None and proc.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGSTOP)  # the signal arrives while the campaign is open for writing
+    os.kill(proc.pid, sig)
+    os.kill(proc.pid, signal.SIGCONT)
+    proc.join(60)
+    text = log.read_text()
+    assert proc.exitcode == 130, text
+    assert "Traceback" not in text
+    status, message = _status(out)
+    assert status == "interrupted" and "--resume" in message, (status, message)
+    assert _impacts(out) < 6  # stopped early (the file was read above: it opens)
+    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
+    assert done["status"] == "complete"
+    _stored_vs_processed(capsys, out)
