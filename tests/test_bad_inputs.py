@@ -344,6 +344,8 @@ CASES = [
          ("w.toml", "world law 'table'", "expected 1000"),
          _text("w.toml", '[baseline]\nmodel = "table"\n[[baseline.tables]]\nroller_type = 1\n'
                          'load_n = [10, 20]\nstiffness_n_per_m = [1e8, 1e5]\n')),
+    Case("operator review of a step past the plan (plan + 1)", f"{RUN} --operator op.toml",
+         ("op.toml", "step 4", "plans 3 load steps", "never apply"), _review(step=4)),
 ]
 
 
