@@ -18,6 +18,7 @@ from drivers.interfaces import REVIEW_CHOICES, Operator, Rig
 from drivers.operators import ScriptedOperator
 from labctl.backends import make_rig
 from labctl.engine import Condition, Engine, Outcome, RunControl
+from labctl.engine.control import stop_on_hangup
 from labctl.engine.plan import plan_steps
 from labctl.errors import InputError
 from labctl.events import Event, EventBus
@@ -213,7 +214,8 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
             out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
         raise
     try:
-        return engine.run()
+        with stop_on_hangup(engine.control):
+            return engine.run()
     finally:
         writer.close()
 

@@ -1,14 +1,11 @@
-"""``labctl run``: an unattended campaign with a progress display; Ctrl-C, SIGTERM and SIGHUP stop cleanly and leave
-a resumable file."""
+"""``labctl run``: an unattended campaign with a progress display; Ctrl-C stops cleanly and leaves a resumable file."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import signal
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from labctl.cli.common import add_json, emit
 
@@ -52,30 +49,6 @@ def install_sigint(control: RunControl) -> None:
     signal.signal(signal.SIGINT, handler)
 
 
-def install_hangup(control: RunControl) -> dict[int, Any]:
-    """SIGTERM (a service stop, `kill`) and SIGHUP (the technician's SSH session dropped): the same clean stop
-    after the current impact as Ctrl-C, so the file ends `interrupted` with the resume hint, not `running`.
-    After a hangup the terminal is gone: output goes to /dev/null instead of failing with EIO."""
-
-    def handler(signum: int, frame: object) -> None:
-        name = signal.Signals(signum).name
-        if signum == signal.SIGHUP:
-            null = os.open(os.devnull, os.O_WRONLY)
-            for fd in (1, 2):
-                os.dup2(null, fd)
-            os.close(null)
-        elif control.stop_status:  # a second SIGTERM: stop now (still a clean status, as a second Ctrl-C)
-            raise KeyboardInterrupt
-        with contextlib.suppress(OSError, ValueError):
-            sys.stderr.write(f"\n{name}: stopping after the current impact; continue with --resume\n")
-        control.stop()
-
-    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
-    for sig in before:
-        signal.signal(sig, handler)
-    return before  # restored when the run returns (a caller that runs labctl in-process keeps its own)
-
-
 def rails_of(protocol: str) -> dict[int, float]:
     """Series → the rails' Ra (m), so two series of one roller type on different rails are told apart."""
     from labctl.errors import LabctlError
@@ -98,16 +71,10 @@ def run(args: argparse.Namespace) -> int:
     operator = load_operator_script(args.operator) if args.operator else None
     control = RunControl()
     install_sigint(control)
-    before = install_hangup(control)
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
-    try:
-        outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume,
-                               world=args.world, seed=args.seed, rig=args.rig, devices=args.devices,
-                               operator=operator, subscribers=subs, control=control, adaptive=args.adaptive,
-                               budget_steps=args.budget_steps)
-    finally:
-        for sig, old in before.items():
-            signal.signal(sig, old)
+    outcome = run_campaign(args.protocol, out=args.out, backend=args.backend, resume=args.resume, world=args.world,
+                           seed=args.seed, rig=args.rig, devices=args.devices, operator=operator, subscribers=subs,
+                           control=control, adaptive=args.adaptive, budget_steps=args.budget_steps)
     rails = rails_of(args.protocol)
     result = {"status": outcome.status, "path": outcome.path, "message": outcome.message,
               "runs": [{"series": c.series, "run": c.run, "specimen": c.specimen, "step": c.step.tolist(),
