@@ -93,34 +93,47 @@ def _plan(path: Path) -> list[tuple[int, float, float]]:
         return [(s.step, s.knob_angle_deg, s.load_n) for run in r.runs(1) for s in run.steps]
 
 
-def test_a_kill_at_any_write_keeps_every_flushed_impact(protocol: Path, tmp_path: Path):
+def _kept(before: dict, after: dict) -> list:
+    """Impacts readable after a kill that the finished campaign lacks or holds differently."""
+    return [key for key, (stamp, force, accel) in before.items()
+            if key not in after or after[key][0] != stamp
+            or not (np.array_equal(after[key][1], force) and np.array_equal(after[key][2], accel))]
+
+
+def test_twenty_kills_at_any_write_keep_every_flushed_impact_and_the_step_plan(protocol: Path, tmp_path: Path):
+    """12 campaigns, each killed at a seeded write call of its run (from the new file's first write to the
+    last step), 8 of them killed again while resuming (inside the roll-back and the removal of the partial
+    impact too), then resumed to the end: at least 20 SIGKILLs in all."""
     reference = tmp_path / "ref.h5"
     argv = ["run", str(protocol), "--seed", "11", "--quiet", "--out"]
     code, total = _run([*argv, str(reference)], None, tmp_path)
     assert code == 0 and total > 40, total
     ref_plan = _plan(reference)
-    # kill points: the first writes (creation, the first impact's flush), then a seeded spread over the run
     rng = np.random.default_rng(27)
-    points = sorted({1, 2, 5, *rng.integers(6, total, 13).tolist()})
-    lost, reopened = [], 0
-    for n in points:
-        out = tmp_path / f"k{n}.h5"
-        code, _ = _run([*argv, str(out)], n, tmp_path)
-        assert code == -signal.SIGKILL, (n, code)
-        if not out.exists():  # killed before the new file was renamed into place
-            before = {}
-        else:
-            reopened += journal_path(out).exists()
-            before = _impacts(out)
-        code, _ = _run([*argv, str(out), "--resume"] if out.exists() else [*argv, str(out)], None, tmp_path)
-        assert code == 0, (n, (tmp_path / "log.txt").read_text())
+    points = [1, 3, *sorted(rng.integers(4, total, 10).tolist())]  # the first writes: creation, first impact
+    lost, kills, rolled_back = [], 0, 0
+    for k, n in enumerate(points):
+        out = tmp_path / f"k{k}.h5"
+        seen: dict = {}
+        for kill_at in (n, int(rng.integers(1, 40)) if k % 3 else None, None):
+            again = [*argv, str(out), "--resume"] if out.exists() else [*argv, str(out)]
+            code, writes = _run(again, kill_at, tmp_path)
+            if kill_at is None:
+                assert code == 0, (n, (tmp_path / "log.txt").read_text())
+                break
+            if code == 0:  # the run finished before its kill point
+                continue
+            assert code == -signal.SIGKILL, (n, code)
+            kills += 1
+            if out.exists():
+                rolled_back += journal_path(out).exists()
+                if k % 2:  # a reader rolls the file back (else the resume does): what it sees must survive
+                    seen.update(_impacts(out))
         after = _impacts(out)
-        for key, (stamp, force, accel) in before.items():
-            if key not in after or after[key][0] != stamp or not (np.array_equal(after[key][1], force)
-                                                                  and np.array_equal(after[key][2], accel)):
-                lost.append((n, key))
+        lost += [(n, key) for key in _kept(seen, after)]
         plan = _plan(out)
         assert [(s, a) for s, a, _ in plan] == [(s, a) for s, a, _ in ref_plan], (n, plan, ref_plan)
         assert np.allclose([x for *_, x in plan], [x for *_, x in ref_plan], rtol=0.03), (n, plan)
     assert not lost
-    assert reopened >= 3  # several kills fell inside a flush (a journal was left) and were rolled back
+    assert kills >= 20, kills
+    assert rolled_back >= 3  # several kills fell inside a flush (a journal was left) and were rolled back
