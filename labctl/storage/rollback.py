@@ -106,6 +106,9 @@ def recover(path: str | Path) -> bool:
         except BlockingIOError:
             return False  # a live writer: its journal is in use
         return roll_back(fd, journal)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot apply the journal {journal.name} a killed writer left "
+                         f"({exc.strerror or exc}); run 'labctl run … --resume' where the folder is writable") from None
     finally:
         os.close(fd)  # closing releases the lock
 
@@ -214,6 +217,8 @@ class RollbackFile:
         self._saved.clear()
 
     def close(self) -> None:
+        """Release the file and its lock; HDF5 may still close its handle afterwards: that writes nothing."""
+        self.dropping = True
         if self._jfd is not None:
             os.close(self._jfd)
             self._jfd = None
