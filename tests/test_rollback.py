@@ -134,3 +134,13 @@ def test_a_journal_that_cannot_be_applied_is_one_line(tmp_path: Path):
             recover(path)
     finally:
         os.chmod(path, 0o644)
+
+
+def test_a_journal_larger_than_its_file_could_need_is_refused(tmp_path: Path):
+    from labctl.storage import CampaignReader
+
+    path = tmp_path / "c.h5"
+    _first_state(path)
+    journal_path(path).write_bytes(MAGIC + b"\0" * (3 * path.stat().st_size + 2**20))
+    with pytest.raises(InputError, match="more than a rollback journal"):
+        CampaignReader(path)

@@ -74,6 +74,10 @@ def roll_back(fd: int, journal: Path) -> bool:
     """Undo an uncommitted flush of the file open as ``fd`` from its journal; True when there was one. The
     caller holds the file's lock."""
     try:
+        size = journal.stat().st_size
+        if size > 2 * os.fstat(fd).st_size + 2**20:  # a journal holds at most each page of the file once
+            raise InputError(f"{journal}: {size} bytes, more than a rollback journal of its campaign file can "
+                             "hold; not applied (move it away to read the file as it is)")
         data = journal.read_bytes()
     except FileNotFoundError:
         return False
@@ -126,7 +130,11 @@ class RollbackFile:
         except BlockingIOError:
             os.close(self.fd)
             raise FileInUse(f"{path}: in use") from None
-        self.recovered = roll_back(self.fd, self.journal)
+        try:
+            self.recovered = roll_back(self.fd, self.journal)
+        except BaseException:
+            os.close(self.fd)
+            raise
         self.pos = 0
         self.dropping = False  # after a failed write: nothing more reaches the file
         self._jfd: int | None = None
