@@ -32,7 +32,7 @@ from labctl.storage.records import (
     failed_step,
     result_from_mapping,
 )
-from labctl.storage.rollback import recover
+from labctl.storage.rollback import recover, wait_for_flush
 from labctl.storage.runlog import LogEntry, read_entries
 from labctl.storage.safety import check_structure, number_attr
 from labctl.storage.specimen import SpecimenRecord
@@ -245,8 +245,8 @@ class CampaignReader:
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
-        if not live:
-            recover(self.path)  # a writer killed inside a flush: back to its last complete flush
+        # not live: a writer killed inside a flush is rolled back; live: the writer's flush in progress ends
+        wait_for_flush(self.path) if live else recover(self.path)
         try:
             self.h5 = h5py.File(self.path, "r", locking=False) if live else h5py.File(self.path, "r")
         except OSError as exc:

@@ -21,6 +21,7 @@ import contextlib
 import fcntl
 import os
 import struct
+import time
 import zlib
 from pathlib import Path
 
@@ -272,3 +273,13 @@ class JournaledFile(h5py.File):
         with contextlib.suppress(Exception):
             super().close()
         self.rollback.close()
+
+
+def wait_for_flush(path: str | Path, timeout_s: float = 1.0) -> None:
+    """A live reader's start: wait (up to ``timeout_s``) while the writer is inside a flush, i.e. while its
+    journal exists, so the read starts on a flushed file; HDF5 reading metadata a flush is rewriting may fail
+    or, rarely, crash. A flush that starts during the read is still possible: the read is checked after."""
+    journal = journal_path(path)
+    deadline = time.monotonic() + timeout_s
+    while journal.exists() and time.monotonic() < deadline:
+        time.sleep(0.005)
