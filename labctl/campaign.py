@@ -18,6 +18,7 @@ from drivers.interfaces import REVIEW_CHOICES, Operator, Rig
 from drivers.operators import ScriptedOperator
 from labctl.backends import make_rig
 from labctl.engine import Condition, Engine, Outcome, RunControl
+from labctl.engine.control import stop_on_hangup
 from labctl.engine.plan import plan_steps
 from labctl.errors import InputError
 from labctl.events import Event, EventBus
@@ -85,8 +86,9 @@ def _review_entry(entry: Any, where: str) -> tuple[tuple[int, int, int, int], st
 
 def _check_reviews(operator: Operator | None, proto: Protocol, rig_config: RigConfig, added_steps: int) -> None:
     """Every scripted verdict must name an impact the protocol can take (else it would silently never apply):
-    a series and repetition it has, a step within its plan (with an adaptive campaign's added steps), an
-    attempt within the impacts and re-hits of a step."""
+    a series and repetition it has, a step within its plan (with an adaptive campaign's added steps: the steps a
+    repetition may run past the plan when its loads run clearly under the cap are not planned, so a verdict for
+    one is refused rather than left unused), an attempt within the impacts and re-hits of a step."""
     from labctl.engine.plan import EXTRA_STEPS
 
     reviews = getattr(operator, "reviews", None)
@@ -103,10 +105,12 @@ def _check_reviews(operator: Operator | None, proto: Protocol, rig_config: RigCo
         if run > proto.repetitions.count:
             raise InputError(f"{where}: the protocol has {proto.repetitions.count} repetition(s); this verdict "
                              "would never apply")
-        steps = plan_steps(proto, proto.specimens[series - 1], rig_config).steps_estimate + EXTRA_STEPS + added_steps
-        if step > steps:
-            raise InputError(f"{where}: series {series} has at most {steps} load steps; this verdict would never "
-                             "apply")
+        planned = plan_steps(proto, proto.specimens[series - 1], rig_config).steps_estimate
+        if step > planned + added_steps:  # past the plan only when the loads run clearly under the rig's calibration
+            extra = f" and up to {added_steps} the planner adds" if added_steps else ""
+            raise InputError(f"{where}: series {series} plans {planned} load steps{extra} (at most {EXTRA_STEPS} "
+                             "more only if the measured loads run clearly below the rig's load per knob degree); "
+                             "this verdict would never apply")
         if attempt > attempts:
             raise InputError(f"{where}: a step takes at most {attempts} impacts ({acq.impacts_per_step} and "
                              f"{acq.max_rehits} re-hits); this verdict would never apply")
@@ -210,7 +214,8 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
             out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
         raise
     try:
-        return engine.run()
+        with stop_on_hangup(engine.control):
+            return engine.run()
     finally:
         writer.close()
 

@@ -241,6 +241,8 @@ def _catalogue(folder: Path) -> None:
 
 
 RUN = "run quick_check --out n.h5 --quiet"
+BIG_LOAD_TABLE = ("diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m\n10,10,0.2,100,5e8\n"
+                  "10,10,0.2,1e6,6e8\n")
 CASES = [
     # an output naming an input (or linking to it) is refused before anything is written
     Case("process csv over campaign", "process c.h5 --csv c.h5", ("--csv c.h5", "is the input c.h5")),
@@ -349,6 +351,12 @@ CASES = [
          lambda folder: _devices(folder, "A1Z", "transverse_sensitivity = 0.8")),
     Case("devices cross-axis key on the hammer", f"{RUN} --backend hw --devices d.toml",
          ("d.toml", "mounting_angle_deg"), lambda folder: _devices(folder, "F", "mounting_angle_deg = 2.0")),
+    Case("operator review of a step past the plan (plan + 1)", f"{RUN} --operator op.toml",
+         ("op.toml", "step 4", "plans 3 load steps", "never apply"), _review(step=4)),
+    Case("plan: a table load past the contact models' validity", "plan t.csv",
+         ("t.csv", "row 3", "load_n = 1e+06", "(0, 21923] N"), _text("t.csv", BIG_LOAD_TABLE)),
+    Case("discrepancy: a table load past the contact models' validity", "discrepancy t.csv",
+         ("t.csv", "row 3", "load_n = 1e+06", "(0, 21923] N"), _text("t.csv", BIG_LOAD_TABLE)),
 ]
 
 

@@ -54,10 +54,10 @@ def test_sigkill_then_resume_holds_every_step_once_and_keeps_old_impacts(tmp_pat
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert seen >= 13, "the run did not get far enough before the kill"
+    with CampaignReader(out) as r:  # first: a kill inside a flush is rolled back by any labctl read
+        assert r.attrs["status"] == "running"  # killed: never marked finished
     before = _impacts(out)
     assert len(before) >= 12
-    with CampaignReader(out) as r:
-        assert r.attrs["status"] == "running"  # killed: never marked finished
 
     # the resume needs no fresh interpreter: the CLI in this process (tests/cli_util.py)
     done = labctl("run", str(protocol), "--backend", "sim", "--out", str(out), "--resume", "--quiet")

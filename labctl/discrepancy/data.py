@@ -11,6 +11,7 @@ import numpy as np
 
 from labctl.errors import InputError
 from labctl.physics.effects import ContactCase
+from labctl.physics.validity import check_roller_loads
 from labctl.stiffness_table import StiffnessPoint, read_stiffness_table
 
 HDF5_SUFFIXES = (".h5", ".hdf5")
@@ -175,6 +176,8 @@ def load_points(paths: Sequence[str | Path]) -> list[StiffnessPoint]:
                                      f"{p.diameter_m * 1e3:g} is a ball (Hertz point contact), not a roller; "
                                      "labctl discrepancy compares rollers with line-contact models: give the "
                                      "roller rows alone")
+            check_roller_loads(str(path), ((f"row {row}", p.case().roller, p.case().rail, p.load_n)
+                                           for row, p in enumerate(table, 2)))  # the models apply there only
             points.extend(table)
     return points
 

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 
 class StopRequested(Exception):
@@ -74,3 +80,36 @@ class RunControl:
                 raise StopRequested(self._status)
             if on_resume:
                 on_resume()
+
+
+@contextmanager
+def stop_on_hangup(control: RunControl) -> Iterator[None]:
+    """While a campaign runs in the main thread: SIGTERM (a service stop, `kill`) and SIGHUP (the technician's SSH
+    session dropped) ask the same clean stop after the current impact as a first Ctrl-C, so the file ends
+    `interrupted` with the resume hint instead of staying `running`; a second SIGTERM interrupts at once. After
+    a hangup the terminal is gone, so output goes to /dev/null instead of failing. Handlers restored on exit."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        if signum == signal.SIGHUP:
+            null = os.open(os.devnull, os.O_WRONLY)
+            for fd in (1, 2):
+                os.dup2(null, fd)
+            os.close(null)
+        elif control.stop_status:
+            raise KeyboardInterrupt
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.write(f"\n{signal.Signals(signum).name}: stopping after the current impact; continue with "
+                             "--resume\n")
+        control.stop()
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    for sig in before:
+        signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, old in before.items():
+            signal.signal(sig, old)

@@ -35,3 +35,15 @@ def check_loads(model: str, loads_n: Iterable[float], limit_n: float) -> None:
             raise InputError(f"{model}: load {f:g} N is outside the model's validity (0, {limit_n:.5g}] N: above "
                              f"it the peak contact pressure passes {P0_PA / 1e6:g} MPa and the contact is no "
                              "longer elastic")
+
+
+def check_roller_loads(where: str, cases_and_loads: Iterable[tuple[str, Roller, Material, float]]) -> None:
+    """For inputs whose loads a line-contact model (Tripp, Palmgren, the fits) will be evaluated at: each
+    ``(label, roller, rail, load)`` must lie in (0, the roller's p₀ limit], else one line naming ``where``,
+    the label (e.g. the CSV row) and the load."""
+    for label, roller, rail, load_n in cases_and_loads:
+        limit_n = roller_load_limit_n(roller, rail)
+        if not (math.isfinite(load_n) and 0 < load_n <= limit_n):
+            raise InputError(f"{where}: {label}: load_n = {load_n:g} N is outside where the contact models apply "
+                             f"to this roller, (0, {limit_n:.5g}] N (peak contact pressure up to "
+                             f"{P0_PA / 1e6:g} MPa, elastic); give the load per roller in N")

@@ -6,6 +6,10 @@ allocation, read from the superblock), so a full disk or a file-size limit is me
 the impact is written, and the writer stops cleanly. Where the file system cannot preallocate, the free
 space is compared instead.
 
+(The campaign writer's own files are written through a rollback journal, ``labctl.storage.rollback``, which
+``discard`` uses instead: it undoes every write since the last flush. The descriptor trick below is kept for
+files opened with HDF5's own driver.)
+
 HDF5 keeps changed metadata in memory and writes it when the file is flushed or closed. After a failed
 write (ENOSPC on a full disk, EFBIG past a file-size limit) that flush would write half a file: the
 superblock would name an end of file that was never written, and the file could not be opened again. So
@@ -63,10 +67,16 @@ def superblock_eoa(fd: int) -> int | None:
     return int.from_bytes(head[where:where + 8], "little")
 
 
+def file_fd(h5: h5py.File) -> int:
+    """The descriptor HDF5 writes the file through (the rollback journal's, for the campaign writer)."""
+    rollback = getattr(h5, "rollback", None)
+    return rollback.fd if rollback is not None else int(h5.id.get_vfd_handle())
+
+
 def reserve(h5: h5py.File, need_bytes: int) -> None:
     """Allocate room for the file to grow by ``need_bytes`` past HDF5's end of allocation, or raise DiskFull
     naming what is left; nothing of the file's content is changed either way."""
-    fd = h5.id.get_vfd_handle()
+    fd = file_fd(h5)
     size = os.fstat(fd).st_size
     eoa = superblock_eoa(fd)
     start = size if eoa is None or eoa > size else eoa
@@ -88,7 +98,7 @@ def trim(h5: h5py.File) -> None:
     """After a flush: give back the room ``reserve`` allocated and HDF5 did not use (the file ends at HDF5's
     end of allocation again). Never raises: an untrimmed file is only larger."""
     with contextlib.suppress(Exception):
-        fd = h5.id.get_vfd_handle()
+        fd = file_fd(h5)
         eoa = superblock_eoa(fd)
         if eoa is not None and 0 < eoa < os.fstat(fd).st_size:
             os.ftruncate(fd, eoa)
@@ -105,6 +115,9 @@ def is_full(exc: BaseException) -> bool:
 def discard(h5: h5py.File | None) -> None:
     """Close ``h5`` without writing anything more to its file (see the module docstring); never raises."""
     if h5 is None:
+        return
+    if hasattr(h5, "abandon"):  # the campaign writer's file: its journal undoes the unflushed writes
+        h5.abandon()
         return
     try:
         if not h5.id.valid:

@@ -1,8 +1,9 @@
 """The campaign writer's guard against failed writes: every writing method runs inside ``_writing``.
 
-A write that fails (disk full, file-size limit, I/O error) is never flushed: ``labctl.storage.diskspace``
-drops the handle unflushed, the file is reopened as of its last flush with partial groups removed, and
-``DiskFull`` is raised so the engine stops the run as ``interrupted`` (resumable once there is room).
+A write that fails (disk full, file-size limit, I/O error) is never flushed: the handle is dropped and its
+rollback journal undoes what it wrote since its last flush (``labctl.storage.rollback``), the file is
+reopened with partial groups removed, and ``DiskFull`` is raised so the engine stops the run as
+``interrupted`` (resumable once there is room).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import h5py
 from labctl.storage import schema as s
 from labctl.storage.diskspace import RESERVE_BYTES, DiskFull, discard, is_full, reserve
 from labctl.storage.reader import complete_impacts
+from labctl.storage.rollback import JournaledFile
 
 T = TypeVar("T")
 
@@ -74,7 +76,7 @@ class WriteGuard:
         discard(self.h5)
         self._accepted = None
         try:
-            self.h5 = h5py.File(self.path, "r+")
+            self.h5 = JournaledFile(self.path)
             self._drop_incomplete()
             self.h5.flush()
         except Exception:  # noqa: BLE001 — still no room: keep the file as it is on disk, read-only

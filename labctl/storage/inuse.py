@@ -1,6 +1,7 @@
-"""Who is writing a campaign file: a sidecar ``.NAME.h5.writer`` beside it, and HDF5's own file lock.
+"""Who is writing a campaign file: a sidecar ``.NAME.h5.writer`` beside it, and a lock on the file.
 
-The writer holds HDF5's lock on the file for as long as it has the file open, and writes the sidecar (JSON:
+The writer holds an exclusive ``flock`` on the file (``labctl.storage.rollback``; the lock HDF5's readers
+take too) for as long as it has the file open, and writes the sidecar (JSON:
 process id, host, command, since when) when it opens the file and removes it when it closes it. The lock is
 the truth (the kernel drops it when the process dies, even by SIGKILL); the sidecar only says who holds it.
 A reader that finds the file locked reports "in use by labctl (pid N on HOST) since T" instead of an HDF5

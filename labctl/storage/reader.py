@@ -1,8 +1,6 @@
-"""Read campaign files into typed records: structure, impacts for (re)processing, step results and curves.
-
-Reads schema 2 (integer ADC counts with per-channel scale and offset, typed verdicts) and schema 1 (float32
-traces, verdict folded into ``reasons``). Refuses what it does not understand with an InputError naming the
-file: an unknown format version, a complete impact with a missing dataset, a missing stored configuration."""
+"""Read campaign files (schema 2: ADC counts with per-channel scale and offset; schema 1: float32 traces) into
+typed records; refuses what it does not understand (unknown format version, a complete impact with a missing
+dataset, a missing stored configuration) with an InputError naming the file."""
 
 from __future__ import annotations
 
@@ -32,6 +30,7 @@ from labctl.storage.records import (
     failed_step,
     result_from_mapping,
 )
+from labctl.storage.rollback import recover, wait_for_flush
 from labctl.storage.runlog import LogEntry, read_entries
 from labctl.storage.safety import check_structure, number_attr
 from labctl.storage.specimen import SpecimenRecord
@@ -244,6 +243,8 @@ class CampaignReader:
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: campaign file not found")
+        # not live: a writer killed inside a flush is rolled back; live: the writer's flush in progress ends
+        wait_for_flush(self.path) if live else recover(self.path)
         try:
             self.h5 = h5py.File(self.path, "r", locking=False) if live else h5py.File(self.path, "r")
         except OSError as exc:

@@ -1,11 +1,10 @@
 """Write a campaign file impact by impact; every write is flushed so a crash loses at most the impact in flight.
 
-HDF5 keeps changed metadata in memory until a flush, so a process killed between flushes leaves the file as
-it was at the last flush. Each group gets ``complete = True`` as its last write; resume deletes groups
-without it. Before each impact the writer checks there is room for it (``labctl.storage.diskspace``); a
-write that fails anyway (disk full, file-size limit, I/O error) is not flushed: the file is reopened as it
-was at the last flush, the partial impact dropped, and ``DiskFull`` raised, so the campaign stays
-processable and resumable.
+A process killed at any moment, inside a flush too, leaves the file as of its last flush (its rollback journal,
+``labctl.storage.rollback``). Each group gets ``complete = True`` as its last write; resume deletes groups
+without it. Before each impact the writer reserves room for it (``labctl.storage.diskspace``); a write that
+fails anyway (disk full, file-size limit, I/O error) is undone to the last flush, the partial impact dropped
+and ``DiskFull`` raised, so the campaign stays processable and resumable.
 """
 
 from __future__ import annotations
@@ -37,6 +36,7 @@ from labctl.storage.records import (
     Verdict,
     curve_from_steps,
 )
+from labctl.storage.rollback import FileInUse, JournaledFile
 from labctl.storage.runlog import LogEntry, append_entry, read_entries
 from labctl.storage.safety import check_structure
 from labctl.storage.specimen import SpecimenRecord
@@ -87,7 +87,7 @@ class CampaignWriter(WriteGuard):
             tmp.unlink(missing_ok=True)
             raise
         try:
-            writer = cls(h5py.File(p, "r+"))
+            writer = cls(JournaledFile(p))
         except OSError as exc:
             raise InputError(f"{p}: cannot open the new campaign file ({exc.strerror or exc})") from None
         mark_writer(p)
@@ -112,11 +112,11 @@ class CampaignWriter(WriteGuard):
         if not p.exists():
             raise InputError(f"{p}: no campaign file to resume")
         try:
-            h5 = h5py.File(p, "r+")
-        except OSError as exc:
-            if is_lock_error(exc):
-                raise InputError(in_use_message(p)) from None
-            raise InputError(f"{p}: cannot open the campaign file for resuming ({exc})") from None
+            h5 = JournaledFile(p)  # a journal left by a writer killed in a flush is rolled back here
+        except (FileInUse, OSError) as exc:
+            busy = isinstance(exc, FileInUse) or is_lock_error(exc)
+            raise InputError(in_use_message(p) if busy else f"{p}: cannot open the campaign file for resuming "
+                             f"({exc})") from None
         if h5.attrs.get("format") != s.FORMAT:
             h5.close()
             raise InputError(f"{p}: not a labctl campaign file")
