@@ -101,7 +101,10 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     session = f"labctl-tui-{os.getpid()}"
     # this checkout's labctl (a running tmux server keeps its own environment, and the labctl script may be
     # another checkout's)
-    cmd = f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim --autostart"
+    # --auto-confirm 0.2: the clean blows and the prompts answer themselves at once (the default 3 s countdown,
+    # nine times over, is what the test waited for; the countdown itself is test_tui_gate's)
+    cmd = (f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim "
+           "--autostart --auto-confirm 0.2")
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
     try:
         pane, deadline = "", time.monotonic() + 120
