@@ -16,7 +16,7 @@ from labctl.campaign import run_campaign
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.browser import BrowserScreen
-from labctl.tui.dialogs import PromptDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot, TracePlot
 from labctl.tui.setup import SetupScreen
 from tests.test_tui import SIZE, wait_for
@@ -143,5 +143,11 @@ async def test_setup_screen_honours_no_auto_confirm(tmp_path, monkeypatch, no_au
             await pilot.pause(4.0)  # longer than the auto-confirm delay: the prompt still waits for a key
             assert app.screen is dialog and dialog.request.answer is None
             await pilot.press("enter")
-        await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
-    assert app.outcome.status == "complete"
+        await wait_for(pilot, lambda: dialog.request.done.is_set(), what="the prompt answered")
+        assert dialog.request.answer == "ok"  # by itself after the countdown, or by the Enter above
+        await wait_for(pilot, lambda: app.screen is app.monitor, what="the prompt closed")
+        await pilot.press("a")  # the rest of the campaign proves nothing more here: abort it
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
+        await pilot.press("x")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert app.outcome.status == "aborted"
