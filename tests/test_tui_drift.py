@@ -65,8 +65,8 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
                 await pilot.pause(0.3)
                 assert not dialog.closed
                 await pilot.press("1")
-                await pilot.pause(0.3)
-                assert dialog.closed and dialog.request.answer == "continue", "1 did not answer the drift prompt"
+                await wait_for(pilot, lambda d=dialog: d.closed, what="1 to answer the drift prompt")
+                assert dialog.request.answer == "continue"
                 answered_drift = dialog.request
                 continue
             if isinstance(dialog, ReviewDialog) and answered_drift is not None and dialog.request.review.step > 1:
