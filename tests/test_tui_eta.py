@@ -56,6 +56,30 @@ def test_eta_never_rises_by_more_than_the_last_step_time_and_stays_positive_with
     assert eta.eta_s(t + 1001.0) == 0.0
 
 
+def _blow(eta: EtaEstimator, t: float, step: int, impact: int) -> None:
+    eta(ev.ImpactAcquired(t, ev.Position(1, 1, step, impact), None))  # type: ignore[arg-type]
+
+
+def test_a_resumed_step_counts_for_the_blows_it_still_needs_and_its_time_is_scaled_to_a_step():
+    eta = EtaEstimator(steps_total=10, steps_done=4, prior_step_s=100.0, impacts_per_step=4)  # stored pace: 100 s
+    _start(eta, 0.0, 5)
+    _blow(eta, 1.0, 5, 4)  # blow 4 of 4: three were stored before the stop
+    assert eta.eta_s(1.0) == pytest.approx(5 * 100.0 + 100.0 / 4 - 1.0)  # a quarter of step 5, 5 whole steps
+    _start(eta, 3.0, 6)  # a quarter step took 3 s: the pace is 12 s a step, not the stored 100 s
+    assert eta.partial_times_s == [12.0] and eta.step_times_s == [] and eta.step_s == 12.0
+    assert eta.eta_s(3.0) == pytest.approx(5 * 12.0)
+    _start(eta, 13.0, 7)  # a whole step of this session: it is the pace from now on
+    assert eta.step_times_s == [10.0] and eta.step_s == 10.0
+
+
+def test_a_resumed_step_with_every_blow_stored_is_no_measure_of_a_step():
+    eta = EtaEstimator(steps_total=10, steps_done=4, prior_step_s=20.0, impacts_per_step=2)
+    _start(eta, 0.0, 5)  # stopped after its last blow: only identification is left
+    _start(eta, 0.5, 6)
+    assert eta.steps_done == 5 and eta.step_times_s == [] and eta.partial_times_s == []
+    assert eta.step_s == 20.0
+
+
 def test_stored_step_times_are_the_gaps_between_consecutive_steps_of_a_run():
     firsts = [((1, 1), 1, 100.0), ((1, 1), 2, 112.0), ((1, 1), 3, 125.0), ((1, 2), 1, 500.0), ((1, 2), 3, 530.0)]
     assert stored_step_times_s(firsts) == [12.0, 13.0]  # run 2's gap spans a missing step: not one step

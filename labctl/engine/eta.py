@@ -56,6 +56,7 @@ class EtaEstimator:
     _step_active_start: float | None = None
     _stored_blows: int = 0  # blows of the current step accepted before this session
     _blow_seen: bool = False
+    _steps_seen: int = 0
     _paused_total: float = 0.0
     _paused_at: float | None = None
     _last: tuple[float, float] | None = None  # (eta, active time) of the last estimate from this session's pace
@@ -86,16 +87,23 @@ class EtaEstimator:
                 self.steps_done += 1
             self._step_key, self._step_active_start = key, now
             self._stored_blows, self._blow_seen = 0, False
+            self._steps_seen += 1
         elif isinstance(event, ev.CampaignFinished):
             self._finished = True
 
     def _measured(self, duration_s: float) -> None:
         """File the finished step's time: a whole step, or a resumed one scaled by the blows it still needed."""
         fraction = self._fraction_needed()
+        if self._resumed_without_blows():
+            return  # stopped after its last blow: only the identification was left, no measure of a step
         if fraction >= 1.0:
             self.step_times_s.append(duration_s)
         elif fraction > 0.0:
             self.partial_times_s.append(duration_s / fraction)
+
+    def _resumed_without_blows(self) -> bool:
+        """The session's first step of a resumed campaign took no blow: all of them were stored before."""
+        return self._steps_seen == 1 and self.steps_done > 0 and self.impacts_per_step > 0 and not self._blow_seen
 
     def _fraction_needed(self) -> float:
         """The part of the current step this session has to do (1: all of it; the blows left of a resumed one)."""
