@@ -63,7 +63,7 @@ def sources_of(paths: Sequence[str | Path]) -> list[Source]:
 def _mark(fig: Figure, simulated: bool, title: str) -> None:
     """The figure's title; data from the twin say so first, in red."""
     if simulated:
-        fig.suptitle(f"{SIM_MARK} — {title}", color=SIM_RED, fontweight="bold", fontsize=10)
+        fig.suptitle(f"{SIM_MARK}\n{title}", color=SIM_RED, fontweight="bold", fontsize=10)  # fits one panel
     else:
         fig.suptitle(title, fontsize=10)
 
