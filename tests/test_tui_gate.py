@@ -134,6 +134,7 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("n")  # not aborted: the gate is still waiting, nothing was armed meanwhile
+        await wait_for(pilot, lambda: app.screen is gate, what="the gate again")
         await pilot.pause(0.5)
         assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
         await pilot.press("a")
@@ -197,7 +198,8 @@ async def test_pause_pressed_just_after_the_verdict_holds_before_the_next_blow_i
     grace that follows a person's verdict, so the pause is honoured at the engine's next safe point first."""
     assert TuiSettings().arm_grace_s >= 0.5  # the default leaves a technician's reaction time
     events = Recorder()
-    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True, arm_grace_s=1.0), subscribers=(events,))
+    # a 3 s grace here: on a loaded machine the `p` pressed 0.3 s after `y` may reach the app a second later
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True, arm_grace_s=3.0), subscribers=(events,))
     async with app.run_test(size=SIZE) as pilot:
         await next_dialog(pilot, app)
         await pilot.press("enter")  # mount
