@@ -72,7 +72,7 @@ async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
         assert "PAUSED" in str(app.monitor.query_one("#header").render())
         await pilot.press("p")
         await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: app.monitor.state.status == "complete", what="the screen to say so")
         state = app.monitor.state
         assert app.outcome.status == "complete" and state.status == "complete"
         done = [e.impacts_done for e in progress.of(ev.Progress)]
@@ -245,7 +245,7 @@ async def test_quit_mid_step_then_resume_in_the_tui_shows_the_earlier_steps(tmp_
     resumed = LabApp(settings)
     async with resumed.run_test(size=SIZE) as pilot:
         await wait_for(pilot, lambda: resumed.outcome, what="the resumed campaign")
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: resumed.monitor.state.status == "complete", what="the screen to say so")
         steps = [(row.run, row.step) for row in resumed.monitor.state.steps]
         plot = resumed.monitor.query_one("#stiffness", StiffnessPlot)
         assert resumed.outcome.status == "complete" and steps == [(1, 1), (1, 2), (1, 3)]
@@ -268,8 +268,8 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         rejected = impact_event(ev.Position(1, 1, 1, 1), 1, ("double_hit",), force, np.zeros((12, 2048)),
                                 tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"), peak_force_n=250.0)
         app.post_message(app_event(rejected))
-        await pilot.pause(0.2)
         panel = app.monitor.query_one("#impact-panel")
+        await wait_for(pilot, lambda: panel.has_class("-rejected"), what="the red impact panel")
         assert panel.has_class("-rejected") and "REJECTED: double hit" in str(panel.border_title)
         answers: list[str] = []
         ask = threading.Thread(target=lambda: answers.append(app.operator.prompt(

@@ -16,7 +16,7 @@ from labctl.campaign import run_campaign
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.browser import BrowserScreen
-from labctl.tui.dialogs import PromptDialog
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot, TracePlot
 from labctl.tui.setup import SetupScreen
 from tests.test_tui import SIZE, wait_for
@@ -45,8 +45,9 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         curve = r.curve(1, 1)
     async with app.run_test(size=SIZE) as pilot:
         screen = await wait_for(pilot, lambda: isinstance(app.screen, BrowserScreen) and app.screen)
-        await pilot.pause(0.1)
-        tree = screen.query_one("#tree")
+        tree = await wait_for(pilot, lambda: screen.query("#tree") and screen.query_one("#tree"), what="the tree")
+        await wait_for(pilot, lambda: sum(str(n.label).startswith("step ") for n in tree_nodes(tree.root)) >= 3,
+                       what="the steps in the tree")
         nodes = tree_nodes(tree.root)
         labels = [str(n.label) for n in nodes]
         step_lines = [t for t in labels if t.startswith("step ")]
@@ -59,7 +60,8 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         assert "Tripp" in plot.models
         step_node = next(n for n in nodes if n.data == ("step", 1, 1, 1))
         tree.move_cursor(step_node)
-        await pilot.pause(0.2)
+        await wait_for(pilot, lambda: str(screen.query_one("#detail").render()).startswith("step 1:"),
+                       what="the step's detail")
         detail = str(screen.query_one("#detail").render())
         assert f"bounce {steps[0].result.bounce_hz:.2f} Hz" in detail and detail.startswith("step 1:")
         assert screen.query_one("#b-frf-plot", TracePlot).point_count() > 0
@@ -67,8 +69,8 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
         step_node.expand()
         await pilot.pause(0.1)
         tree.move_cursor(next(n for n in nodes if n.data == ("impact", 1, 1, 1, last.attempt)))
-        await pilot.pause(0.2)
         force = screen.query_one("#b-force", TracePlot)
+        await wait_for(pilot, lambda: force.title_text.startswith(f"impact {last.attempt} "), what="the blow")
         x, f = force.lines["force"]
         assert max(f) == pytest.approx(last.peak_force_n, rel=0.05)
         assert force.title_text == f"impact {last.attempt} (ok)"
@@ -101,7 +103,10 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     session = f"labctl-tui-{os.getpid()}"
     # this checkout's labctl (a running tmux server keeps its own environment, and the labctl script may be
     # another checkout's)
-    cmd = f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim --autostart"
+    # --auto-confirm 0.2: the clean blows and the prompts answer themselves at once (the default 3 s countdown,
+    # nine times over, is what the test waited for; the countdown itself is test_tui_gate's)
+    cmd = (f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim "
+           "--autostart --auto-confirm 0.2")
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
     try:
         pane, deadline = "", time.monotonic() + 120
@@ -140,5 +145,12 @@ async def test_setup_screen_honours_no_auto_confirm(tmp_path, monkeypatch, no_au
             await pilot.pause(4.0)  # longer than the auto-confirm delay: the prompt still waits for a key
             assert app.screen is dialog and dialog.request.answer is None
             await pilot.press("enter")
-        await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")
-    assert app.outcome.status == "complete"
+        await wait_for(pilot, lambda: dialog.request.done.is_set(), what="the prompt answered")
+        assert dialog.request.answer == "ok"  # by itself after the countdown, or by the Enter above
+        await wait_for(pilot, lambda: app.screen is app.monitor, what="the prompt closed")
+        await pilot.press("a")  # the rest of the campaign proves nothing more here: abort it (unless it is done)
+        await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog) or app.outcome, what="the question")
+        if isinstance(app.screen, ConfirmDialog):
+            await pilot.press("x")
+        await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+    assert app.outcome.status in ("aborted", "complete")

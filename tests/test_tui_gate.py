@@ -134,6 +134,7 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("n")  # not aborted: the gate is still waiting, nothing was armed meanwhile
+        await wait_for(pilot, lambda: app.screen is gate, what="the gate again")
         await pilot.pause(0.5)
         assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
         await pilot.press("a")
@@ -197,7 +198,8 @@ async def test_pause_pressed_just_after_the_verdict_holds_before_the_next_blow_i
     grace that follows a person's verdict, so the pause is honoured at the engine's next safe point first."""
     assert TuiSettings().arm_grace_s >= 0.5  # the default leaves a technician's reaction time
     events = Recorder()
-    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True, arm_grace_s=1.0), subscribers=(events,))
+    # a 3 s grace here: on a loaded machine the `p` pressed 0.3 s after `y` may reach the app a second later
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True, arm_grace_s=3.0), subscribers=(events,))
     async with app.run_test(size=SIZE) as pilot:
         await next_dialog(pilot, app)
         await pilot.press("enter")  # mount
@@ -216,3 +218,31 @@ async def test_pause_pressed_just_after_the_verdict_holds_before_the_next_blow_i
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
+
+
+async def test_the_gate_opens_only_after_the_screen_has_the_blow_it_asks_about(tmp_path):
+    """A prompt travels in the same queue as the engine's events: when the gate opens, the screen already
+    shows the blow under review (a blocking call into the UI thread jumped ahead of the queued events), and a
+    test that fails with the gate open does not leave the engine thread hanging on a closed app."""
+    app = LabApp(gate_settings(tmp_path, no_auto_confirm=True))
+    order: list[tuple[int, int | None]] = []
+    show = app.operator._show
+
+    def spy(request) -> None:  # noqa: ANN001
+        if request.review is not None:
+            last = app.monitor.state.last_impact
+            order.append((request.review.attempt, last.attempt if last is not None else None))
+        show(request)
+
+    app.operator._show = spy
+    async with app.run_test(size=SIZE) as pilot:
+        await next_dialog(pilot, app)
+        await pilot.press("enter")  # mount
+        for n in range(3):  # three blows: two of step 1, the first of step 2
+            gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and not app.screen.closed
+                                  and app.screen, what=f"gate {n + 1}")
+            await pilot.press("y" if gate.request.review.checks_accepted else "r")
+            await wait_for(pilot, lambda g=gate: g.closed, what="the verdict")
+    # closing with the engine waiting on the next gate: it is withdrawn, the engine stops
+    assert app.worker is not None and app.worker.state.name in ("SUCCESS", "ERROR", "CANCELLED", "RUNNING")
+    assert order and all(review == shown for review, shown in order), order

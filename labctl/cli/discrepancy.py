@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_files(args.measured, args.baseline, rig=args.rig, max_effects=args.max_effects)
     doc: dict[str, Any] = result.to_dict()
     if args.report:
-        files = write_report(result, args.report, doc)
+        files = write_report(result, args.report, doc, sources=args.measured)
         doc["report"] = [str(f) for f in files]
     emit(doc, args.json, lambda d: summary_text(d) + (f"\nreport: {args.report}" if args.report else ""))
     return 0

@@ -3,11 +3,14 @@
 A load step (loading, settling, its impacts, identification) is the unit of work: the plan says how many
 steps the campaign has, the file says how many are done (a resumed campaign's steps count as done), and the
 median active time of the steps measured so far says how long one takes. Time spent paused does not count.
+A step resumed with some of its blows already stored needs only the rest: it counts as that fraction of a
+step, and its time, scaled up to a whole step, is the pace until a whole step of this session is measured.
 Before this session has measured a step, the gaps between the stored impacts' timestamps of completed steps
-stand in; a new campaign shows no estimate until its first step is done, a resumed one without usable
-timestamps the impacts' record time (a rough guess, replaced as soon as a step has been measured). Once
-based on measured step times, the estimate never rises above the previous estimate (counted down) plus the
-last measured step time, so it does not jump about.
+(the campaign's stored pace) stand in; a new campaign shows no estimate until its first step is done, a
+resumed one without usable timestamps the impacts' record time (a rough guess). The first estimate from this
+session's own pace replaces the stored one outright (a resumed session may go at another pace: another
+technician, another rig, a simulated clock); from then on the estimate never rises above the previous one
+(counted down) plus the last measured step time, so it does not jump about.
 """
 
 from __future__ import annotations
@@ -40,18 +43,23 @@ def stored_step_times_s(first_impact_times_s: Iterable[tuple[tuple[int, int], in
 class EtaEstimator:
     """Subscribe to the engine's events; ``eta_s(now)`` gives the time left (None when nothing is known).
 
-    ``now`` is the engine clock (``Event.time_s``): seconds since the engine started."""
+    ``now`` is the engine clock (``Event.time_s``): seconds since the engine started. With ``impacts_per_step``
+    a step resumed with blows already stored counts only for the blows it still needs."""
 
     steps_total: int
     steps_done: int = 0
-    prior_step_s: float | None = None  # a step's time before this session measured one
-    prior_measured: bool = True  # False: the prior is only a lower bound (the records' length), not a step time
-    step_times_s: list[float] = field(default_factory=list)
+    prior_step_s: float | None = None  # a step's time before this session measured one (the stored pace)
+    impacts_per_step: int = 0  # 0: unknown, every step counts whole
+    step_times_s: list[float] = field(default_factory=list)  # whole steps measured this session
+    partial_times_s: list[float] = field(default_factory=list)  # resumed steps, scaled to a whole step
     _step_key: tuple[int, int, int] | None = None
     _step_active_start: float | None = None
+    _stored_blows: int = 0  # blows of the current step accepted before this session
+    _blow_seen: bool = False
+    _steps_seen: int = 0
     _paused_total: float = 0.0
     _paused_at: float | None = None
-    _last: tuple[float, float] | None = None  # (eta, active time) of the last estimate
+    _last: tuple[float, float] | None = None  # (eta, active time) of the last estimate from this session's pace
     _finished: bool = False
 
     def active(self, now: float) -> float:
@@ -65,23 +73,57 @@ class EtaEstimator:
         elif isinstance(event, ev.Resumed) and self._paused_at is not None:
             self._paused_total += event.time_s - self._paused_at
             self._paused_at = None
+        elif isinstance(event, ev.ImpactAcquired):  # rejected blows too: the first one says what was stored
+            key = (event.position.series, event.position.run, event.position.step)
+            if key == self._step_key and not self._blow_seen:
+                self._blow_seen, self._stored_blows = True, max(event.position.impact - 1, 0)
         elif isinstance(event, ev.StepStarted):
             key = (event.position.series, event.position.run, event.position.step)
             if key == self._step_key:
                 return
             now = self.active(event.time_s)
             if self._step_key is not None and self._step_active_start is not None:
-                self.step_times_s.append(now - self._step_active_start)
+                self._measured(now - self._step_active_start)
                 self.steps_done += 1
             self._step_key, self._step_active_start = key, now
+            self._stored_blows, self._blow_seen = 0, False
+            self._steps_seen += 1
         elif isinstance(event, ev.CampaignFinished):
             self._finished = True
 
+    def _measured(self, duration_s: float) -> None:
+        """File the finished step's time: a whole step, or a resumed one scaled by the blows it still needed."""
+        fraction = self._fraction_needed()
+        if self._resumed_without_blows():
+            return  # stopped after its last blow: only the identification was left, no measure of a step
+        if fraction >= 1.0:
+            self.step_times_s.append(duration_s)
+        elif fraction > 0.0:
+            self.partial_times_s.append(duration_s / fraction)
+
+    def _resumed_without_blows(self) -> bool:
+        """The session's first step of a resumed campaign took no blow: all of them were stored before."""
+        return self._steps_seen == 1 and self.steps_done > 0 and self.impacts_per_step > 0 and not self._blow_seen
+
+    def _fraction_needed(self) -> float:
+        """The part of the current step this session has to do (1: all of it; the blows left of a resumed one)."""
+        n = self.impacts_per_step
+        if n <= 0 or self._stored_blows <= 0:
+            return 1.0
+        return max(n - self._stored_blows, 0) / n
+
+    @property
+    def measured(self) -> bool:
+        """Whether the estimate rests on this session's own pace (else on the stored pace or nothing)."""
+        return bool(self.step_times_s or self.partial_times_s)
+
     @property
     def step_s(self) -> float | None:
-        """The typical time of one step: the median measured this session, else the prior."""
+        """The typical time of one step: the median measured this session (whole steps first), else the prior."""
         if self.step_times_s:
             return statistics.median(self.step_times_s)
+        if self.partial_times_s:
+            return statistics.median(self.partial_times_s)
         return self.prior_step_s
 
     def eta_s(self, now: float) -> float | None:
@@ -93,13 +135,20 @@ class EtaEstimator:
             return 0.0
         t = self.active(now)
         remaining = max(self.steps_total - self.steps_done, 1)  # more steps than planned: at least this one
-        in_step = t - self._step_active_start if self._step_active_start is not None else 0.0
-        raw = (remaining - 1) * step + max(step - in_step, 0.0) if self._step_key is not None else remaining * step
-        if self._last is not None and self.step_times_s and (self.prior_measured or len(self.step_times_s) > 1):
+        if self._step_key is None:
+            raw = remaining * step
+        else:
+            in_step = t - self._step_active_start if self._step_active_start is not None else 0.0
+            raw = (remaining - 1) * step + max(step * self._fraction_needed() - in_step, 0.0)
+        if not self.measured:
+            self._last = None
+        elif self._last is not None:  # the previous estimate was on this session's pace too: no jumps
             last_eta, last_t = self._last
-            raw = min(raw, max(last_eta - (t - last_t), 0.0) + self.step_times_s[-1])
+            latest = (self.step_times_s or self.partial_times_s)[-1]
+            raw = min(raw, max(last_eta - (t - last_t), 0.0) + latest)
         eta = max(raw, MIN_ETA_S)
-        self._last = (eta, t)
+        if self.measured:
+            self._last = (eta, t)
         return eta
 
 
@@ -113,7 +162,7 @@ def campaign_estimator(completed: Iterable[StepStamp], steps_total: int, impacts
                                if st.first_impact_s is not None)
     done = len(stamps)
     if gaps:
-        return EtaEstimator(steps_total, done, statistics.median(gaps))
+        return EtaEstimator(steps_total, done, statistics.median(gaps), impacts_per_step)
     if done == 0:  # a new campaign: no estimate until its first step has been measured
-        return EtaEstimator(steps_total, done, None)
-    return EtaEstimator(steps_total, done, impacts_per_step * record_s, prior_measured=False)
+        return EtaEstimator(steps_total, done, None, impacts_per_step)
+    return EtaEstimator(steps_total, done, impacts_per_step * record_s, impacts_per_step)

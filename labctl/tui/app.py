@@ -1,13 +1,14 @@
 """The technician's application: runs the engine in a thread worker and shows its events as they happen.
 
 Engine events cross to the UI thread with ``post_message`` (thread-safe and non-blocking: the engine never
-waits for a redraw); prompts use ``call_from_thread`` because the engine waits for the answer anyway.
+waits for a redraw); prompts too, in the same queue behind the events, and the engine waits on the request.
 Quitting mid-run asks the engine to stop at its next safe point and waits for it: the file stays resumable.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,6 +69,14 @@ class OperatorNotice(Message):
         self.text = text
 
 
+class PromptPosted(Message):
+    """An engine prompt handed to the UI thread behind the events posted before it (never ahead of them)."""
+
+    def __init__(self, show: Callable[[PromptRequest], object], request: PromptRequest) -> None:
+        super().__init__()
+        self.show, self.request = show, request
+
+
 class LabApp(App[Outcome | None]):
     """``labctl tui``: pick a protocol, run it with live plots and dialogs, browse campaign files."""
 
@@ -91,7 +100,7 @@ class LabApp(App[Outcome | None]):
         self.settings, self.open_path, self.extra_subscribers = settings, open_path, tuple(subscribers)
         self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
-        self.operator = TuiOperator(self.call_from_thread, self.show_prompt, self._tell, settings.review_hits,
+        self.operator = TuiOperator(self._post_prompt, self.show_prompt, self._tell, settings.review_hits,
                                     settings.arm_grace_s)
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
@@ -191,6 +200,16 @@ class LabApp(App[Outcome | None]):
         self.monitor.apply(e)
         if isinstance(e, ev.Resumed) and self.control.stop_status:
             self.monitor.set_status("stopping")
+
+    def _post_prompt(self, show: Callable[[PromptRequest], object], request: PromptRequest) -> None:
+        """Queue a prompt for the UI thread without waiting for it (the engine then waits on the request): a
+        blocking ``call_from_thread`` could jump ahead of the events queued before it, and never returns when
+        the app closes first, which left the engine thread (and the process) hanging."""
+        if not self.post_message(PromptPosted(show, request)):
+            raise RuntimeError("the app is closed")
+
+    def on_prompt_posted(self, message: PromptPosted) -> None:
+        message.show(message.request)
 
     def _tell(self, text: str) -> None:
         self.post_message(OperatorNotice(text))

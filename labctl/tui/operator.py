@@ -1,8 +1,8 @@
 """The technician at the screen as the engine's Operator: a prompt becomes a dialog and the engine waits for it.
 
 ``prompt`` and ``review_impact`` are called in the engine's worker thread; they hand the request to the UI
-thread with ``call_from_thread`` and block until the dialog is answered (the engine arms the next blow only
-after that). When the campaign is stopped or aborted from
+thread (queued behind the events, never blocking on the UI) and block until the dialog is answered or the
+prompt is withdrawn (the engine arms the next blow only after that). When the campaign is stopped or aborted from
 the UI while a dialog is open, the waiting prompt ends with ``StopRequested`` so the engine finishes cleanly.
 """
 
