@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from labctl.physics import HertzBallContact, material
 from labctl.stiffness_table import read_stiffness_table
-from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_process
+from tests.cli_util import assert_one_line_error, labctl, labctl_json
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.slow
@@ -38,19 +41,25 @@ def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(demo_campaign, 
 
 @pytest.mark.slow
 def test_ball_verification_recovers_hertz_within_one_percent(tmp_path):
+    """The shipped protocol (3, 6 and 9 mm balls) at one repetition instead of two: the same steps and checks, half
+    the campaign (the second repetition repeats the first's loads on the same twin)."""
+    shipped = (ROOT / "protocols" / "ball_verification.toml").read_text(encoding="utf-8")
+    assert "[repetitions]\ncount = 2" in shipped
+    protocol = tmp_path / "ball_verification.toml"
+    protocol.write_text(shipped.replace("[repetitions]\ncount = 2", "[repetitions]\ncount = 1"), encoding="utf-8")
     path = tmp_path / "balls.h5"
-    run = labctl("run", "ball_verification", "--backend", "sim", "--out", str(path), "--seed", "4", "--quiet")
+    run = labctl("run", str(protocol), "--backend", "sim", "--out", str(path), "--seed", "4", "--quiet")
     assert run.returncode == 0, run.stderr
     steps = labctl_json("process", str(path))["steps"]
     steel = material("1.3505")
     diameters = {1: 3e-3, 2: 6e-3, 3: 9e-3}
-    assert {s["series"] for s in steps} == set(diameters)
+    assert {s["series"] for s in steps} == set(diameters) and {s["run"] for s in steps} == {1}
     for s in steps:
         hertz = float(HertzBallContact(diameters[s["series"]], steel, steel).stiffness_n_per_m(s["load_n"]))
         assert s["roller_stiffness_n_per_m"] == pytest.approx(hertz, rel=0.01), s
     slopes = []
     for series in diameters:
-        pts = [(s["load_n"], s["roller_stiffness_n_per_m"]) for s in steps if s["series"] == series and s["run"] == 1]
+        pts = [(s["load_n"], s["roller_stiffness_n_per_m"]) for s in steps if s["series"] == series]
         f, k = np.log(np.array(pts)).T
         slopes.append(np.polyfit(f, k, 1)[0])
     assert slopes == pytest.approx([1 / 3] * 3, abs=0.02)  # Hertz: k ∝ F^(1/3)
@@ -71,5 +80,5 @@ def test_process_refuses_foreign_and_corrupt_files(tmp_path):
 def test_run_refuses_to_overwrite_and_resume_needs_a_file(tmp_path):
     existing = tmp_path / "c.h5"
     existing.write_bytes(b"")
-    assert_one_line_error(labctl_process("run", "quick_check", "--out", str(existing)), "already exists")
+    assert_one_line_error(labctl("run", "quick_check", "--out", str(existing)), "already exists")
     assert_one_line_error(labctl("run", "quick_check", "--out", str(tmp_path / "none.h5"), "--resume"), "no campaign")

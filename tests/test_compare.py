@@ -122,7 +122,10 @@ def test_twin_campaigns_same_rails_agree_and_other_rails_differ(tmp_path):
     from labctl.campaign import run_campaign
     from labctl.protocol import load_protocol
 
+    # quick_check at three repetitions, on 0.8 s records (the response has died out by then)
     base = load_protocol("quick_check").source_text.replace("count = 1", "count = 3")
+    assert "samples = 65536" in base
+    base = base.replace("samples = 65536", "samples = 16384")
     for name, text in (("rough", base), ("smooth", base.replace("rail_ra_um = 0.2", "rail_ra_um = 0.03"))):
         (tmp_path / f"{name}.toml").write_text(text, encoding="utf-8")
     files = {}

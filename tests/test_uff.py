@@ -55,7 +55,7 @@ def impacts_npz(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def short_npz(impacts_npz, tmp_path_factory) -> Path:
-    """The same blows cut to 0.8 s (the response has died out by then): small files for the error paths."""
+    """The same blows cut to 0.8 s (the response has died out by then): small files for the UFF round trips."""
     d = np.load(impacts_npz)
     out = tmp_path_factory.mktemp("npz") / "short.npz"
     np.savez(out, fs=d["fs"], force=d["force"][:, :16384], accel=d["accel"][..., :16384], channels=d["channels"])
@@ -68,9 +68,9 @@ def campaign(tmp_path_factory) -> Path:
 
 
 @pytest.mark.parametrize("binary", [False, True])
-def test_uff_written_by_pyuff_identifies_like_the_npz(impacts_npz, tmp_path, binary, capsys):
-    uff = write_foreign_uff(impacts_npz, tmp_path / "x.uff", binary=binary)
-    from_npz = labctl_here_json(capsys, "identify", str(impacts_npz))
+def test_uff_written_by_pyuff_identifies_like_the_npz(short_npz, tmp_path, binary, capsys):
+    uff = write_foreign_uff(short_npz, tmp_path / "x.uff", binary=binary)
+    from_npz = labctl_here_json(capsys, "identify", str(short_npz))
     from_uff = labctl_here_json(capsys, "identify", str(uff))
     assert from_uff["fs_hz"] == 20480.0  # recovered from the 6-digit interval 4.88281e-05 s
     assert from_uff["bounce_hz"] == pytest.approx(from_npz["bounce_hz"], abs=0.01)
@@ -185,14 +185,14 @@ def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tm
     assert curve is not None and len(curve["load_n"]) == sum(1 for s in original if s["run"] == 2)
 
 
-def test_import_of_a_foreign_file_with_a_hand_written_manifest(impacts_npz, tmp_path, capsys):
-    uff = write_foreign_uff(impacts_npz, tmp_path / "pak.uff", binary=True)
+def test_import_of_a_foreign_file_with_a_hand_written_manifest(short_npz, tmp_path, capsys):
+    uff = write_foreign_uff(short_npz, tmp_path / "pak.uff", binary=True)
     manifest = tmp_path / "m.csv"
     manifest.write_text("load_cases,load_n,repetition\n1-2,440,1\n3,440,2\n", encoding="utf-8")
     res = labctl_here_json(capsys, "import", str(uff), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
                            "--roller-type", "1")
     assert [(s["run"], s["impacts"]) for s in res["steps"]] == [(1, 2), (2, 1)]
-    npz = labctl_here_json(capsys, "identify", str(impacts_npz))
+    npz = labctl_here_json(capsys, "identify", str(short_npz))
     # two of the three blows: the twin's nonlinear contact moves the bounce with the blows, within its stated 1-σ
     assert abs(res["steps"][0]["bounce_hz"] - npz["bounce_hz"]) <= 0.05 + 2 * npz["bounce_hz_std"]
 

@@ -149,14 +149,17 @@ class FormPrior:
         else:
             a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
             ata, ate = a.T @ a, a.T @ e
-            m1 = self.a.shape[1]
-            for tau in TAU_GRID:
-                d = np.concatenate([np.full(m1, tau**2), np.full(bend.shape[1], BEND_SIGMA**2)])
-                m = np.diag(1.0 / d) + ata
-                chol = np.linalg.cholesky(m)
-                z = np.linalg.solve(chol, ate)
-                logdet = 2.0 * float(np.sum(np.log(np.diag(chol)))) + float(np.sum(np.log(d)))
-                vals.append(-0.5 * (ee - float(z @ z)) - 0.5 * logdet)
+            m1, n = self.a.shape[1], a.shape[1]
+            # every τ of the grid in one batched factorisation (the same LAPACK calls as one τ at a time)
+            d = np.empty((len(TAU_GRID), n))
+            d[:, :m1] = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2
+            d[:, m1:] = BEND_SIGMA**2
+            m = np.repeat(ata[None], len(TAU_GRID), axis=0)
+            m[:, np.arange(n), np.arange(n)] += 1.0 / d
+            chol = np.linalg.cholesky(m)
+            z = np.linalg.solve(chol, np.repeat(ate[None, :, None], len(TAU_GRID), axis=0))[..., 0]
+            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(np.log(d), axis=1)
+            vals = [-0.5 * (ee - float(zi @ zi)) - 0.5 * float(ld) for zi, ld in zip(z, logdet, strict=True)]
         v = np.array(vals)
         return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
 
