@@ -62,7 +62,8 @@ class Roller:
 def load_catalogue() -> tuple[dict[int, Roller], dict[str, Mat]]:
     """Roller types and materials from the shipped Table 1 files."""
     mats_raw = tomllib.loads((DATA / "materials.toml").read_text())["materials"]
-    mats = {k: Mat(k, v["youngs_modulus_gpa"] * 1e9, v["poisson_ratio"], v["hardness_hrc"]) for k, v in mats_raw.items()}
+    mats = {k: Mat(k, v["youngs_modulus_gpa"] * 1e9, v["poisson_ratio"], v["hardness_hrc"])
+            for k, v in mats_raw.items()}
     rows = tomllib.loads((DATA / "rollers.toml").read_text())["rollers"]
     rollers = {
         r["type"]: Roller(r["type"], r["diameter_mm"] * 1e-3, r["contact_length_mm"] * 1e-3,
@@ -103,14 +104,16 @@ class Line:
         p = np.asarray(p, dtype=float)
         a = self.half_width(np.maximum(p, 1e-30))
         cr, cs, nu = self._c()
-        d = p * (cr * (np.log(4.0 * self.radius_m / a) - 0.5) + 2.0 * cs * (2.0 * np.log(2.0 * self.depth_m / a) - nu / (1.0 - nu)))
+        rail = 2.0 * cs * (2.0 * np.log(2.0 * self.depth_m / a) - nu / (1.0 - nu))
+        d = p * (cr * (np.log(4.0 * self.radius_m / a) - 0.5) + rail)
         return np.where(p > 0, d, 0.0)
 
     def compliance_per_length(self, p: np.ndarray) -> np.ndarray:
         """dδ/dP (m²/N); the tangent stiffness of a length L is L / this."""
         a = self.half_width(np.asarray(p, dtype=float))
         cr, cs, nu = self._c()
-        return cr * (np.log(4.0 * self.radius_m / a) - 1.0) + 2.0 * cs * (2.0 * np.log(2.0 * self.depth_m / a) - nu / (1.0 - nu) - 1.0)
+        rail = 2.0 * cs * (2.0 * np.log(2.0 * self.depth_m / a) - nu / (1.0 - nu) - 1.0)
+        return cr * (np.log(4.0 * self.radius_m / a) - 1.0) + rail
 
     def stiffness(self, load_n: np.ndarray, length_m: float) -> np.ndarray:
         """Tangent stiffness dF/dδ (N/m) of a uniformly loaded length."""

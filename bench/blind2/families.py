@@ -7,8 +7,8 @@ law), `factor` multiplies the contact stiffness (ln k shift), `series` adds a ri
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -139,7 +139,8 @@ FAMILIES: list[Family] = [
            "fractal (Weierstrass-type) asperities: k_r = E*·L·(P/(E*·Rq))^m / s, m = 2 − D_f, D_f ∈ [1.3, 1.6]",
            (1e-3, 1e4), lambda rng, ctx: {"fractal_dimension": float(rng.uniform(1.3, 1.6))},
            lambda ctx, q, s: s / (ctx.per_cfg(lambda c: c.line.estar * c.roller.contact_length_m)
-                                  * (ctx.p / (ctx.per_cfg(lambda c: c.line.estar * c.rq_m))) ** (2.0 - q["fractal_dimension"]))),
+                                  * (ctx.p / ctx.per_cfg(lambda c: c.line.estar * c.rq_m))
+                                  ** (2.0 - q["fractal_dimension"]))),
     Family("surface_roughness", "logistic_closure", "factor",
            "roughness gap closes as a logistic in ln P centred at P_c = β·E*·Rq; depth ∝ Ra (s per 0.2 µm)",
            (1e-4, 3.0), lambda rng, ctx: {"beta": float(rng.uniform(0.3, 3.0)), "width": float(rng.uniform(0.5, 1.2))},
@@ -148,13 +149,14 @@ FAMILIES: list[Family] = [
     # ---- end_effects ----
     Family("end_effects", "log_end_profile", "law",
            "logarithmic end relief over s (m) per end: loaded length L − 2s + 2s·√(1 − exp(−δ/h)) from the approach",
-           (1e-6, 4e-4), lambda rng, ctx: {"relief_depth_m": float(rng.uniform(0.5e-6, 3e-6))},
+           (1e-6, 1.5e-4), lambda rng, ctx: {"relief_depth_m": float(rng.uniform(0.5e-6, 3e-6))},
            lambda ctx, q, s: _length_law(ctx, lambda c, p, d: c.roller.contact_length_m - 2 * s
                                          + 2 * s * np.sqrt(1 - np.exp(-d / q["relief_depth_m"])))),
     Family("end_effects", "boussinesq_edge", "law",
            "Boussinesq edge correction: each end carries an extra strip κ·a, loaded length L + 2κa (κ = s)",
            (1e-3, 6.0), _no_draw,
-           lambda ctx, q, s: _length_law(ctx, lambda c, p, d: c.roller.contact_length_m + 2 * s * c.line.half_width(p))),
+           lambda ctx, q, s: _length_law(ctx, lambda c, p, d: c.roller.contact_length_m
+                                         + 2 * s * c.line.half_width(p))),
     Family("end_effects", "chamfer_engagement", "law",
            "the corner radii (L_r − L_we) come into contact with the approach: L + s·(L_r − L_we)·(1 − e^(−δ/δc))",
            (1e-3, 1.0), lambda rng, ctx: {"delta_c_m": float(rng.uniform(1e-6, 6e-6))},
@@ -195,7 +197,8 @@ FAMILIES: list[Family] = [
     Family("setup_compliance", "bolt_two_slope", "series",
            "preloaded bolt: compliance 0.3·s until the joint decompresses at F_d, then s (smooth over 0.15·F_d)",
            (1e-12, 1e-7), lambda rng, ctx: {"f_decompress_n": float(rng.uniform(80, 300))},
-           lambda ctx, q, s: s * (0.3 + 0.7 * _sigmoid((ctx.load_n - q["f_decompress_n"]) / (0.15 * q["f_decompress_n"])))),
+           lambda ctx, q, s: s * (0.3 + 0.7 * _sigmoid((ctx.load_n - q["f_decompress_n"])
+                                                       / (0.15 * q["f_decompress_n"])))),
     Family("setup_compliance", "thermal_drift", "series",
            "rig compliance drifting linearly over the campaign: s·(1 + β·τ), β ∈ [0.5, 2], τ the campaign time",
            (1e-12, 1e-7), lambda rng, ctx: {"beta": float(rng.uniform(0.5, 2.0))},

@@ -166,6 +166,8 @@ def generate(scenario: str, seed: int, noise_scale: float) -> BlindDataset:
     """One dataset of a scenario; physics and noise draws depend only on (scenario, seed)."""
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; expected one of {', '.join(SCENARIOS)}")
+    if not noise_scale >= 0:
+        raise ValueError(f"noise scale {noise_scale!r} must be ≥ 0")
     ss = np.random.SeedSequence([int(seed), zlib.crc32(scenario.encode())])
     rng, nrng = (np.random.default_rng(s) for s in ss.spawn(2))
     slots = list(SCENARIOS[scenario])
@@ -193,7 +195,7 @@ def generate(scenario: str, seed: int, noise_scale: float) -> BlindDataset:
     slope = log_slope(k_meas, f_rep)
     sigma = noise.total_sigma(k_meas, f_rep, slope) * noise_scale
     k_obs = k_meas * noise.sample(nrng, k_meas, f_rep, slope, noise_scale)
-    med = float(np.median(sigma))
+    med = float(np.median(sigma)) if noise_scale > 0 else sig_med  # noiseless worlds: sizes at scale 1
     k_base = _tripp_at(ctx, f_rep)
     by_effect = {a.fam.effect: _amplitude(ctx, [a], k0) / med for a in applied}
     if cal is not None:
@@ -201,7 +203,7 @@ def generate(scenario: str, seed: int, noise_scale: float) -> BlindDataset:
         by_effect[cal["label"]] = float(np.max(np.abs(np.log(k_c / _tripp_at(ctx, f_c))))) / med
     if "outliers" in faults:
         o = faults["outliers"]
-        for r, fac in zip(o["reps"], o["factors"]):
+        for r, fac in zip(o["reps"], o["factors"], strict=True):
             k_obs[o["cfg"], r, o["step"]] *= fac
     rows = _rows(ctx, f_rep, k_obs, sigma * k_obs)
     if "duplicate_row" in faults:
