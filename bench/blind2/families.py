@@ -149,7 +149,7 @@ FAMILIES: list[Family] = [
     # ---- end_effects ----
     Family("end_effects", "log_end_profile", "law",
            "logarithmic end relief over s (m) per end: loaded length L − 2s + 2s·√(1 − exp(−δ/h)) from the approach",
-           (1e-6, 1.5e-4), lambda rng, ctx: {"relief_depth_m": float(rng.uniform(0.5e-6, 3e-6))},
+           (1e-6, 2e-4), lambda rng, ctx: {"relief_depth_m": float(rng.uniform(2e-6, 8e-6))},
            lambda ctx, q, s: _length_law(ctx, lambda c, p, d: c.roller.contact_length_m - 2 * s
                                          + 2 * s * np.sqrt(1 - np.exp(-d / q["relief_depth_m"])))),
     Family("end_effects", "boussinesq_edge", "law",
