@@ -174,20 +174,29 @@ def run_task(task: Task) -> dict[str, Any]:
 
 BLIND_DIR = Path(__file__).resolve().parent / "blind"
 """Worlds written blind to the workflow (their brief: ``bench/blind/discrepancy_brief.md``)."""
+BLIND2_DIR = Path(__file__).resolve().parent / "blind2"
+"""A second judge written blind to the workflow and to the first (``bench/blind2/brief.md``): never tuned on."""
 CALIBRATION_SEEDS = 100_000
 """The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
+_MODULES: dict[str, Any] = {}
 
 
-def blind_worlds() -> Any:
-    """The blind generator, imported under its own name (its siblings on the path)."""
-    if str(BLIND_DIR) not in sys.path:
-        sys.path.insert(0, str(BLIND_DIR))
-    spec = importlib.util.spec_from_file_location("blind_discrepancy_worlds", BLIND_DIR / "discrepancy_worlds.py")
-    if spec is None or spec.loader is None or not (BLIND_DIR / "discrepancy_worlds.py").exists():
-        raise SystemExit(f"{BLIND_DIR / 'discrepancy_worlds.py'} missing: merge the blind worlds' branch first")
+def blind_worlds(suite: str = "blind") -> Any:
+    """The blind generator of ``suite`` (``blind`` or ``blind2``), imported under its own name (its siblings on
+    the path)."""
+    if suite in _MODULES:
+        return _MODULES[suite]
+    where, file = (BLIND2_DIR, "worlds.py") if suite == "blind2" else (BLIND_DIR, "discrepancy_worlds.py")
+    for folder in (where, where.parents[1]):  # blind2 imports its siblings as ``bench.blind2.*``
+        if str(folder) not in sys.path:
+            sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(f"{suite}_discrepancy_worlds", where / file)
+    if spec is None or spec.loader is None or not (where / file).exists():
+        raise SystemExit(f"{where / file} missing: merge the blind worlds' branch first")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
+    _MODULES[suite] = module
     return module
 
 
@@ -226,7 +235,7 @@ def visible_size(task: Task, truth: dict[str, Any]) -> float:
 
 def run_blind(task: Task) -> dict[str, Any]:
     """One blind dataset through the CSV contract and the workflow; the answer with every candidate's evidence."""
-    world = blind_worlds().generate(task.truth, task.seed, task.noise_scale)
+    world = blind_worlds(task.variant or "blind").generate(task.truth, task.seed, task.noise_scale)
     truth = world.truth
     points = _points(world.rows)
     start = time.process_time()
@@ -237,11 +246,12 @@ def run_blind(task: Task) -> dict[str, Any]:
                 "refused": str(exc), "truth_name": truth_name(truth)}
     cpu = time.process_time() - start
     physical, chain = _named(result)
-    return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
-            "truth_name": truth_name(truth), "truth_effects": list(truth.get("effects", [])),
+    return {"suite": "blind", "judge": task.variant or "blind", "scenario": task.truth, "seed": task.seed,
+            "noise_scale": task.noise_scale, "truth_name": truth_name(truth),
+            "truth_effects": list(truth.get("effects", [])),
             "truth_measurement": list(truth.get("measurement_effects", [])),
             "outside_library": bool(truth.get("outside_library")), "size_sigma": float(truth.get("size_sigma", 0.0)),
-            "visible_sigma": visible_size(task, truth),
+            "visible_sigma": visible_size(task, truth) if task.variant != "blind2" else float(truth["size_sigma"]),
             "family": truth.get("family"), "faults": truth.get("faults"), "cpu_seconds": cpu,
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
@@ -298,6 +308,12 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
                              f"{CALIBRATION_SEEDS}")
         for scenario in blind_worlds().SCENARIOS:
             out += [Task("blind", scenario, first + j, scale) for scale in scales for j in range(seeds)]
+    if suite == "blind2":  # the held-out judge: evaluation seeds only, never used to calibrate
+        if seed * 1000 + seeds > CALIBRATION_SEEDS:
+            raise SystemExit(f"--seed/--seeds reach beyond the evaluation seeds 0-{CALIBRATION_SEEDS - 1}")
+        for scenario in blind_worlds("blind2").SCENARIOS:
+            out += [Task("blind", scenario, seed * 1000 + j, scale, variant="blind2") for scale in scales
+                    for j in range(seeds)]
     if suite in ("robust", "acceptance"):
         for i, variant in enumerate(("duplicate", "outliers", "units")):
             for j in range(max(1, seeds // 2)):
@@ -310,7 +326,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suite", default="acceptance",
                         choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust", "blind",
-                                 "blind-calibrate"))
+                                 "blind-calibrate", "blind2"))
     parser.add_argument("--seeds", type=int, default=20, help="datasets per scenario and noise scale (default 20)")
     parser.add_argument("--noise", default="0.5,1,2", help="noise scales (default 0.5,1,2)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
@@ -366,7 +382,8 @@ def main() -> None:
     blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
     if blind:
         calibrating = min(r["seed"] for r in blind) >= CALIBRATION_SEEDS
-        parts.append(f"Blind worlds ({'calibration' if calibrating else 'evaluation'} seeds "
+        judge = "second judge, bench/blind2" if blind[0].get("judge") == "blind2" else "bench/blind"
+        parts.append(f"Blind worlds ({judge}; {'calibration' if calibrating else 'evaluation'} seeds "
                      f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; {len(blind)} datasets; "
                      f"temperature {args.temperature:g})\n\n" + summarize_blind(blind))
         table, holds = reliability(blind)
