@@ -32,13 +32,16 @@ class Screening:
     duplicates: list[dict[str, Any]] = field(default_factory=list)
     conflicting_rows: list[dict[str, Any]] = field(default_factory=list)
     outliers: list[dict[str, Any]] = field(default_factory=list)
+    drifted: list[dict[str, Any]] = field(default_factory=list)
+    """Points measured while the load drifted (flag ``load_drift``): set aside, their load is not known."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"duplicates": self.duplicates, "conflicting_rows": self.conflicting_rows, "outliers": self.outliers}
+        return {"duplicates": self.duplicates, "conflicting_rows": self.conflicting_rows, "outliers": self.outliers,
+                "drifted": self.drifted}
 
     @property
     def any(self) -> bool:
-        return bool(self.duplicates or self.conflicting_rows or self.outliers)
+        return bool(self.duplicates or self.conflicting_rows or self.outliers or self.drifted)
 
 
 def _key(p: StiffnessPoint) -> tuple[Any, ...]:
@@ -47,12 +50,17 @@ def _key(p: StiffnessPoint) -> tuple[Any, ...]:
 
 
 def screen_points(points: Sequence[StiffnessPoint]) -> tuple[list[StiffnessPoint], Screening]:
-    """Drop exact duplicates and, of rows that claim the same roller, repetition and load with different
-    stiffness, keep the one nearest the other repetitions at that load."""
+    """Drop exact duplicates, set aside points whose load drifted during their step (the stiffness belongs to
+    a load between ``load_n`` and ``load_after_n``) and, of rows that claim the same roller, repetition and load
+    with different stiffness, keep the one nearest the other repetitions at that load."""
     found = Screening()
     seen: dict[StiffnessPoint, int] = {}
     unique: list[tuple[int, StiffnessPoint]] = []
     for i, p in enumerate(points, 1):
+        if p.drifted:
+            found.drifted.append({"row": i, "repetition": p.repetition, "load_n": p.load_n,
+                                  "load_after_n": p.load_after_n, "stiffness_n_per_m": p.stiffness_n_per_m})
+            continue
         if p in seen:
             found.duplicates.append({"row": i, "same_as_row": seen[p], "load_n": p.load_n,
                                      "stiffness_n_per_m": p.stiffness_n_per_m})

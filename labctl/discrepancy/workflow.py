@@ -132,6 +132,11 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        if self.screening.drifted:
+            loads = ", ".join(f"{d['load_n']:.1f}->{d['load_after_n']:.1f} N" if d["load_after_n"] is not None
+                              else f"{d['load_n']:.1f} N" for d in self.screening.drifted)
+            parts.append(f"{len(self.screening.drifted)} point(s) measured while the load drifted set aside "
+                         f"({loads}): their load is not known; re-measure those steps to use them")
         return "; ".join(parts)
 
     def _step_doc(self, s: Step) -> dict[str, Any]:
