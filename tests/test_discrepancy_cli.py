@@ -136,6 +136,7 @@ def test_a_campaign_file_is_analysed_with_the_rig_stored_in_it(tmp_path):
     _campaign(path, synthesize(_eq5, types=[1, 4, 6], noise=NoiseModel(0.03, 0.01), seed=22), stored)
     out = labctl_json("discrepancy", str(path))
     assert out["nominal_setup_stiffness_n_per_m"] == 2.9e9 and out["n_cases"] == 3
+    assert out["sources"] == [f"{path}: campaign file, SIMULATED (digital twin)"]  # a twin campaign says so
     assert {e["name"] for e in out["effects"]} <= {"surface_roughness"} and out["measurement_effects"] == []
     rig = tmp_path / "rig.toml"
     rig.write_text(text, encoding="utf-8")

@@ -122,4 +122,5 @@ def test_the_cli_report_names_a_csv_source(points, tmp_path):
     write_stiffness_table(table, points)
     proc = labctl("discrepancy", str(table), "--max-effects", "1", "--report", str(tmp_path / "rep"))
     assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"source: {table}: source: CSV")  # the console says where the data came from
     assert "source: CSV" in (tmp_path / "rep" / "index.html").read_text(encoding="utf-8")

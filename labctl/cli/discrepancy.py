@@ -37,13 +37,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from labctl.discrepancy import run_files  # heavy (scipy, matplotlib): only when used
-    from labctl.discrepancy.report import summary_text, write_report
+    from labctl.discrepancy.report import sources_of, summary_text, write_report
     from labctl.discrepancy.workflow import MAX_TERMS
 
     if not 0 <= args.max_effects <= MAX_TERMS:
         raise InputError(f"--max-effects {args.max_effects}: expected 0 to {MAX_TERMS}")
     result = run_files(args.measured, args.baseline, rig=args.rig, max_effects=args.max_effects)
     doc: dict[str, Any] = result.to_dict()
+    doc["sources"] = [s.describe() for s in sources_of(args.measured)]  # SIMULATED for a twin campaign
     if args.report:
         files = write_report(result, args.report, doc, sources=args.measured)
         doc["report"] = [str(f) for f in files]

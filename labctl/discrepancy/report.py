@@ -132,15 +132,17 @@ def _step_line(i: int, e: dict[str, Any]) -> str:
 def summary_text(doc: dict[str, Any]) -> str:
     """Human-readable summary of the JSON document of :meth:`DiscrepancyResult.to_dict`."""
     depth = doc["baseline_parameters"].get("depth_m")
-    lines = [f"{doc['n_points']} points on {doc['n_cases']} roller cases; baseline {doc['baseline']}"
-             + (f" (evaluation depth fitted: {depth * 1e3:.3g} mm)" if depth else "")]
+    lines = [f"source: {d}" for d in doc.get("sources", [])]  # a twin campaign says SIMULATED first
+    lines.append(f"{doc['n_points']} points on {doc['n_cases']} roller cases; baseline {doc['baseline']}"
+                 + (f" (evaluation depth fitted: {depth * 1e3:.3g} mm)" if depth else ""))
     bands = ", ".join(f"{b['sigma'] * 100:.2g} % at {b['load_per_length_n_per_mm']:.3g} N/mm"
                       for b in doc["noise_by_load"])
     lines.append(f"noise floor {doc['noise_floor'] * 100:.2g} % per point ({doc['noise_method']}"
                  + (f"; {bands}" if bands else "") + f"), seating offset σ {doc['seating_sigma'] * 100:.2g} %")
     checks = doc.get("input_checks", {})
     for key, what in (("duplicates", "duplicated rows dropped"), ("conflicting_rows", "conflicting duplicate rows "
-                      "dropped"), ("outliers", "gross outliers set aside")):
+                      "dropped"), ("outliers", "gross outliers set aside"),
+                      ("drifted", "points measured while the load drifted set aside")):
         if checks.get(key):
             lines.append(f"input: {len(checks[key])} {what}")
     verdict = "consistent with the noise" if doc["consistent_with_noise"] else "NOT consistent with the noise"
@@ -381,6 +383,8 @@ def write_report(result: DiscrepancyResult, folder: str | Path, doc: dict[str, A
         raise InputError(f"--report {out}: exists and is not a folder") from None
     doc = doc if doc is not None else result.to_dict()
     origin = sources_of(sources)
+    if origin:
+        doc.setdefault("sources", [s.describe() for s in origin])
     sim = any(s.simulated for s in origin)
     files = [out / "stiffness.png", out / "residuals.png", out / "gap.png", out / "discrepancy.json",
              out / "summary.txt", out / "steps.png", out / "index.html"]
@@ -388,10 +392,7 @@ def write_report(result: DiscrepancyResult, folder: str | Path, doc: dict[str, A
     _plot_residuals(result, files[1], sim)
     _plot_gap(result, files[2], sim)
     files[3].write_text(json.dumps(doc, indent=2, default=_json_default) + "\n", encoding="utf-8")
-    summary = summary_text(doc)
-    if origin:
-        summary += "\n" + "\n".join("input " + s.describe() for s in origin)
-    files[4].write_text(summary + "\n", encoding="utf-8")
+    files[4].write_text(summary_text(doc) + "\n", encoding="utf-8")
     _plot_steps(result, files[5], sim)
     files[6].write_text(report_html(result, doc, origin), encoding="utf-8")
     return files
