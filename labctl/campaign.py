@@ -196,28 +196,29 @@ def run_campaign(protocol: str | Path | Protocol, *, out: str | Path, backend: s
     created, so a bad input leaves no file behind. ``conditions`` are extra safe-point checks for the engine.
     """
     out = Path(out)
-    writer = CampaignWriter.open_existing(out) if resume else None
-    created = False
-    try:
-        proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
-        asked = CampaignRequest(proto, out, backend, world, seed, rig, devices)
-        request = _continued(asked, writer) if writer is not None else _fresh(asked, adaptive, budget_steps)
-        rig_config, devices = _checked_inputs(request)
-        _check_reviews(operator, proto, rig_config, request.budget_steps)
-        if writer is None:
-            writer, created = _create_file(request, rig_config, devices), True
-        engine = _engine(request, rig_config, devices, writer, operator, subscribers, control, conditions)
-    except BaseException:
-        if writer is not None:
-            writer.close()
-        if created:
-            out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
-        raise
-    try:
-        with stop_on_hangup(engine.control):
+    control = control if control is not None else RunControl()
+    with stop_on_hangup(control):  # before the file exists: a SIGTERM in set-up stops the run at its first impact
+        writer = CampaignWriter.open_existing(out) if resume else None
+        created = False
+        try:
+            proto = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
+            asked = CampaignRequest(proto, out, backend, world, seed, rig, devices)
+            request = _continued(asked, writer) if writer is not None else _fresh(asked, adaptive, budget_steps)
+            rig_config, devices = _checked_inputs(request)
+            _check_reviews(operator, proto, rig_config, request.budget_steps)
+            if writer is None:
+                writer, created = _create_file(request, rig_config, devices), True
+            engine = _engine(request, rig_config, devices, writer, operator, subscribers, control, conditions)
+        except BaseException:
+            if writer is not None:
+                writer.close()
+            if created:
+                out.unlink(missing_ok=True)  # nothing was measured: leave no stub behind
+            raise
+        try:
             return engine.run()
-    finally:
-        writer.close()
+        finally:
+            writer.close()
 
 
 def _continued(asked: CampaignRequest, writer: CampaignWriter) -> CampaignRequest:

@@ -273,3 +273,33 @@ def test_sigterm_and_sighup_end_the_run_interrupted_and_resumable(sig: int, prot
     done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
     assert done["status"] == "complete"
     _stored_vs_processed(capsys, out)
+
+
+def _child_signalled_in_setup(argv: list[str], log: str) -> None:
+    """`labctl run` that receives SIGTERM right after its file is created, while the rig is still being set up."""
+    import labctl.campaign as campaign
+
+    build = campaign._engine
+
+    def engine_then_sigterm(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        os.kill(os.getpid(), signal.SIGTERM)  # the handler, if installed, only asks for a stop
+        return build(*args, **kwargs)
+
+    campaign._engine = engine_then_sigterm
+    _child(argv, None, log)
+
+
+def test_a_sigterm_while_the_run_is_set_up_still_ends_interrupted(protocol: Path, tmp_path: Path, capsys):
+    """The stop handlers are in place before the file is created: a SIGTERM between creating the file and the
+    first impact ends `interrupted` (it killed the process and left `running` when they came only with the run)."""
+    out, log = tmp_path / "c.h5", tmp_path / "log.txt"
+    proc = FORK.Process(target=_child_signalled_in_setup,
+                        args=(["run", str(protocol), "--out", str(out), "--seed", "4"], str(log)))
+    proc.start()
+    proc.join(60)
+    assert proc.exitcode == 130, log.read_text()
+    status, message = _status(out)
+    assert status == "interrupted" and "--resume" in message, (status, message)
+    assert _impacts(out) == 0
+    done = labctl_here_json(capsys, "run", str(protocol), "--out", str(out), "--resume", "--quiet")
+    assert done["status"] == "complete"
