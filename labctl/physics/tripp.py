@@ -38,12 +38,14 @@ class TrippContact:
 
     def half_width_m(self, load_n: ArrayLike) -> FloatArray:
         """Contact half-width a (m) at each load."""
-        p = as_load(load_n, self.name) / self.roller.contact_length_m
+        return self._half_width_m(as_load(load_n, self.name) / self.roller.contact_length_m)
+
+    def _half_width_m(self, p: FloatArray) -> FloatArray:
         return np.sqrt(4.0 * p * self.roller.radius_m / (np.pi * self.effective_modulus_pa))
 
     def _terms(self, load_n: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, float, float, float]:
-        a = self.half_width_m(load_n)
-        p = as_load(load_n, self.name) / self.roller.contact_length_m
+        p = as_load(load_n, self.name) / self.roller.contact_length_m  # checked once, not once per term
+        a = self._half_width_m(p)
         c_roller = 4.0 * self.roller.material.plane_strain_compliance / np.pi
         c_rail = self.rail.plane_strain_compliance / np.pi
         nu = self.rail.poisson_ratio
