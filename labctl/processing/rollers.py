@@ -25,6 +25,7 @@ from labctl.errors import ModelDomainError
 from labctl.physics import RigConfig
 from labctl.physics.rig import ContactModeModel, contact_modes_hz, point_displacement
 from labctl.processing.cross_axis import cross_axis_variance
+from labctl.processing.rig_memo import RigMemo
 from labctl.processing.search import ContactModes
 from labctl.processing.stiffness import Stiffness
 
@@ -68,23 +69,6 @@ class RollerStiffnesses:
         return float(math.sqrt(max(float(np.ones(3) @ self.covariance @ np.ones(3)), 0.0)) / 3.0)
 
 
-_SENSOR_MAPS: dict[tuple[int, tuple[str, ...]], tuple[RigConfig, np.ndarray]] = {}
-
-
-def _sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
-    """(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own),
-    remembered per rig object (a campaign solves every step against the same, immutable rig)."""
-    key = (id(rig), tuple(names))
-    hit = _SENSOR_MAPS.get(key)
-    if hit is not None and hit[0] is rig:
-        return hit[1]
-    if len(_SENSOR_MAPS) > 16:
-        _SENSOR_MAPS.clear()
-    out = _build_sensor_map(rig, names)
-    _SENSOR_MAPS[key] = (rig, out)
-    return out
-
-
 def _build_sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
     eye = np.eye(6)
     by_channel: dict[str, np.ndarray] = {}
@@ -93,6 +77,10 @@ def _build_sensor_map(rig: RigConfig, names: Sequence[str]) -> np.ndarray:
         for ch, row in zip(s.channels, cols, strict=True):
             by_channel[ch] = row
     return np.array([by_channel[c] for c in names])
+
+
+_sensor_map = RigMemo(_build_sensor_map)
+"""(n_ch, 6) linear map from the rig's DOF vector to each channel's displacement (the rig model's own)."""
 
 
 def _tilt_basis(model: ContactModeModel, sensors: np.ndarray, k: float) -> np.ndarray:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from labctl.physics import RigConfig, bounce_hz, rig_modes
+from labctl.processing.rig_memo import RigMemo
 
 NOMINAL_STIFFNESS_N_PER_M = 5.0e7  # sensor-level shapes of equal rollers barely depend on k
 RIGID_ROLLERS_N_PER_M = 1.0e13
@@ -47,21 +48,9 @@ class Classification:
     by_shape: bool  # False: the live channels could not separate the shapes; frequency order was used
 
 
-_CACHE: dict[tuple[int, tuple[str, ...]], tuple[RigConfig, PredictedShapes]] = {}
-
-
 def predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShapes:
-    """Bounce and tilt shapes of the rig model at the given channels (remembered per rig object: a
-    campaign identifies every load step against the same, immutable rig)."""
-    key = (id(rig), tuple(channels))
-    hit = _CACHE.get(key)
-    if hit is not None and hit[0] is rig:
-        return hit[1]
-    if len(_CACHE) > 16:
-        _CACHE.clear()
-    pred = _predicted_shapes(rig, channels)
-    _CACHE[key] = (rig, pred)
-    return pred
+    """Bounce and tilt shapes of the rig model at the given channels (built once per rig object)."""
+    return _SHAPES(rig, channels)
 
 
 def _predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShapes:
@@ -80,6 +69,9 @@ def _predicted_shapes(rig: RigConfig, channels: Sequence[str]) -> PredictedShape
         support_hz=float(max(modes.frequencies_hz[i] for i in modes.support)),
         max_bounce_hz=bounce_hz(rig, RIGID_ROLLERS_N_PER_M),
     )
+
+
+_SHAPES = RigMemo(_predicted_shapes)
 
 
 def _tilt_projector(tilt: np.ndarray) -> np.ndarray:
