@@ -25,6 +25,16 @@ from tests.test_tui import SIZE, wait_for
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _stop_group(proc: subprocess.Popen) -> None:
+    """End a process started in its own process group, and everything it started: TERM, then KILL."""
+    os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(20)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(20)
+
+
 async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
     out = tmp_path / "watched.h5"
     protocol = tmp_path / "watched.toml"  # 2 repetitions of 4 steps: long enough to be seen running
@@ -125,12 +135,7 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
     try:
         body, output = asyncio.run(_browse(f"127.0.0.1:{port}"))
     finally:  # the server and the sessions it started: their own process group
-        os.killpg(server.pid, signal.SIGTERM)
-        try:
-            server.wait(20)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)
-            server.wait(20)
+        _stop_group(server)
     assert "-first-byte" in body  # the app's output reached the page
     assert b"WATCHING (read-only)" in output and b"COMPLETE" in output
 
@@ -179,12 +184,7 @@ async def _browse(host: str) -> tuple[str, bytes]:
                         break
                     await asyncio.sleep(0.25)
         finally:  # chromium and its helpers: their own process group
-            os.killpg(chrome.pid, signal.SIGTERM)
-            try:
-                chrome.wait(20)
-            except subprocess.TimeoutExpired:
-                os.killpg(chrome.pid, signal.SIGKILL)
-                chrome.wait(20)
+            _stop_group(chrome)
         output = b""
         async with http.ws_connect(f"ws://{host}/ws?width=100&height=30") as ws:
             await ws.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
