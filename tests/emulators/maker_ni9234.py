@@ -12,348 +12,48 @@ import contextlib
 import math
 import sys
 import types
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from enum import Enum
-
-READ_ALL_AVAILABLE = -1
-WAIT_INFINITELY = -1.0
-_UNSET = object()
-
-MASTER_TIMEBASE_HZ = 13.1072e6
-VALID_RATES_HZ = tuple(MASTER_TIMEBASE_HZ / 256 / n for n in range(1, 32))  # 51.2 kS/s / n, n = 1..31
-INPUT_RANGE_V = 5.0
-IEPE_CURRENT_A = 0.002
-G_M_PER_S2 = 9.80665
-
-
-# -- nidaqmx.constants (values as in the real package) ---------------------------------------------------------------
-class AcquisitionType(Enum):
-    FINITE = 10178
-    CONTINUOUS = 10123
-    HW_TIMED_SINGLE_POINT = 12522
-
-
-class AccelUnits(Enum):
-    G = 10186
-    METERS_PER_SECOND_SQUARED = 12470
-    INCHES_PER_SECOND_SQUARED = 12471
-    FROM_CUSTOM_SCALE = 10065
-
-
-class AccelSensitivityUnits(Enum):
-    MILLIVOLTS_PER_G = 12509
-    VOLTS_PER_G = 12510
-    M_VOLTS_PER_G = 12509  # the spelling of older nidaqmx releases (an alias of the same value)
-
-
-class Coupling(Enum):
-    AC = 10045
-    DC = 10050
-    GND = 10066
-
-
-class Edge(Enum):
-    RISING = 10280
-    FALLING = 10171
-
-
-class Slope(Enum):
-    RISING = 10280
-    FALLING = 10171
-
-
-class ExcitationSource(Enum):
-    INTERNAL = 10200
-    EXTERNAL = 10167
-    NONE = 10230
-
-
-class TerminalConfiguration(Enum):
-    RSE = 10083
-    NRSE = 10078
-    DIFF = 10106
-    PSEUDO_DIFF = 12529
-    DEFAULT = -1
-
-
-class TriggerType(Enum):
-    ANALOG_EDGE = 10099
-    DIGITAL_EDGE = 10150
-    NONE = 10230
-
-
-class VoltageUnits(Enum):
-    VOLTS = 10348
-    FROM_CUSTOM_SCALE = 10065
-
-
-# -- nidaqmx.errors / error_codes --------------------------------------------------------------------------------------
-class DAQmxErrors(Enum):
-    UNKNOWN = -1
-    INVALID_ATTRIBUTE_VALUE = -200077
-    PHYSICAL_CHAN_DOES_NOT_EXIST = -200170
-    TOO_MANY_PRETRIG_PLUS_MIN_POST_TRIG_SAMPS = -200213
-    INVALID_ANALOG_TRIG_SRC = -200265
-    SAMPLES_WILL_NEVER_BE_AVAILABLE = -200278
-    SAMPLES_NOT_YET_AVAILABLE = -200284
-    REF_TRIG_WHEN_CONTINUOUS = -200358
-    WAIT_UNTIL_DONE_DOES_NOT_INDICATE_DONE = -200560
-
-
-class Error(Exception):
-    pass
-
-
-class DaqError(Error):
-    """Same constructor and properties as nidaqmx.errors.DaqError."""
-
-    def __init__(self, message: str, error_code: int, task_name: str = "") -> None:
-        if task_name:
-            message = f"{message}\n\nTask Name: {task_name}"
-        super().__init__(message)
-        self._error_code = int(error_code)
-        try:
-            self._error_type = DAQmxErrors(self._error_code)
-        except ValueError:
-            self._error_type = DAQmxErrors.UNKNOWN
-
-    @property
-    def error_code(self) -> int:
-        return self._error_code
-
-    @property
-    def error_type(self) -> DAQmxErrors:
-        return self._error_type
-
-
-class DaqReadError(DaqError):
-    def __init__(self, message: str, error_code: int, samps_per_chan_read: int, task_name: str = "") -> None:
-        super().__init__(message, error_code, task_name)
-        self.samps_per_chan_read = samps_per_chan_read
-
-
-# -- the simulated hardware --------------------------------------------------------------------------------------------
-Volts = Callable[[float], float]
-
-
-@dataclass
-class Input:
-    """What is wired to one BNC: ``volts(t)`` is the sensor's signal; an IEPE sensor gives it only when fed 2 mA."""
-
-    volts: Volts = lambda t: 0.0
-    iepe_sensor: bool = True
-    iepe_bias_v: float = 11.0  # DC bias of a powered IEPE sensor, removed by AC coupling
-
-
-@dataclass
-class Chassis:
-    """A cDAQ chassis ``name`` with NI 9234 modules in slots (``{slot: {ai index: Input}}``) and PFI edge times."""
-
-    name: str = "cDAQ1"
-    modules: dict[int, dict[int, Input]] = field(default_factory=lambda: {1: {}})
-    digital_edges_s: dict[str, list[float]] = field(default_factory=dict)  # e.g. {"/cDAQ1/PFI0": [0.02]}
-    ac_cutoff_hz: float = 0.5
-
-    def physical(self, name: str) -> Input:
-        dev, _, chan = name.strip().strip("/").partition("/")
-        prefix = f"{self.name}Mod"
-        if not dev.startswith(prefix) or not chan.startswith("ai"):
-            raise DaqError(f"Physical channel specified does not exist on this device: {name}", -200170)
-        slot, index = dev[len(prefix):], chan[2:]
-        if not (slot.isdigit() and index.isdigit()) or int(slot) not in self.modules or int(index) > 3:
-            raise DaqError(f"Physical channel specified does not exist on this device: {name}", -200170)
-        return self.modules[int(slot)].setdefault(int(index), Input())
-
-
-_ACTIVE: list[Chassis] = []
-
-
-def _expand(physical_channel: str) -> list[str]:
-    names: list[str] = []
-    for part in physical_channel.split(","):
-        part = part.strip()
-        dev, _, chans = part.rpartition("/")
-        if ":" in chans:
-            lo, hi = chans[2:].split(":")
-            names += [f"{dev}/ai{i}" for i in range(int(lo), int(hi) + 1)]
-        else:
-            names.append(part)
-    return names
-
-
-def coerce_rate(rate_hz: float, task_name: str = "") -> float:
-    """DAQmx coerces a DSA rate up to the next rate the module makes (51.2 kS/s / n); outside the range it errs."""
-    if not VALID_RATES_HZ[-1] * (1 - 1e-12) <= rate_hz <= VALID_RATES_HZ[0] * (1 + 1e-12):
-        raise DaqError("Requested value is not a supported value for this property.\nProperty: SampClk.Rate\n"
-                       f"Requested Value: {rate_hz}\nPossible Values: {VALID_RATES_HZ[-1]} to {VALID_RATES_HZ[0]}",
-                       -200077, task_name)
-    return min(r for r in VALID_RATES_HZ if r >= rate_hz * (1 - 1e-12))
-
-
-# -- task objects ----------------------------------------------------------------------------------------------------
-class _Chan:
-    def __init__(self, physical: str, name: str, source: Input, kind: str, **cfg: object) -> None:
-        self.physical, self.name, self.source, self.kind = physical, name, source, kind
-        self.min_val = float(cfg["min_val"])
-        self.max_val = float(cfg["max_val"])
-        self.units = cfg.get("units")
-        self.sensitivity_v_per_unit = 1.0
-        if kind == "accel":
-            sens = float(cfg["sensitivity"])
-            sens_v_per_g = sens * 1e-3 if cfg["sensitivity_units"] == AccelSensitivityUnits.MILLIVOLTS_PER_G else sens
-            per_unit = sens_v_per_g / G_M_PER_S2 if self.units == AccelUnits.METERS_PER_SECOND_SQUARED else sens_v_per_g
-            self.sensitivity_v_per_unit = per_unit
-            self.ai_excit_src = cfg["current_excit_source"]
-            self.ai_excit_val = float(cfg["current_excit_val"])
-            self.ai_coupling = Coupling.AC
-        else:
-            self.ai_excit_src, self.ai_excit_val, self.ai_coupling = ExcitationSource.NONE, 0.0, Coupling.DC
-
-    def excitation_on(self) -> bool:
-        return self.ai_excit_src == ExcitationSource.INTERNAL and self.ai_excit_val > 0
-
-    def verify(self, task: str) -> None:
-        def bad(prop: str, value: object, possible: str) -> DaqError:
-            return DaqError(f"Requested value is not a supported value for this property. The property value may be "
-                            f"invalid because it conflicts with another property.\nProperty: {prop}\nRequested Value: "
-                            f"{value}\nPossible Values: {possible}\nChannel Name: {self.name}", -200077, task)
-        if self.ai_excit_src == ExcitationSource.INTERNAL and not math.isclose(self.ai_excit_val, IEPE_CURRENT_A):
-            raise bad("AI.Excit.Val", self.ai_excit_val, "2.0e-3")
-        if self.ai_excit_src == ExcitationSource.EXTERNAL:
-            raise bad("AI.Excit.Src", "External", "Internal, None")
-        if self.excitation_on() and self.ai_coupling != Coupling.AC:
-            raise bad("AI.Coupling", self.ai_coupling.name, "AC")  # IEPE current only in AC-coupled mode
-        if self.ai_coupling == Coupling.GND:
-            raise bad("AI.Coupling", "GND", "AC, DC")
-        for prop, v in (("AI.Max", self.max_val), ("AI.Min", self.min_val)):
-            if abs(v * self.sensitivity_v_per_unit) > INPUT_RANGE_V * (1 + 1e-9):
-                raise bad(prop, v, f"{-INPUT_RANGE_V / self.sensitivity_v_per_unit} to "
-                          f"{INPUT_RANGE_V / self.sensitivity_v_per_unit}")
-
-    def input_volts(self, t: float) -> float:
-        """Voltage at the BNC: an unpowered IEPE sensor is silent; a powered one rides on its DC bias."""
-        src = self.source
-        if src.iepe_sensor and not self.excitation_on():
-            return 0.0
-        return src.volts(t) + (src.iepe_bias_v if src.iepe_sensor else 0.0)
-
-    def scaled(self, volts: float) -> float:
-        return max(-INPUT_RANGE_V, min(INPUT_RANGE_V, volts)) / self.sensitivity_v_per_unit
-
-
-class AIChannel:
-    """The object ``add_ai_*_chan`` returns; property writes apply to every channel it names."""
-
-    def __init__(self, chans: list[_Chan]) -> None:
-        object.__setattr__(self, "_chans", chans)
-
-    def __getattr__(self, name: str) -> object:
-        return getattr(self._chans[0], name)
-
-    def __setattr__(self, name: str, value: object) -> None:
-        for c in self._chans:
-            setattr(c, name, value)
-
-
-class AIChannelCollection:
-    def __init__(self, task: Task) -> None:
-        self._task = task
-
-    def __getitem__(self, index: int) -> AIChannel:
-        return AIChannel([self._task._chans[index]])
-
-    def __len__(self) -> int:
-        return len(self._task._chans)
-
-    def _add(self, physical_channel: str, name: str, kind: str, **cfg: object) -> AIChannel:
-        chassis = _ACTIVE[-1]
-        made = []
-        for i, phys in enumerate(_expand(physical_channel)):
-            chan_name = (name if i == 0 else f"{name}{i}") if name else phys
-            made.append(_Chan(phys, chan_name, chassis.physical(phys), kind, **cfg))
-        self._task._chans += made
-        return AIChannel(made)
-
-    def add_ai_accel_chan(self, physical_channel, name_to_assign_to_channel="",
-                          terminal_config=TerminalConfiguration.DEFAULT, min_val=-5.0, max_val=5.0,
-                          units=AccelUnits.G, sensitivity=1000.0,
-                          sensitivity_units=AccelSensitivityUnits.MILLIVOLTS_PER_G,
-                          current_excit_source=ExcitationSource.INTERNAL, current_excit_val=0.004,
-                          custom_scale_name=""):
-        return self._add(physical_channel, name_to_assign_to_channel, "accel", min_val=min_val, max_val=max_val,
-                         units=units, sensitivity=sensitivity, sensitivity_units=sensitivity_units,
-                         current_excit_source=current_excit_source, current_excit_val=current_excit_val)
-
-    def add_ai_voltage_chan(self, physical_channel, name_to_assign_to_channel="",
-                            terminal_config=TerminalConfiguration.DEFAULT, min_val=-5.0, max_val=5.0,
-                            units=VoltageUnits.VOLTS, custom_scale_name=""):
-        return self._add(physical_channel, name_to_assign_to_channel, "voltage", min_val=min_val, max_val=max_val,
-                         units=units)
-
-
-class Timing:
-    def __init__(self, task: Task) -> None:
-        self._task = task
-        self._rate = None
-        self.samp_quant_samp_mode = AcquisitionType.FINITE
-        self.samp_quant_samp_per_chan = 1000
-
-    def cfg_samp_clk_timing(self, rate, source="", active_edge=Edge.RISING, sample_mode=AcquisitionType.FINITE,
-                            samps_per_chan=1000):
-        self._rate = float(rate)
-        self.samp_quant_samp_mode = sample_mode
-        self.samp_quant_samp_per_chan = int(samps_per_chan)
-
-    @property
-    def samp_clk_rate(self) -> float:
-        return coerce_rate(self._rate if self._rate is not None else VALID_RATES_HZ[0], self._task.name)
-
-    @samp_clk_rate.setter
-    def samp_clk_rate(self, value: float) -> None:
-        self._rate = float(value)
-
-
-class _Trigger:
-    def __init__(self) -> None:
-        self.trig_type = TriggerType.NONE
-        self.source = ""
-        self.rising = True
-        self.level = 0.0
-        self.pretrig_samples = 0
-
-
-class StartTrigger(_Trigger):
-    def cfg_dig_edge_start_trig(self, trigger_source, trigger_edge=Edge.RISING):
-        self.trig_type, self.source, self.rising = TriggerType.DIGITAL_EDGE, trigger_source, trigger_edge == Edge.RISING
-
-    def cfg_anlg_edge_start_trig(self, trigger_source="", trigger_slope=Slope.RISING, trigger_level=0.0):
-        self.trig_type, self.source = TriggerType.ANALOG_EDGE, trigger_source
-        self.rising, self.level = trigger_slope == Slope.RISING, float(trigger_level)
-
-    def disable_start_trig(self):
-        self.trig_type = TriggerType.NONE
-
-
-class ReferenceTrigger(_Trigger):
-    def cfg_anlg_edge_ref_trig(self, trigger_source, pretrigger_samples, trigger_slope=Slope.RISING,
-                               trigger_level=0.0):
-        self.trig_type, self.source, self.pretrig_samples = TriggerType.ANALOG_EDGE, trigger_source, pretrigger_samples
-        self.rising, self.level = trigger_slope == Slope.RISING, float(trigger_level)
-
-    def cfg_dig_edge_ref_trig(self, trigger_source, pretrigger_samples, trigger_edge=Edge.RISING):
-        self.trig_type, self.source, self.pretrig_samples = TriggerType.DIGITAL_EDGE, trigger_source, pretrigger_samples
-        self.rising = trigger_edge == Edge.RISING
-
-    def disable_ref_trig(self):
-        self.trig_type = TriggerType.NONE
-
-
-class Triggers:
-    def __init__(self) -> None:
-        self.start_trigger = StartTrigger()
-        self.reference_trigger = ReferenceTrigger()
-
+from collections.abc import Iterator
+
+from tests.emulators.maker_ni9234_api import (  # noqa: F401 - re-exported: the fake package's names
+    READ_ALL_AVAILABLE,
+    WAIT_INFINITELY,
+    AccelSensitivityUnits,
+    AccelUnits,
+    AcquisitionType,
+    Coupling,
+    DaqError,
+    DAQmxErrors,
+    DaqReadError,
+    Edge,
+    Error,
+    ExcitationSource,
+    Slope,
+    TerminalConfiguration,
+    TriggerType,
+    VoltageUnits,
+)
+from tests.emulators.maker_ni9234_channels import (  # noqa: F401 - re-exported: the fake package's objects
+    AIChannel,
+    AIChannelCollection,
+    ReferenceTrigger,
+    StartTrigger,
+    Timing,
+    Triggers,
+    _Chan,
+    _Trigger,
+)
+from tests.emulators.maker_ni9234_chassis import (  # noqa: F401 - re-exported: the simulated hardware
+    _ACTIVE,
+    _UNSET,
+    G_M_PER_S2,
+    IEPE_CURRENT_A,
+    INPUT_RANGE_V,
+    MASTER_TIMEBASE_HZ,
+    VALID_RATES_HZ,
+    Chassis,
+    Input,
+    coerce_rate,
+)
 
 SEARCH_LIMIT_S = 30.0  # virtual seconds searched for a trigger when the timeout is infinite
 
