@@ -24,6 +24,7 @@ from drivers.interfaces import Channel, TriggerSpec
 from tests.emulators import maker_mcc1608fsplus as maker_mcc
 from tests.emulators import maker_mtsics
 from tests.emulators import maker_ni9234 as maker_ni
+from tests.emulators.maker_mcc1608fsplus_backend import Usb1608FsPlusBackend
 
 G = 9.80665
 FORCE_V_PER_N, ACCEL_V_PER_MS2 = 0.23e-3, 0.1 / G
@@ -46,7 +47,7 @@ def mcc_wiring() -> list[InputWiring]:
 
 
 def mcc_daq(unit: maker_mcc.Usb1608FsPlus) -> MccUsbDaq:
-    return MccUsbDaq(mcc_wiring(), backend=maker_mcc.Usb1608FsPlusBackend(unit))
+    return MccUsbDaq(mcc_wiring(), backend=Usb1608FsPlusBackend(unit))
 
 
 def test_mcc_record_in_physical_units_on_the_makers_unit() -> None:
@@ -89,7 +90,7 @@ def test_mcc_a_rate_the_unit_cannot_stream_is_refused_before_it_overruns() -> No
     eight = [InputWiring(Channel("F", "force", "N", FORCE_V_PER_N, 2200.0), "0"),
              *(InputWiring(Channel(f"A{i // 3 + 1}{'XYZ'[i % 3]}", "acceleration", "m/s^2", ACCEL_V_PER_MS2, 490.0),
                            str(i + 1)) for i in range(7))]
-    daq = MccUsbDaq(eight, backend=maker_mcc.Usb1608FsPlusBackend(maker_mcc.Usb1608FsPlus(blow_volts)))
+    daq = MccUsbDaq(eight, backend=Usb1608FsPlusBackend(maker_mcc.Usb1608FsPlus(blow_volts)))
     with pytest.raises(ValueError, match="400000 S/s in all"):
         daq.configure(60e3, 4096)
 

@@ -135,6 +135,7 @@ def test_acquire_on_the_makers_emulated_units(tmp_path: Path, capsys: Any, monke
 
     from tests.emulators import maker_mcc1608fsplus as maker_mcc
     from tests.emulators import maker_mtsics
+    from tests.emulators.maker_mcc1608fsplus_backend import Usb1608FsPlusBackend
 
     def volts(channel: int, t: float) -> float:  # a 150 N tap at 50 ms; input k rings at its own frequency
         dt = t - 0.05
@@ -148,7 +149,7 @@ def test_acquire_on_the_makers_emulated_units(tmp_path: Path, capsys: Any, monke
     with maker_mtsics.MtSicsBalance(capacity_g=20000.0) as cell:
         cell.load_g = 11645.0
         path = devices_file(tmp_path, load_port=cell.port)
-        over = {"usb_backend": maker_mcc.Usb1608FsPlusBackend(unit), "operator": ScriptedOperator()}
+        over = {"usb_backend": Usb1608FsPlusBackend(unit), "operator": ScriptedOperator()}
         monkeypatch.setattr(devices_cli, "instrument_overrides", lambda: over)
         out = labctl_here_json(capsys, "devices", "check", "--devices", str(path), "--acquire", "--seconds", "0.2",
                                "--timeout", "5")

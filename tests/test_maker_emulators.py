@@ -15,6 +15,7 @@ import usb.core
 from tests.emulators import maker_mcc1608fsplus as mcc
 from tests.emulators import maker_mtsics as mt
 from tests.emulators import maker_ni9234 as ni
+from tests.emulators.maker_mcc1608fsplus_backend import Usb1608FsPlusBackend
 
 VENDOR_OUT, VENDOR_IN = 0x40, 0xC0
 
@@ -22,7 +23,7 @@ VENDOR_OUT, VENDOR_IN = 0x40, 0xC0
 # -- MCC USB-1608FS-Plus -------------------------------------------------------------------------------------------
 def _open(volts, **kw) -> tuple[usb.core.Device, mcc.Usb1608FsPlus]:
     unit = mcc.Usb1608FsPlus(volts, **kw)
-    dev = usb.core.find(idVendor=0x09DB, idProduct=0x00EA, backend=mcc.Usb1608FsPlusBackend(unit))
+    dev = usb.core.find(idVendor=0x09DB, idProduct=0x00EA, backend=Usb1608FsPlusBackend(unit))
     assert dev is not None
     dev.set_configuration()
     return dev, unit
