@@ -114,6 +114,19 @@ def test_a_ball_is_hertz_whatever_the_world_or_refused(tmp_path):
     assert_one_line_error(proc, "--ball-mm", "default", "balls")
 
 
+def test_the_ball_acceptance_command_runs_as_written_and_writes_nothing(tmp_path, monkeypatch):
+    """``labctl simulate impacts --ball-mm 6 --load-n 100`` (no --out) prints the truth it used: Hertz, no file."""
+    monkeypatch.chdir(tmp_path)
+    proc = labctl("simulate", "impacts", "--ball-mm", "6", "--load-n", "100")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("no file written"), proc.stdout
+    line = next(x for x in proc.stdout.splitlines() if "roller stiffness" in x)
+    k = [float(v) for v in line.split("roller stiffness")[1].replace("N/m", "").split(",")]
+    k_hertz = labctl_json("model", "hertz", "--ball-diameter-mm", "6", "--load-n", "100")["stiffness_n_per_m"][0]
+    assert np.mean(k) == pytest.approx(k_hertz, rel=0.03)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_hammer_level_is_a_setting_and_out_names_the_file_written(tmp_path):
     """``--hammer-level`` sets the blows' mean peak (scatter 20 % around it); ``--out`` not ending in .npz is
     refused (numpy would have written s.h5.npz while the tool printed s.h5)."""

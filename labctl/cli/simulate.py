@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--rail-ra-um", type=float, default=0.2, help="rail roughness Ra, µm (default 0.2)")
     i.add_argument("--rail-material", help="rail material (default: the catalogue's bearing steel)")
     i.add_argument("--rig", help="rig TOML file (default: the paper's rig)")
-    i.add_argument("--out", required=True, help="impacts NPZ file to write (a name ending in .npz)")
+    i.add_argument("--out", help="impacts NPZ file to write (a name ending in .npz); without it only the truth is "
+                   "printed")
     add_json(i)
     i.set_defaults(func=run_impacts)
 
@@ -55,11 +56,11 @@ def run_impacts(args: argparse.Namespace) -> int:
         raise InputError(f"--impacts {args.impacts}: expected at least 1")
     if not args.rail_ra_um > 0:
         raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a positive roughness in µm")
-    out = Path(args.out)
-    if out.suffix.lower() != ".npz":
+    out = None if args.out is None else Path(args.out)
+    if out is not None and out.suffix.lower() != ".npz":
         raise InputError(f"--out {out}: an impacts file is an NPZ; expected a name ending in .npz "
                          f"(e.g. {out.with_suffix('.npz')})")
-    if not out.parent.is_dir():
+    if out is not None and not out.parent.is_dir():
         raise InputError(f"--out {out}: directory {out.parent} does not exist")
     if args.hammer_level is not None and not args.hammer_level > 0:
         raise InputError(f"--hammer-level {args.hammer_level!r}: expected a positive peak force in N")
@@ -96,9 +97,10 @@ def run_impacts(args: argparse.Namespace) -> int:
                          "(the upper disc's weight)")
     twin.set_load_per_roller(args.load_n)
     fs, force, accel, channels = strike_series(rig, args.impacts)
-    np.savez(out, fs=np.float64(fs), force=force, accel=accel, channels=np.array(channels, dtype=np.str_))
+    if out is not None:
+        np.savez(out, fs=np.float64(fs), force=force, accel=accel, channels=np.array(channels, dtype=np.str_))
     result: dict[str, Any] = {**twin.truth(), "seed": twin.seed, "world": rig.description["world"],
-                              "hammer_level_n": twin.hammer_level_n(), "out": str(out)}
+                              "hammer_level_n": twin.hammer_level_n(), "out": None if out is None else str(out)}
     emit(result, args.json, _text)
     return 0
 
@@ -123,6 +125,7 @@ def strike_series(rig: Rig, impacts: int) -> tuple[float, np.ndarray, np.ndarray
 def _text(r: dict[str, Any]) -> str:
     k = ", ".join(f"{v:.4e}" for v in r["roller_stiffness_n_per_m"])
     t = r["tilt_hz"]
-    return (f"wrote {r['out']}  (world {r['world']}, seed {r['seed']}, hammer {r['hammer_level_n']:.0f} N)\n"
+    wrote = f"wrote {r['out']}" if r["out"] else "no file written (--out FILE.npz keeps the impacts)"
+    return (f"{wrote}  (world {r['world']}, seed {r['seed']}, hammer {r['hammer_level_n']:.0f} N)\n"
             f"load {r['load_n']:.1f} N per roller; roller stiffness {k} N/m\n"
             f"bounce {r['bounce_hz']:.2f} Hz   tilt {t[0]:.2f} / {t[1]:.2f} Hz")
