@@ -35,6 +35,8 @@ def test_demo_matches_eq5_with_the_papers_spread_and_exports_csv(demo_campaign, 
         assert col in header
     points = read_stiffness_table(table)
     assert len(points) == 3 * len(steps)
+    # the demo's stiffness.csv holds the stored step results: re-identifying every raw impact gives the same bytes
+    assert (campaign.parent / "stiffness.csv").read_bytes() == table.read_bytes()
     assert {p.repetition for p in points} == {1, 2, 3} and {p.roller_type for p in points} == {1}
     assert points[0].diameter_m == pytest.approx(3e-3) and points[0].rail_ra_m == pytest.approx(0.2e-6)
 

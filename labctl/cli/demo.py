@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from labctl.cli.progress import ProgressPrinter
     from labctl.errors import InputError
     from labctl.protocol import load_protocol
-    from labctl.reprocess import process_campaign
+    from labctl.storage.table import campaign_stiffness_points
     from labctl.stiffness_table import write_stiffness_table
 
     out = Path(args.out)
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if outcome.status != "complete" or not outcome.curves:
         raise RuntimeError(f"demo campaign ended {outcome.status}: {outcome.message}")
     csv = out / "stiffness.csv"
-    write_stiffness_table(csv, process_campaign(path).points)
+    write_stiffness_table(csv, campaign_stiffness_points(path))  # the stored step results, as taken
     steps = summarise(outcome.curves, protocol.specimens[0].case())
     result = {"campaign": str(path), "csv": str(csv), "repetitions": len(outcome.curves), "steps": steps}
 
