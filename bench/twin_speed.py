@@ -38,6 +38,7 @@ from labctl.physics.rig_config import load_rig  # noqa: E402
 from labctl.protocol import load_protocol  # noqa: E402
 from labctl.recording import check_record, process_step  # noqa: E402
 from labctl.storage import CampaignWriter  # noqa: E402
+from labctl.storage.specimen import SpecimenRecord  # noqa: E402
 
 PROTOCOL = ROOT / "protocols" / "roller_stiffness.toml"
 IMPACTS_PER_STEP = 3
@@ -74,7 +75,7 @@ def main() -> int:
         writer = CampaignWriter.create(Path(tmp) / "bench.h5", protocol_name="bench", backend="sim", seed=args.seed,
                                        config_files={}, description={})
         with writer:
-            writer.series(1, {"label": "bench"})
+            writer.series(1, SpecimenRecord(label="bench"))
             writer.run(1, 1)
             for step in range(1, steps + 1):
                 writer.step(1, 1, step, {"load_n": 200.0})
