@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import EmpiricalTerm, features
-from labctl.discrepancy.model import BAD_RESIDUAL, Fit, ModelSpec, predict_ln
+from labctl.discrepancy.model import BAD_RESIDUAL, FIT_FTOL, Fit, ModelSpec, predict_ln
 from labctl.discrepancy.search import DECISIVE_BIC, Search
 from labctl.discrepancy.workflow import DiscrepancyResult
 from labctl.physics.effects import EFFECTS
@@ -164,7 +164,7 @@ def _slice(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarra
         return whiten(np.where(np.isfinite(r), r, BAD_RESIDUAL))
 
     sol = least_squares(residuals, np.clip(rival.theta[free], lo, hi), bounds=(lo, hi), x_scale=1.0, diff_step=1e-6,
-                        xtol=1e-7, ftol=1e-7, max_nfev=200)
+                        xtol=1e-6, ftol=FIT_FTOL, max_nfev=200)
     chi2 = float(np.sum(sol.fun**2))
     bic = n * math.log(max(chi2 / n, 1e-300)) + rival.theta.size * math.log(n)
     return KinkSlice(u, Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic), chi2)
