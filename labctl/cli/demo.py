@@ -46,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
     from labctl.cli.progress import ProgressPrinter
     from labctl.errors import InputError
     from labctl.protocol import load_protocol
-    from labctl.storage.table import campaign_stiffness_points
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.table import campaign_stiffness_points
 
     out = Path(args.out)
     path = out / "campaign.h5"

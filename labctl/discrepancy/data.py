@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from labctl.errors import InputError
-from labctl.physics.effects import ContactCase
+from labctl.physics.effects import ContactCase, stack_cases
 from labctl.physics.validity import check_roller_loads
 from labctl.stiffness_table import StiffnessPoint, read_stiffness_table
 
@@ -65,9 +66,16 @@ class Dataset:
     def ln_stiffness(self) -> np.ndarray:
         return np.concatenate([c.ln_stiffness for c in self.cases])
 
-    @property
+    @cached_property
     def load_n(self) -> np.ndarray:
-        return np.concatenate([c.load_n for c in self.cases])
+        load = np.concatenate([c.load_n for c in self.cases])
+        load.setflags(write=False)  # computed once and shared: nobody may change it in place
+        return load
+
+    @cached_property
+    def stacked_case(self) -> ContactCase:
+        """All cases as one per-point case (``stack_cases``): a law evaluated on it covers every point at once."""
+        return stack_cases([c.case for c in self.cases], [c.load_n.size for c in self.cases])
 
     @property
     def load_per_length_n_per_m(self) -> np.ndarray:

@@ -153,19 +153,15 @@ class ModelSpec:
 def predict_ln(data: Dataset, law: ContactLaw, chain: tuple[Any, ...] = ()) -> np.ndarray:
     """ln of the modelled stiffness at every measured point (cases concatenated), evaluated at the true load
     and moduli the measurement-side terms ``chain`` infer from the recorded ones."""
-    out = []
-    for c in data.cases:
-        case, load = c.case, c.load_n
-        for term in chain:
-            case, load = term.transform(case, load)
-        load = np.asarray(load)
-        if (load > 0).all():  # the usual case: nothing to mask (the same numbers, two array copies fewer)
-            out.append(np.log(law.stiffness_n_per_m(case, load)))
-            continue
-        bad = ~(load > 0)  # a load offset larger than the recorded load: no such model
-        value = np.log(law.stiffness_n_per_m(case, np.where(bad, 1.0, load)))
-        out.append(np.where(bad, np.nan, value))
-    return np.concatenate(out)
+    case, load = data.stacked_case, data.load_n  # every case in one evaluation (the same numbers)
+    for term in chain:
+        case, load = term.transform(case, load)
+    load = np.asarray(load)
+    if (load > 0).all():  # the usual case: nothing to mask
+        return np.log(law.stiffness_n_per_m(case, load))
+    bad = ~(load > 0)  # a load offset larger than the recorded load: no such model
+    value = np.log(law.stiffness_n_per_m(case, np.where(bad, 1.0, load)))
+    return np.where(bad, np.nan, value)
 
 
 @dataclass(frozen=True)

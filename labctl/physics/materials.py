@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+import numpy as np
+
 from labctl.data import data_path, read_toml
 from labctl.data.schema import Number, Spec, Table, Text, Where, read
 from labctl.data.units import GPA
@@ -24,9 +26,9 @@ class Material:
     hardness_hrc: float = 60.0
 
     def __post_init__(self) -> None:
-        if not self.youngs_modulus_pa > 0:
+        if not np.all(np.asarray(self.youngs_modulus_pa) > 0):  # arrays too: a stack of cases (stack_cases)
             raise InputError(f"material {self.name}: Young's modulus {self.youngs_modulus_pa!r} Pa must be > 0")
-        if not -1.0 < self.poisson_ratio < 0.5:
+        if not np.all((np.asarray(self.poisson_ratio) > -1.0) & (np.asarray(self.poisson_ratio) < 0.5)):
             raise InputError(f"material {self.name}: Poisson ratio {self.poisson_ratio!r} must lie in (-1, 0.5)")
 
     @property
@@ -82,7 +84,6 @@ _HV = (238.0, 302.0, 392.0, 513.0, 577.0, 697.0, 832.0, 940.0, 1600.0)
 
 
 def hardness_pa(hardness_hrc: float) -> float:
-    """Indentation hardness in Pa (Vickers HV·9.807 MPa) from a Rockwell C number."""
-    import numpy as np
-
-    return float(np.interp(hardness_hrc, _HRC, _HV)) * 9.80665e6
+    """Indentation hardness in Pa (Vickers HV·9.807 MPa) from a Rockwell C number (or an array of them)."""
+    hv = np.interp(hardness_hrc, _HRC, _HV)
+    return (float(hv) if np.ndim(hv) == 0 else hv) * 9.80665e6
