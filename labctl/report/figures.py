@@ -296,8 +296,10 @@ def make_figures(data: ReportData) -> Iterator[Plot]:
 
 
 def save(plot: Plot, folder: Path) -> tuple[Path, Path]:
-    """Write the figure as PNG and SVG; return both paths."""
+    """Write the figure as PNG and SVG; return both paths. The SVG keeps the layout the PNG's drawing computed (the
+    layout is a third of a report's drawing time; the two differ by a fraction of a point)."""
     png, svg = folder / f"{plot.name}.png", folder / f"{plot.name}.svg"
     plot.figure.savefig(png, dpi=150)
+    plot.figure.set_layout_engine("none")
     plot.figure.savefig(svg)
     return png, svg
