@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -36,12 +36,11 @@ from labctl.processing.frf import (
     impact_spectra,
     response_buffer,
 )
-from labctl.processing.identification import Identification, IdentifyConfig, Mode
+from labctl.processing.identification import Identification, IdentifyConfig
 from labctl.processing.linearity import small_blow_limit, step_linearity, widened
-from labctl.processing.rollers import per_roller
 from labctl.processing.search import ContactModes, fit_contact_modes, search_range_hz
-from labctl.processing.shapes import PredictedShapes, predicted_shapes, signed_shape
-from labctl.processing.stiffness import Stiffness, roller_only, stiffness_budget, stiffness_from_bounce
+from labctl.processing.shapes import PredictedShapes, predicted_shapes
+from labctl.processing.step_result import mode_bins, mode_coherence, step_result
 
 
 def _inputs(force_n: np.ndarray, accel: np.ndarray, fs_hz: float, channels: Sequence[str],
@@ -65,25 +64,10 @@ def _inputs(force_n: np.ndarray, accel: np.ndarray, fs_hz: float, channels: Sequ
     return f, a, names
 
 
-def _mode_bins(freqs: np.ndarray, frequency_hz: float) -> np.ndarray:
-    k = int(np.searchsorted(freqs, frequency_hz))
-    return np.arange(max(k - 2, 0), min(k + 3, len(freqs)))
-
-
-def mode_coherence(frf: FrfEstimate, modes: ContactModes) -> list[float]:
-    """Coherence within ±2 lines of each mode, channels weighted by the mode's constants²."""
-    out = []
-    for r, fr in enumerate(modes.fit.frequencies_hz):
-        w = modes.fit.constants[r] ** 2
-        coh = frf.coherence[:, _mode_bins(frf.frequencies_hz, fr)].mean(axis=1)
-        out.append(float(w @ coh / w.sum()) if w.sum() > 0 else 0.0)
-    return out
-
-
 def _bounce_coherence(spectra: Spectra, used: list[int], modes: ContactModes) -> float:
     """Coherence at the bounce over the impacts ``used`` (from their spectra)."""
     r = modes.classes.bounce
-    bins = _mode_bins(spectra.frequencies_hz, modes.fit.frequencies_hz[r])
+    bins = mode_bins(spectra.frequencies_hz, modes.fit.frequencies_hz[r])
     weights = np.repeat((modes.fit.constants[r] ** 2)[:, None], len(bins), axis=1)
     return coherence_at(spectra, used, bins, weights)
 
@@ -115,28 +99,48 @@ def _fit(frf: FrfEstimate, spectra: Spectra, pred: PredictedShapes, live: np.nda
     return replace(modes, fit=widen(modes.fit, modes.band))
 
 
-def identify(
-    force_n: np.ndarray,
-    accel_m_per_s2: np.ndarray,
-    fs_hz: float,
-    channels: Sequence[str],
-    rig: RigConfig,
-    *,
-    accel_ranges: float | Sequence[float] | None = None,
-    force_range_n: float | None = None,
-    config: IdentifyConfig | CheckConfig | None = None,
-    contact: TrippContact | None = None,
-    load_n: float | None = None,
-    forced: Sequence[bool | None] | None = None,
-) -> Identification:
-    """Identify one load step from its impacts; ``contact`` and ``load_n`` add the roller-only stiffness.
+@dataclass
+class Screened:
+    """A step's impacts after the automatic checks and the operator's verdicts: what the modal fit may use."""
 
-    ``forced`` holds the operator's verdict per impact (None: the checks decide): an impact forced True is
-    used even when a check flags it (and is never dropped for coherence), one forced False is never used.
+    force: np.ndarray
+    accel: np.ndarray
+    fs_hz: float
+    names: tuple[str, ...]
+    buffer: np.ndarray
+    """The analysed span of the responses (up to twice their ring-down when the window trims to the decay)."""
+    checks: list[ImpactCheck]
+    accepted: list[int]
+    """Indices of the accepted impacts."""
+    dropped: tuple[str, ...]
+    """Channels saturated in every impact, left out of the step."""
 
-    Raises ProcessingError when no impact or no mode is usable.
-    """
-    cfg = config if isinstance(config, IdentifyConfig) else IdentifyConfig(checks=config or CheckConfig())
+    def peak_forces_n(self, used: list[int]) -> list[float]:
+        return [self.checks[self.accepted[u]].peak_force_n for u in used]
+
+
+@dataclass
+class StepFit:
+    """The modal fit of a step: spectra of the accepted impacts, the FRF over those used, and its contact modes."""
+
+    spectra: Spectra
+    frf: FrfEstimate
+    used: list[int]
+    """Positions in ``Screened.accepted`` of the impacts the FRF averages."""
+    live: np.ndarray
+    noise: np.ndarray
+    """Each channel's noise (the fit's weights)."""
+    sigma_f: np.ndarray
+    """Force noise per accepted impact, N."""
+    modes: ContactModes
+    widen: ForceNoiseWidener
+    """The force noise's share of each mode's σ, for this FRF."""
+
+
+def _screen(force_n: np.ndarray, accel_m_per_s2: np.ndarray, fs_hz: float, channels: Sequence[str], rig: RigConfig,
+            cfg: IdentifyConfig, accel_ranges: float | Sequence[float] | None, force_range_n: float | None,
+            forced: Sequence[bool | None] | None) -> Screened:
+    """Stage 1: check every impact on its own, drop channels saturated throughout, apply the operator's verdicts."""
     force, accel, names = _inputs(force_n, accel_m_per_s2, fs_hz, channels, rig)
     # the span analysed: the records up to twice their ring-down (checks look at what the spectra will hold)
     buf = response_buffer(accel, analysed_samples(accel, fs_hz) if cfg.window.trim_to_decay else None)
@@ -156,26 +160,33 @@ def identify(
     if not accepted:
         summary = "; ".join(f"impact {c.index}: {', '.join(c.reasons)}" for c in checks)
         raise ProcessingError(f"all {len(checks)} impacts rejected ({summary})")
+    return Screened(force, accel, fs_hz, names, buf, checks, accepted, dropped)
+
+
+def _fit_step(step: Screened, rig: RigConfig, cfg: IdentifyConfig, forced: Sequence[bool | None] | None) -> StepFit:
+    """Stage 2: spectra and FRF of the accepted impacts, the contact modes; one impact that spoils the coherence at
+    the bounce is rejected (in ``step.checks``) and the fit redone without it."""
+    names, accepted, checks = step.names, step.accepted, step.checks
     pred = predicted_shapes(rig, names)
     pulses = [(checks[i].pulse_start, checks[i].pulse_end, checks[i].force_noise_n) for i in accepted]
     window = cfg.window
     if window.max_frequency_hz is not None and window.max_frequency_hz < 1.25 * pred.max_bounce_hz:
         window = replace(window, max_frequency_hz=1.25 * pred.max_bounce_hz)  # a stiff rig's modes stay in view
     segments = [checks[i].further_pulses for i in accepted]
-    spectra = impact_spectra(force, accel, fs_hz, pulses, window, use=accepted, buffer=buf, segments=segments)
+    spectra = impact_spectra(step.force, step.accel, step.fs_hz, pulses, window, use=accepted, buffer=step.buffer,
+                             segments=segments)
     used = list(range(len(accepted)))
     frf = estimate_frf(spectra, used)
-    live = live_channels(frf) & np.array([n not in dropped for n in names])
+    live = live_channels(frf) & np.array([n not in step.dropped for n in names])
     if not live.any():
-        raise ProcessingError(f"no response channel left: {', '.join(dropped)} saturated in every impact, "
+        raise ProcessingError(f"no response channel left: {', '.join(step.dropped)} saturated in every impact, "
                               "the others flat")
-    noise = channel_noise(accel, accepted)
+    noise = channel_noise(step.accel, accepted)
     search = cfg.search_hz or search_range_hz(rig, pred, float(spectra.frequencies_hz[-1]))
     zeta = rig.modal_damping_ratio
     sigma_f = np.array([checks[i].force_noise_n for i in accepted])
     widen = ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise)
     modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise, widen)
-    warnings: list[str] = []
     protected = frozenset(k for k, i in enumerate(accepted) if forced is not None and forced[i])
     drop = _coherence_check(spectra, frf, used, modes, cfg.checks.min_coherence, protected)
     if drop is not None:
@@ -186,21 +197,50 @@ def identify(
         frf = estimate_frf(spectra, used)
         widen = ForceNoiseWidener(frf, spectra, used, sigma_f, live, noise)
         modes = _fit(frf, spectra, pred, live, search, zeta, cfg, noise, widen)
-    if dropped:
-        warnings.append(f"channel(s) {', '.join(dropped)} saturated in every impact: dropped, the step goes on "
+    return StepFit(spectra, frf, used, live, noise, sigma_f, modes, widen)
+
+
+def identify(
+    force_n: np.ndarray,
+    accel_m_per_s2: np.ndarray,
+    fs_hz: float,
+    channels: Sequence[str],
+    rig: RigConfig,
+    *,
+    accel_ranges: float | Sequence[float] | None = None,
+    force_range_n: float | None = None,
+    config: IdentifyConfig | CheckConfig | None = None,
+    contact: TrippContact | None = None,
+    load_n: float | None = None,
+    forced: Sequence[bool | None] | None = None,
+) -> Identification:
+    """Identify one load step from its impacts; ``contact`` and ``load_n`` add the roller-only stiffness.
+
+    ``forced`` holds the operator's verdict per impact (None: the checks decide): an impact forced True is
+    used even when a check flags it (and is never dropped for coherence), one forced False is never used.
+    Stages: screen the impacts, fit the contact modes, judge the blow's effect, assemble the result.
+
+    Raises ProcessingError when no impact or no mode is usable.
+    """
+    cfg = config if isinstance(config, IdentifyConfig) else IdentifyConfig(checks=config or CheckConfig())
+    step = _screen(force_n, accel_m_per_s2, fs_hz, channels, rig, cfg, accel_ranges, force_range_n, forced)
+    fit = _fit_step(step, rig, cfg, forced)
+    warnings: list[str] = []
+    if step.dropped:
+        warnings.append(f"channel(s) {', '.join(step.dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
-    lin = step_linearity(modes, spectra, used, [checks[accepted[u]].peak_force_n for u in used], sigma_f, live, noise,
-                         widen)
-    small_blow = small_blow_limit(modes, spectra, used, lin, fs_hz)
-    b = modes.classes.bounce
-    blow = blow_effect(rig, float(modes.fit.frequencies_hz[b]), float(modes.fit.frequency_std_hz[b]), lin, small_blow,
-                       [checks[accepted[u]].peak_force_n for u in used])
+    lin = step_linearity(fit.modes, fit.spectra, fit.used, step.peak_forces_n(fit.used), fit.sigma_f, fit.live,
+                         fit.noise, fit.widen)
+    small_blow = small_blow_limit(fit.modes, fit.spectra, fit.used, lin, fs_hz)
+    b = fit.modes.classes.bounce
+    blow = blow_effect(rig, float(fit.modes.fit.frequencies_hz[b]), float(fit.modes.fit.frequency_std_hz[b]), lin,
+                       small_blow, step.peak_forces_n(fit.used))
     if small_blow is not None and small_blow.significant:
-        modes = widened(modes, small_blow)  # the σ covers the small-blow limit whether or not that is material
+        fit.modes = widened(fit.modes, small_blow)  # the σ covers the small-blow limit whether or not that is material
     if blow is not None and blow.warning():
         warnings.append(blow.warning())
-    result = _result(checks, frf, modes, spectra, used, names, live, rig, fs_hz, cfg, contact, load_n, warnings,
-                     dropped, blow_dependent=blow is not None and blow.material)
+    material = blow is not None and blow.material
+    result = step_result(step, fit, rig, cfg, contact, load_n, warnings, blow_dependent=material)
     result.linearity = lin.to_dict() if lin is not None else None
     result.small_blow = small_blow.to_dict() if small_blow is not None else None
     result.blow_effect = blow.to_dict() if blow is not None else None
@@ -217,77 +257,3 @@ def _operator_verdict(check: ImpactCheck, accept: bool | None) -> ImpactCheck:
 
 
 OPERATOR_REJECTED = "operator_rejected"
-
-
-def _result(checks: list[ImpactCheck], frf: FrfEstimate, modes: ContactModes, spectra: Spectra, used: list[int],
-            names: tuple[str, ...], live: np.ndarray, rig: RigConfig, fs_hz: float, cfg: IdentifyConfig,
-            contact: TrippContact | None, load_n: float | None, warnings: list[str],
-            dropped: tuple[str, ...] = (), blow_dependent: bool = False) -> Identification:
-    fit, cls = modes.fit, modes.classes
-    coh = mode_coherence(frf, modes)
-    order = [cls.bounce, *cls.tilt]
-    out_modes = [
-        Mode("bounce" if r == cls.bounce else "tilt", float(fit.frequencies_hz[r]), float(fit.frequency_std_hz[r]),
-             float(fit.damping_ratios[r]), float(fit.damping_std[r]),
-             dict(zip(names, (float(v) for v in signed_shape(fit.constants[r])), strict=True)),
-             float(cls.bounce_mac[r]), float(cls.tilt_fraction[r]), coh[r])
-        for r in order
-    ]
-    b = cls.bounce
-    tilt = list(cls.tilt) * (2 if len(cls.tilt) == 1 else 1)
-    k_eq = stiffness_from_bounce(rig, float(fit.frequencies_hz[b]), float(fit.frequency_std_hz[b]))
-    rollers = per_roller(rig, names, live, modes, k_eq, warnings, blow_dependent)
-    budget = stiffness_budget(rig, rollers.mean_n_per_m,
-                              rollers.mean_std_n_per_m if rollers.resolved else k_eq.std_n_per_m)
-    k = Stiffness(rollers.mean_n_per_m, budget.total_std_n_per_m)
-    rig_share2 = max(budget.total_std_n_per_m**2 - budget.terms["modal_fit"] ** 2, 0.0)
-    fit_std = rollers.std_n_per_m
-    total_std = tuple(math.hypot(s, v / k.value_n_per_m * math.sqrt(rig_share2))
-                      for s, v in zip(fit_std, rollers.values_n_per_m, strict=True))
-    alone: Stiffness | None = roller_only(k, contact, load_n) if contact is not None and load_n is not None else None
-    if coh[b] < cfg.checks.min_coherence:
-        warnings.append(f"coherence at the bounce {coh[b]:.3f} is below {cfg.checks.min_coherence:g}")
-    if modes.stray_hz:
-        warnings.append(f"mode(s) at {', '.join(f'{f:.1f}' for f in modes.stray_hz)} Hz in the contact-mode range have "
-                        "neither the bounce's nor the tilt's shape (a rail, mount or support resonance?): not "
-                        "taken for contact modes")
-    if not cls.by_shape:
-        warnings.append("the live channels cannot separate bounce from tilt shapes: assigned by frequency order")
-    dead = tuple(n for n, ok in zip(names, live, strict=True) if not ok and n not in dropped)
-    if dead:
-        warnings.append(f"dead channel(s) left out: {', '.join(dead)}")
-    return Identification(
-        bounce_hz=float(fit.frequencies_hz[b]),
-        bounce_hz_std=float(fit.frequency_std_hz[b]),
-        bounce_damping_ratio=float(fit.damping_ratios[b]),
-        bounce_damping_ratio_std=float(fit.damping_std[b]),
-        tilt_hz=(float(fit.frequencies_hz[tilt[0]]), float(fit.frequencies_hz[tilt[1]])),
-        tilt_hz_std=(float(fit.frequency_std_hz[tilt[0]]), float(fit.frequency_std_hz[tilt[1]])),
-        tilt_pair_resolved=modes.pair_resolved,
-        roller_stiffness_n_per_m=k.value_n_per_m,
-        roller_stiffness_std_n_per_m=k.std_n_per_m,
-        coherence_at_bounce=coh[b],
-        impacts=checks,
-        frequencies_hz=frf.frequencies_hz,
-        h1=frf.h1,
-        h2=frf.h2,
-        coherence=frf.coherence,
-        channels=names,
-        modes=out_modes,
-        fs_hz=fs_hz,
-        window_decay_rate_per_s=spectra.decay_rate_per_s,
-        fit_band_hz=fit.band_hz,
-        dead_channels=dead,
-        dropped_channels=dropped,
-        classified_by_shape=cls.by_shape,
-        roller_only_stiffness_n_per_m=alone.value_n_per_m if alone else None,
-        roller_only_stiffness_std_n_per_m=alone.std_n_per_m if alone else None,
-        warnings=warnings,
-        roller_stiffnesses_n_per_m=rollers.values_n_per_m,
-        roller_stiffnesses_std_n_per_m=total_std,
-        roller_stiffnesses_fit_std_n_per_m=fit_std,
-        roller_stiffnesses_resolved=rollers.resolved,
-        roller_stiffness_condition=rollers.condition,
-        rollers_differing=tuple(i + 1 for i in rollers.differing),
-        roller_stiffness_budget_n_per_m=dict(budget.terms),
-    )
