@@ -62,3 +62,13 @@ def test_a_stacked_material_is_still_checked():
 
     with pytest.raises(InputError, match="Young's modulus"):
         Material("stacked", np.array([2e11, -1.0]), np.array([0.3, 0.3]), np.array([60.0, 60.0]))
+
+
+def test_a_load_below_an_empirical_fits_range_is_a_domain_error_naming_the_point():
+    """Eq. 5 on the stack, with a load offset that puts the lowest loads below its range: the model's own domain
+    error (which the fits catch), naming the first such point's load and contact length, not a TypeError."""
+    from labctl.physics.contact import ModelDomainError
+
+    data = build_dataset(mixed_points())
+    with pytest.raises(ModelDomainError, match=r"valid only for F/L_we > .* mm; got .* N"):
+        predict_ln(data, ContactLaw("fit-ra0.2"), (LoadOffset(30.0),))

@@ -50,7 +50,8 @@ class EmpiricalFit:
             c = self.coefficients
             raise ModelDomainError(
                 f"{c.equation} ({c.name}) is valid only for F/L_we > {c.p0_n_per_m / 1e3:.4g} N/mm, i.e. "
-                f"F > {self.minimum_load_n:.4g} N for L_we = {self.contact_length_m * 1e3:.4g} mm; "
+                f"F > {np.broadcast_to(self.minimum_load_n, f.shape)[low].flat[0]:.4g} N for L_we = "
+                f"{np.broadcast_to(self.contact_length_m, f.shape)[low].flat[0] * 1e3:.4g} mm; "
                 f"got {f[low].flat[0]:.4g} N"
             )
         c = self.coefficients
