@@ -101,7 +101,8 @@ class LabApp(App[Outcome | None]):
         self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
         self.operator = TuiOperator(self._post_prompt, self.show_prompt, self._tell, settings.review_hits,
-                                    settings.arm_grace_s)
+                                    settings.arm_grace_s, held=lambda: self.control.paused or
+                                    bool(self.control.stop_status))
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
             else DEFAULT_AUTO_CONFIRM_S
@@ -278,6 +279,7 @@ class LabApp(App[Outcome | None]):
             self.monitor.log_line("resuming")
         else:
             self.control.pause()
+            self.operator.wake()
             self.monitor.log_line("pause requested: the engine holds at the next safe point")
 
     def action_verdict(self, accept: bool) -> None:
@@ -306,6 +308,7 @@ class LabApp(App[Outcome | None]):
             return
         was_paused = self.control.paused
         self.control.pause()
+        self.operator.wake()
         if not was_paused:
             self.monitor.log_line("paused while the question is open")
 
