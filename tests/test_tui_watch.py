@@ -37,25 +37,33 @@ def _stop_group(proc: subprocess.Popen) -> None:
 
 async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
     out = tmp_path / "watched.h5"
-    protocol = tmp_path / "watched.toml"  # 2 repetitions of 4 steps: long enough to be seen running
-    protocol.write_text(stepped_protocol_text("watched", 1, 300.0, 4, 2), encoding="utf-8")
+    protocol = tmp_path / "watched.toml"  # 1 repetition of 3 steps: the run is held until it is seen running
+    protocol.write_text(stepped_protocol_text("watched", 1, 300.0, 3, 1), encoding="utf-8")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "labctl", "run", str(protocol), "--out", str(out), "--quiet",
                              "--seed", "4"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
-    app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.3)
+    app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.1)
     seen: list[str] = []
 
-    async def hold_now_and_then() -> None:
-        """The twin runs on virtual time and may finish a short campaign between two polls: stop the run for
-        1.2 s in every 1.6 s so the watcher sees it mid-way, as it would see a run on the real rig."""
-        while proc.poll() is None:
-            await asyncio.sleep(0.4)
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGSTOP)
-                await asyncio.sleep(1.2)
+    async def hold_until_seen_running() -> None:
+        """The twin runs on virtual time and may finish a short campaign between two polls: once the file is
+        there, stop the run (up to 1.5 s at a time) until the watcher has seen it running, as it would see a run
+        on the real rig; a read that caught a flush half-way is retried at the next poll."""
+        while proc.poll() is None and "running" not in seen:
+            if not out.exists():
+                await asyncio.sleep(0.02)
+                continue
+            proc.send_signal(signal.SIGSTOP)
+            try:
+                for _ in range(30):
+                    if "running" in seen:
+                        break
+                    await asyncio.sleep(0.05)
+            finally:
                 proc.send_signal(signal.SIGCONT)
+            await asyncio.sleep(0.05)
 
-    holder = asyncio.create_task(hold_now_and_then())
+    holder = asyncio.create_task(hold_until_seen_running())
     try:
         async with app.run_test(size=SIZE) as pilot:
             screen = await wait_for(pilot, lambda: isinstance(app.screen, WatchScreen) and app.screen)
@@ -149,14 +157,14 @@ async def _browse(host: str) -> tuple[str, bytes]:
     import aiohttp
 
     async with aiohttp.ClientSession() as http:
-        for _ in range(240):  # the server imports textual-serve and starts
+        for _ in range(600):  # the server imports textual-serve and starts
             try:
                 async with http.get(f"http://{host}/") as r:
                     if r.status == 200:
                         break
             except aiohttp.ClientError:
                 pass
-            await asyncio.sleep(0.25)
+            await asyncio.sleep(0.1)
         chrome = subprocess.Popen(["chromium-headless-shell", "--no-sandbox", "--headless", "--disable-gpu",
                                    "--remote-debugging-port=0", "--window-size=1200,800", f"http://{host}/"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
@@ -174,7 +182,7 @@ async def _browse(host: str) -> tuple[str, bytes]:
                 page = next(p for p in await r.json() if p["type"] == "page")
             body = ""
             async with http.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0) as cdp:
-                for n in range(1, 240):
+                for n in range(1, 600):
                     await cdp.send_json({"id": n, "method": "Runtime.evaluate",
                                          "params": {"expression": "document.body.className"}})
                     while (reply := await cdp.receive_json()).get("id") != n:
