@@ -129,7 +129,7 @@ def _free_port() -> int:
 @pytest.mark.skipif(not shutil.which("chromium-headless-shell"), reason="needs chromium-headless-shell")
 def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
     """``labctl tui --watch FILE --serve``: bound to 127.0.0.1; a headless Chromium page receives the app (its
-    terminal gets the first bytes), and the session's output carries the header (WATCHING … COMPLETE)."""
+    terminal gets the first bytes), and what the page receives carries the header (WATCHING … COMPLETE)."""
     import asyncio
 
     from tests.engine_util import short_campaign_file
@@ -149,10 +149,10 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
 
 
 async def _browse(host: str) -> tuple[str, bytes]:
-    """Open the served page in headless Chromium (DevTools protocol) until the app has drawn, and read one
-    session's output over the same websocket the page uses."""
+    """Open the served page in headless Chromium (DevTools protocol) until the app has drawn its header, and
+    collect what the page's own websocket received (the DevTools Network events carry its frames)."""
     import asyncio
-    import json
+    import base64
 
     import aiohttp
 
@@ -166,7 +166,7 @@ async def _browse(host: str) -> tuple[str, bytes]:
                 pass
             await asyncio.sleep(0.1)
         chrome = subprocess.Popen(["chromium-headless-shell", "--no-sandbox", "--headless", "--disable-gpu",
-                                   "--remote-debugging-port=0", "--window-size=1200,800", f"http://{host}/"],
+                                   "--remote-debugging-port=0", "--window-size=1200,800", "about:blank"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                   start_new_session=True)
         try:
@@ -180,30 +180,31 @@ async def _browse(host: str) -> tuple[str, bytes]:
             debug = devtools.split("/devtools/")[0].replace("ws://", "http://")
             async with http.get(f"{debug}/json") as r:
                 page = next(p for p in await r.json() if p["type"] == "page")
-            body = ""
+            body, output, n = "", b"", 0
             async with http.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0) as cdp:
-                for n in range(1, 600):
-                    await cdp.send_json({"id": n, "method": "Runtime.evaluate",
-                                         "params": {"expression": "document.body.className"}})
+
+                async def call(method: str, **params: object) -> dict:
+                    """One DevTools command; the frames the page's websocket receives meanwhile are collected."""
+                    nonlocal n, output
+                    n += 1
+                    await cdp.send_json({"id": n, "method": method, "params": params})
                     while (reply := await cdp.receive_json()).get("id") != n:
-                        pass
+                        if reply.get("method") == "Network.webSocketFrameReceived":
+                            frame = reply["params"]["response"]
+                            data = frame["payloadData"]
+                            output += base64.b64decode(data) if frame["opcode"] == 2 else data.encode()
+                    return reply
+
+                await call("Network.enable")  # before the page opens its websocket: every frame is seen
+                await call("Page.navigate", url=f"http://{host}/")
+                for _ in range(600):
+                    reply = await call("Runtime.evaluate", expression="document.body.className")
                     body = str(reply.get("result", {}).get("result", {}).get("value", ""))
-                    if "-first-byte" in body:
+                    if "-first-byte" in body and b"WATCHING" in output and b"COMPLETE" in output:
                         break
-                    await asyncio.sleep(0.25)
+                    await asyncio.sleep(0.1)
         finally:  # chromium and its helpers: their own process group
             _stop_group(chrome)
-        output = b""
-        async with http.ws_connect(f"ws://{host}/ws?width=100&height=30") as ws:
-            await ws.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
-            try:
-                while not (b"WATCHING" in output and b"COMPLETE" in output):
-                    msg = await asyncio.wait_for(ws.receive(), 60)
-                    if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
-                        break
-                    output += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
-            except TimeoutError:
-                pass
         return body, output
 
 
