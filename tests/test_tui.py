@@ -267,7 +267,7 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         force[900:904] = [40, 90, 40, 0]
         rejected = impact_event(ev.Position(1, 1, 1, 1), 1, ("double_hit",), force, np.zeros((12, 2048)),
                                 tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"), peak_force_n=250.0)
-        app.post_message(app_event(rejected))
+        app._forward(rejected)  # as the engine hands an event to the screen
         panel = app.monitor.query_one("#impact-panel")
         await wait_for(pilot, lambda: panel.has_class("-rejected"), what="the red impact panel")
         assert panel.has_class("-rejected") and "REJECTED: double hit" in str(panel.border_title)
@@ -283,12 +283,6 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         await pilot.press("2")
         ask.join(5)
     assert answers == ["cancel"]
-
-
-def app_event(event: ev.Event):
-    from labctl.tui.app import EngineEvent
-
-    return EngineEvent(event)
 
 
 @pytest.mark.parametrize("answer", ["n", "x"])

@@ -7,6 +7,7 @@ Quitting mid-run asks the engine to stop at its next safe point and waits for it
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -55,12 +56,8 @@ class TuiSettings:
         return self.out
 
 
-class EngineEvent(Message):
-    """An engine event handed to the UI thread."""
-
-    def __init__(self, event: ev.Event) -> None:
-        super().__init__()
-        self.event = event
+class EngineEvents(Message):
+    """Engine events are waiting in the app's inbox: the UI takes them all at once and draws them once."""
 
 
 class OperatorNotice(Message):
@@ -114,6 +111,8 @@ class LabApp(App[Outcome | None]):
         self.held_prompt: PromptRequest | None = None  # arrived while the technician answered a question
         self.monitor = MonitorScreen(settings.protocol)
         self.blows = StepBlows()  # the step's blows so far, for the gate's FRF (filled in the engine thread)
+        self._inbox: list[ev.Event] = []  # engine events not yet on the screen, in order
+        self._inbox_lock = threading.Lock()
         self._plan_counters()
 
     # --- screens --------------------------------------------------------------------------------------------
@@ -188,10 +187,22 @@ class LabApp(App[Outcome | None]):
                             subscribers=(self.blows, self._forward, *self.extra_subscribers), control=self.control)
 
     def _forward(self, event: ev.Event) -> None:
-        self.post_message(EngineEvent(event))
+        """Queue an event (engine thread); a burst of them is drawn once. One message is posted per burst, ahead
+        of any prompt posted after the events, so a prompt still never reaches the screen before them."""
+        with self._inbox_lock:
+            self._inbox.append(event)
+            first = len(self._inbox) == 1
+        if first:
+            self.post_message(EngineEvents())
 
-    def on_engine_event(self, message: EngineEvent) -> None:
-        e = message.event
+    def on_engine_events(self, message: EngineEvents) -> None:
+        with self._inbox_lock:
+            events, self._inbox = self._inbox, []
+        with self.batch_update():
+            for e in events:
+                self._show_event(e)
+
+    def _show_event(self, e: ev.Event) -> None:
         if not self.monitor.is_attached:  # the app is closing: events still in flight have no screen
             return
         if isinstance(e, ev.ImpactRejected):
@@ -333,8 +344,9 @@ class LabApp(App[Outcome | None]):
         self.monitor.log_line(f"stopping ({status}) after the current impact…", "bold yellow")
 
     def on_unmount(self) -> None:
-        """The screen is going away (also in tests): never leave the engine waiting on a dialog nobody sees."""
-        if self.running:
+        """The screen is going away (also in tests): never leave the engine waiting on a dialog nobody sees (its
+        thread may outlive a worker already marked cancelled by the closing app, so this does not ask ``running``)."""
+        if self.worker is not None and self.outcome is None:
             self.control.stop()
             self.operator.stop("interrupted")
 
