@@ -60,12 +60,6 @@ class EngineEvents(Message):
     """Engine events are waiting in the app's inbox: the UI takes them all at once and draws them once."""
 
 
-class OperatorNotice(Message):
-    def __init__(self, text: str) -> None:
-        super().__init__()
-        self.text = text
-
-
 class PromptPosted(Message):
     """An engine prompt handed to the UI thread behind the events posted before it (never ahead of them)."""
 
@@ -111,7 +105,7 @@ class LabApp(App[Outcome | None]):
         self.held_prompt: PromptRequest | None = None  # arrived while the technician answered a question
         self.monitor = MonitorScreen(settings.protocol)
         self.blows = StepBlows()  # the step's blows so far, for the gate's FRF (filled in the engine thread)
-        self._inbox: list[ev.Event] = []  # engine events not yet on the screen, in order
+        self._inbox: list[ev.Event | str] = []  # engine events and notices not yet on the screen, in order
         self._inbox_lock = threading.Lock()
         self._plan_counters()
 
@@ -186,8 +180,8 @@ class LabApp(App[Outcome | None]):
                             seed=s.seed, rig=s.rig, devices=s.devices, operator=self.operator,
                             subscribers=(self.blows, self._forward, *self.extra_subscribers), control=self.control)
 
-    def _forward(self, event: ev.Event) -> None:
-        """Queue an event (engine thread); a burst of them is drawn once. One message is posted per burst, ahead
+    def _forward(self, event: ev.Event | str) -> None:
+        """Queue an event or notice (engine thread); a burst is drawn once. One message is posted per burst, ahead
         of any prompt posted after the events, so a prompt still never reaches the screen before them."""
         with self._inbox_lock:
             self._inbox.append(event)
@@ -198,13 +192,16 @@ class LabApp(App[Outcome | None]):
     def on_engine_events(self, message: EngineEvents) -> None:
         with self._inbox_lock:
             events, self._inbox = self._inbox, []
-        with self.batch_update():
-            for e in events:
-                self._show_event(e)
-
-    def _show_event(self, e: ev.Event) -> None:
         if not self.monitor.is_attached:  # the app is closing: events still in flight have no screen
             return
+        with self.batch_update():
+            for e in events:
+                if isinstance(e, str):
+                    self.monitor.log_line(e, "yellow")
+                else:
+                    self._show_event(e)
+
+    def _show_event(self, e: ev.Event) -> None:
         if isinstance(e, ev.ImpactRejected):
             self.rejection = reason_text(e.reasons)
         elif isinstance(e, ev.ImpactAcquired | ev.StepStarted):
@@ -224,11 +221,7 @@ class LabApp(App[Outcome | None]):
         message.show(message.request)
 
     def _tell(self, text: str) -> None:
-        self.post_message(OperatorNotice(text))
-
-    def on_operator_notice(self, message: OperatorNotice) -> None:
-        self.monitor.log_line(message.text, "yellow")
-
+        self._forward(text)  # a notice from the operator: in the same inbox, so in order with the events
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.worker is not self.worker or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR,
                                                                   WorkerState.CANCELLED):
