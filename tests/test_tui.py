@@ -67,7 +67,7 @@ async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
         await pilot.press("enter")  # the focused first choice: "ok"
         await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="paused")
         held = app.monitor.state.impacts_done
-        await pilot.pause(0.6)
+        await pilot.pause(0.2)  # held at a safe point: the events before it are all on the screen already
         assert app.monitor.state.impacts_done == held == 0
         assert "PAUSED" in str(app.monitor.query_one("#header").render())
         await pilot.press("p")
@@ -105,8 +105,9 @@ async def test_running_screen_snapshot_shows_progress_modes_and_curve(tmp_path, 
     settings.out = Path("quick_check.h5")
     app = LabApp(settings, subscribers=(hold_after_step_2,))
     async with app.run_test(size=SIZE) as pilot:
-        await wait_for(pilot, lambda: hold.is_set() and app.monitor.query_one("#steps").row_count == 2)
-        await pilot.pause(0.3)
+        await wait_for(pilot, lambda: hold.is_set() and app.monitor.query_one("#steps").row_count == 2
+                       and "FRF step 2" in str(app.monitor.query_one("#frf-panel").border_title))
+        await pilot.pause()  # the screen drawn with them
         svg = app.export_screenshot(title="labctl tui: quick_check on the simulated rig")
         release.set()
         await wait_for(pilot, lambda: app.outcome)
@@ -208,9 +209,8 @@ async def test_a_prompt_arriving_under_the_abort_question_waits_for_its_answer(t
         app.auto_confirm = False
         asker = threading.Thread(target=ask)
         asker.start()
-        await wait_for(pilot, lambda: app.operator.pending, what="the late prompt")
-        await pilot.pause(0.3)
-        assert isinstance(app.screen, ConfirmDialog)
+        await wait_for(pilot, lambda: app.held_prompt, what="the late prompt, held under the question")
+        assert isinstance(app.screen, ConfirmDialog) and app.held_prompt is app.operator.pending
         await pilot.press(answer)
         if answer == "n":
             prompt = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen,
@@ -267,7 +267,7 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         force[900:904] = [40, 90, 40, 0]
         rejected = impact_event(ev.Position(1, 1, 1, 1), 1, ("double_hit",), force, np.zeros((12, 2048)),
                                 tuple(f"A{i}{a}" for i in range(1, 5) for a in "XYZ"), peak_force_n=250.0)
-        app.post_message(app_event(rejected))
+        app._forward(rejected)  # as the engine hands an event to the screen
         panel = app.monitor.query_one("#impact-panel")
         await wait_for(pilot, lambda: panel.has_class("-rejected"), what="the red impact panel")
         assert panel.has_class("-rejected") and "REJECTED: double hit" in str(panel.border_title)
@@ -277,17 +277,12 @@ async def test_bad_hit_is_obvious_and_titles_the_next_strike_dialog(tmp_path):
         ask.start()
         dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
         assert str(dialog.query_one(".title").render()) == "Hit again: double hit"
-        await pilot.pause(0.3)
-        assert not answers  # the real rig: no auto-confirm, the engine waits for the technician
+        assert dialog.auto_delay_s() is None  # the real rig: no auto-confirm, the engine waits for the technician
+        await pilot.pause(0.2)
+        assert not answers
         await pilot.press("2")
         ask.join(5)
     assert answers == ["cancel"]
-
-
-def app_event(event: ev.Event):
-    from labctl.tui.app import EngineEvent
-
-    return EngineEvent(event)
 
 
 @pytest.mark.parametrize("answer", ["n", "x"])
@@ -302,7 +297,7 @@ async def test_abort_dialog_pauses_acquisition_until_answered(tmp_path, answer):
         release.set()  # the engine goes on to its next safe point and holds there
         await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="the engine to hold")
         held = app.monitor.state.impacts_done
-        await pilot.pause(1.0)
+        await pilot.pause(0.2)  # held at a safe point: it stays so while the question is open
         assert app.monitor.state.impacts_done == held and isinstance(app.screen, ConfirmDialog)
         await pilot.press(answer)
         await wait_for(pilot, lambda: app.outcome, what="the end of the campaign")

@@ -80,7 +80,7 @@ async def test_browser_lists_runs_steps_impacts_and_shows_the_selection(campaign
 
 async def test_setup_screen_runs_the_chosen_shipped_protocol(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    app = LabApp(TuiSettings(seed=1, review_hits=False))
+    app = LabApp(TuiSettings(seed=1, review_hits=False, no_auto_confirm=True))  # the test answers the prompt
     async with app.run_test(size=SIZE) as pilot:
         screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
         options = screen.query_one("#protocols")
@@ -103,25 +103,32 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     session = f"labctl-tui-{os.getpid()}"
     # this checkout's labctl (a running tmux server keeps its own environment, and the labctl script may be
     # another checkout's)
-    # --auto-confirm 0.2: the clean blows and the prompts answer themselves at once (the default 3 s countdown,
+    # --auto-confirm 0.1: the clean blows and the prompts answer themselves at once (the default 3 s countdown,
     # nine times over, is what the test waited for; the countdown itself is test_tui_gate's)
     cmd = (f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim "
-           "--autostart --auto-confirm 0.2")
+           "--autostart --auto-confirm 0.1")
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
+    def capture() -> str:
+        return subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True, text=True).stdout
+
     try:
         pane, deadline = "", time.monotonic() + 120
         while time.monotonic() < deadline:
-            pane = subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True,
-                                  text=True).stdout
+            pane = capture()
             if "COMPLETE" in pane:
                 break
             if "reject (r) or accept anyway" in pane:  # a flagged blow waits for the technician: hit again
                 subprocess.run(["tmux", "send-keys", "-t", session, "r"], check=True)
-            time.sleep(0.5)
+                while capture() == pane and time.monotonic() < deadline:  # taken: the screen changes
+                    time.sleep(0.05)
+            time.sleep(0.1)
         assert "run 1/1 · step 3/3 · hit 2/2" in pane, pane
         assert re.search(r"bounce \d+\.\d\d Hz", pane), pane
         subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
-        time.sleep(1.0)
+        gone = time.monotonic() + 10  # the app quits and its session ends with it
+        while time.monotonic() < gone and subprocess.run(["tmux", "has-session", "-t", session],
+                                                          capture_output=True).returncode == 0:
+            time.sleep(0.05)
     finally:
         subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
     (written,) = tmp_path.glob("quick_check-*.h5")
@@ -134,19 +141,21 @@ async def test_setup_screen_honours_no_auto_confirm(tmp_path, monkeypatch, no_au
     from textual.widgets import Checkbox
 
     monkeypatch.chdir(tmp_path)
-    app = LabApp(TuiSettings(seed=1, no_auto_confirm=no_auto_confirm, review_hits=False))
+    # --auto-confirm 0.2: the countdown the box turns on is short (the test waits for it)
+    app = LabApp(TuiSettings(seed=1, no_auto_confirm=no_auto_confirm, review_hits=False, auto_confirm_s=0.2))
     async with app.run_test(size=SIZE) as pilot:
         screen = await wait_for(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen)
         assert screen.query_one("#auto", Checkbox).value is not no_auto_confirm
         await pilot.press("enter")  # quick_check
-        dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
-        assert app.auto_confirm is not no_auto_confirm
+        request = await wait_for(pilot, lambda: app.operator.history and app.operator.history[0], what="mount")
+        assert app.auto_confirm is not no_auto_confirm and request.action == "mount_specimen"
         if no_auto_confirm:
-            await pilot.pause(4.0)  # longer than the auto-confirm delay: the prompt still waits for a key
-            assert app.screen is dialog and dialog.request.answer is None
+            dialog = await wait_for(pilot, lambda: isinstance(app.screen, PromptDialog) and app.screen)
+            await pilot.pause(0.6)  # three auto-confirm delays: the prompt still waits for a key
+            assert app.screen is dialog and dialog.request is request and request.answer is None
             await pilot.press("enter")
-        await wait_for(pilot, lambda: dialog.request.done.is_set(), what="the prompt answered")
-        assert dialog.request.answer == "ok"  # by itself after the countdown, or by the Enter above
+        await wait_for(pilot, lambda: request.done.is_set(), what="the prompt answered")
+        assert request.answer == "ok"  # by itself after the countdown (no key was pressed), or by the Enter above
         await wait_for(pilot, lambda: app.screen is app.monitor, what="the prompt closed")
         await pilot.press("a")  # the rest of the campaign proves nothing more here: abort it (unless it is done)
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog) or app.outcome, what="the question")

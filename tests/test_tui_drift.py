@@ -62,7 +62,7 @@ async def test_y_on_the_load_drift_prompt_continues_the_campaign(tmp_path: Path,
                 assert "WAITING FOR YOU" in app.monitor.state.header_text()  # never ARMED under a prompt
                 assert "ARMED" not in app.monitor.state.header_text()
                 await pilot.press("y")  # the gate's accept: it does not answer the drift prompt
-                await pilot.pause(0.3)
+                await pilot.pause(0.1)
                 assert not dialog.closed
                 await pilot.press("1")
                 await wait_for(pilot, lambda d=dialog: d.closed, what="1 to answer the drift prompt")

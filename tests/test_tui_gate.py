@@ -50,7 +50,8 @@ async def test_no_auto_confirm_flagged_hit_waits_accepted_flagged_used_rejected_
         review = gate.request.review
         assert (review.step, review.attempt) == (1, 1) and "double_hit" in review.reasons
         assert "FLAGGED (double hit)" in str(gate.query_one(".title").render())
-        await pilot.pause(1.0)  # nobody answers: the engine must not arm the next blow
+        assert app.operator.pending is gate.request  # the engine thread waits on this very verdict
+        await pilot.pause(0.2)  # nobody answers: the engine must not arm the next blow
         assert len(events.of(ev.ImpactAcquired)) == 1 and app.screen is gate and not gate.request.done.is_set()
         await pilot.press("y")  # accept the flagged blow: an override needs a reason
         await pilot.press("enter")
@@ -94,11 +95,11 @@ async def test_no_auto_confirm_flagged_hit_waits_accepted_flagged_used_rejected_
 
 
 async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hit_waits(tmp_path, first_blow_double):
-    app = LabApp(gate_settings(tmp_path, auto_confirm_s=0.3))
+    app = LabApp(gate_settings(tmp_path, auto_confirm_s=0.1))
     async with app.run_test(size=SIZE) as pilot:
         gate = await wait_for(pilot, lambda: isinstance(app.screen, ReviewDialog) and app.screen, what="the gate")
         assert not gate.request.review.checks_accepted
-        await pilot.pause(1.0)  # three countdowns long: a flagged blow never accepts itself
+        await pilot.pause(0.4)  # four countdowns long: a flagged blow never accepts itself
         assert app.screen is gate and not gate.request.done.is_set()
         assert "never accepts itself" in str(gate.query_one("#countdown").render())
         await pilot.press("r")  # agrees with the checks: no reason asked
@@ -108,7 +109,7 @@ async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hi
                 if app.screen.request.review.checks_accepted:
                     assert app.screen.request.review.attempt > 0
                     continue
-                await pilot.pause(0.5)
+                await pilot.pause(0.3)  # three countdowns long
                 assert not app.screen.request.done.is_set()
                 await pilot.press("r")
     assert app.outcome.status == "complete"
@@ -135,12 +136,13 @@ async def test_abort_from_the_open_gate_stops_the_engine_and_marks_the_file(tmp_
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("n")  # not aborted: the gate is still waiting, nothing was armed meanwhile
         await wait_for(pilot, lambda: app.screen is gate, what="the gate again")
-        await pilot.pause(0.5)
+        assert app.operator.pending is gate.request  # the engine thread still waits on this verdict
+        await pilot.pause(0.2)
         assert app.screen is gate and len(events.of(ev.ImpactAcquired)) == 1
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
-        await pilot.pause(0.3)
+        await pilot.pause(0.1)
         assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
         await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
@@ -182,7 +184,7 @@ async def test_the_gate_shows_the_steps_frf_over_the_accepted_blows_and_the_one_
         await pilot.press("a")
         await wait_for(pilot, lambda: isinstance(app.screen, ConfirmDialog), what="the abort question")
         await pilot.press("y")  # y is the gate's accept: it never confirms the abort question
-        await pilot.pause(0.3)
+        await pilot.pause(0.1)
         assert isinstance(app.screen, ConfirmDialog) and app.outcome is None
         await pilot.press("x")
         await wait_for(pilot, lambda: app.outcome, what="the engine to stop")
@@ -208,7 +210,7 @@ async def test_pause_pressed_just_after_the_verdict_holds_before_the_next_blow_i
         await pilot.pause(0.3)
         await pilot.press("p")
         await wait_for(pilot, lambda: app.monitor.state.status == "paused", what="the engine to hold")
-        await pilot.pause(1.0)
+        await pilot.pause(0.2)  # held: it stays so (events reach the recorder before the engine's Paused)
         taken = len(events.of(ev.ImpactAcquired))
         assert taken == 1, "a blow was armed and taken after the pause was asked for"
         assert "PAUSED" in str(app.monitor.query_one("#header").render())

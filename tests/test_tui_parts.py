@@ -125,6 +125,34 @@ def test_operator_blocks_the_engine_thread_until_answered_and_can_be_withdrawn()
         op.prompt("again?")
 
 
+def test_a_pause_asked_during_the_arm_grace_ends_it_and_the_grace_runs_out_by_itself_otherwise():
+    """After a person's verdict the engine waits ``arm_grace_s`` before arming the next blow, so a `p` pressed
+    just after `y` still holds it; once a pause is asked for the wait has done its job and ends at once."""
+    from drivers.interfaces import ImpactReview
+
+    paused = threading.Event()
+    shown: list = []
+    op = TuiOperator(lambda fn, *a: fn(*a), shown.append, lambda text: None, reviews_hits=True, arm_grace_s=60.0,
+                     held=paused.is_set)
+    verdicts: list[object] = []
+    engine = threading.Thread(target=lambda: verdicts.append(
+        op.review_impact(ImpactReview(1, 1, 1, 1, True, (), 200.0, 3e-4))))
+    engine.start()
+    while not shown:
+        threading.Event().wait(0.01)
+    shown[0].reply("accept")
+    engine.join(0.3)
+    assert engine.is_alive() and not verdicts  # the grace: nothing armed yet
+    paused.set()  # the technician presses p (the app pauses the run control, then wakes the operator)
+    op.wake()
+    engine.join(10)  # the old 60 s sleep would still be running
+    assert not engine.is_alive() and verdicts == [("accept", "confirmed by the operator: passed the checks")]
+
+    short = TuiOperator(lambda fn, *a: fn(*a), lambda r: r.reply("reject"), lambda text: None, reviews_hits=True,
+                        arm_grace_s=0.05)
+    assert short.review_impact(ImpactReview(1, 1, 1, 2, True, (), 200.0, 3e-4))[0] == "reject"
+
+
 def in_process(capsys, *args: str) -> subprocess.CompletedProcess[str]:
     """``labctl`` called in this interpreter (fast), seen as a finished process."""
     capsys.readouterr()

@@ -2,13 +2,15 @@
 browser are readable whole — no title, header or footer cut off mid-word — and the header says what is asked.
 
 The simulated world is the default one with a knob nut that always creeps (so step 1's load drifts) and a cable
-pulled at the seating; the test answers as a technician would and keeps the three screens in ``tmp_path``
+pulled at the seating; the test answers as a technician would (waiting for the screen to take each key), aborts
+once step 2 is under way (step 1 showed all three), browses the file and keeps the three screens in ``tmp_path``
 (``LABCTL_SCREENSHOTS=DIR`` copies them there).
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -46,6 +48,37 @@ def assert_whole(pane: str, what: str) -> None:
     assert len(lines) <= ROWS and all(len(line) <= COLS for line in lines), pane
 
 
+def dialog_lines(pane: str) -> list[str]:
+    """The open dialog's text rows (inside its thick border): which dialog is up, and which blow it is about."""
+    return [line for line in pane.split("\n") if re.search(r"█  \S", line)]
+
+
+def wait_until(session: str, done, timeout_s: float = 20.0) -> str:  # noqa: ANN001
+    """Capture the pane every 50 ms until ``done(pane)``; the last capture (the caller asserts on it)."""
+    deadline = time.monotonic() + timeout_s
+    pane = capture(session)
+    while not done(pane) and time.monotonic() < deadline:
+        time.sleep(0.05)
+        pane = capture(session)
+    return pane
+
+
+def settled(session: str, *texts: str, after: str = "") -> str:
+    """The pane once it shows every one of ``texts``, differs from ``after`` (the keys sent were taken) and two
+    captures 0.15 s apart agree (the frame is whole)."""
+    last = ""
+
+    def whole(pane: str) -> bool:
+        nonlocal last
+        ok = all(t in pane for t in texts) and pane != after and pane == last
+        if not ok:
+            time.sleep(0.15)
+        last = pane
+        return ok
+
+    return wait_until(session, whole)
+
+
 def test_gate_drift_prompt_and_browser_are_readable_at_100x30(tmp_path: Path):
     world = tmp_path / "creeping.toml"
     world.write_text((ROOT / "labctl/data/worlds/default.toml").read_text(encoding="utf-8")
@@ -60,34 +93,43 @@ def test_gate_drift_prompt_and_browser_are_readable_at_100x30(tmp_path: Path):
         deadline = time.monotonic() + 240
         pane = ""
         while time.monotonic() < deadline:
-            time.sleep(0.7)
+            time.sleep(0.1)
             pane = capture(session)
             if "COMPLETE" in pane:
                 break
+            if "JUDGE THE BLOW" in pane and shots.keys() >= {"gate", "drift"} and re.search(
+                    r"Step [2-9] impact \d+:", pane):  # step 2 under way: the rest of the campaign shows nothing new
+                keys(session, "a")
+                wait_until(session, lambda now: "Abort the campaign?" in now)
+                keys(session, "x")
+                pane = wait_until(session, lambda now: "ABORTED" in now)
+                break
             if "JUDGE THE BLOW" in pane and "accept (y)" in pane:
-                if "gate" not in shots:
-                    time.sleep(1.0)  # the whole dialog drawn, its footer too
-                    shots["gate"] = capture(session)
-                keys(session, "y")
+                if "gate" not in shots:  # the whole dialog drawn, its footer too
+                    pane = shots["gate"] = settled(session, "JUDGE THE BLOW", "accept (y)", "y accept  r reject")
+                key = "y"
             elif "JUDGE THE BLOW" in pane and "reject (r)" in pane:
-                keys(session, "r")
+                key = "r"
             elif "drifted" in pane and "WAITING FOR YOU" in pane:
                 if "drift" not in shots:
-                    time.sleep(1.0)
-                    shots["drift"] = capture(session)
-                keys(session, "1")
+                    pane = shots["drift"] = settled(session, "drifted", "WAITING FOR YOU", "1 continue")
+                key = "1"
             elif "WAITING FOR YOU" in pane:
-                keys(session, "Enter")
-        assert "COMPLETE" in pane, pane
+                key = "Enter"
+            else:
+                continue
+            keys(session, key)  # then wait for the screen to take it: that dialog gone (another may be up)
+            asked = dialog_lines(pane)
+            wait_until(session, lambda now, asked=asked: dialog_lines(now) != asked, timeout_s=10)
+        assert "COMPLETE" in pane or "ABORTED" in pane, pane
         keys(session, "o")
-        time.sleep(2.0)
+        opened = settled(session, "select a series")  # the browser, nothing selected yet
         keys(session, "Down", "Down", "Down")
-        time.sleep(1.5)
-        shots["browser"] = capture(session)
+        shots["browser"] = settled(session, "LOAD DRIFTED", "left out", after=opened)
         keys(session, "Escape")
-        time.sleep(0.5)
+        wait_until(session, lambda now: "COMPLETE" in now or "ABORTED" in now, timeout_s=10)
         keys(session, "q")
-        time.sleep(1.0)
+        wait_until(session, lambda now: not now.strip(), timeout_s=10)  # the app quit, its session with it
     finally:
         tmux("kill-server")
     keep = Path(os.environ.get("LABCTL_SCREENSHOTS", tmp_path))

@@ -37,25 +37,33 @@ def _stop_group(proc: subprocess.Popen) -> None:
 
 async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
     out = tmp_path / "watched.h5"
-    protocol = tmp_path / "watched.toml"  # 2 repetitions of 4 steps: long enough to be seen running
-    protocol.write_text(stepped_protocol_text("watched", 1, 300.0, 4, 2), encoding="utf-8")
+    protocol = tmp_path / "watched.toml"  # 1 repetition of 3 steps: the run is held until it is seen running
+    protocol.write_text(stepped_protocol_text("watched", 1, 300.0, 3, 1), encoding="utf-8")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "labctl", "run", str(protocol), "--out", str(out), "--quiet",
                              "--seed", "4"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
-    app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.3)
+    app = LabApp(TuiSettings(), watch_path=out, watch_interval_s=0.1)
     seen: list[str] = []
 
-    async def hold_now_and_then() -> None:
-        """The twin runs on virtual time and may finish a short campaign between two polls: stop the run for
-        1.2 s in every 1.6 s so the watcher sees it mid-way, as it would see a run on the real rig."""
-        while proc.poll() is None:
-            await asyncio.sleep(0.4)
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGSTOP)
-                await asyncio.sleep(1.2)
+    async def hold_until_seen_running() -> None:
+        """The twin runs on virtual time and may finish a short campaign between two polls: once the file is
+        there, stop the run (up to 1.5 s at a time) until the watcher has seen it running, as it would see a run
+        on the real rig; a read that caught a flush half-way is retried at the next poll."""
+        while proc.poll() is None and "running" not in seen:
+            if not out.exists():
+                await asyncio.sleep(0.02)
+                continue
+            proc.send_signal(signal.SIGSTOP)
+            try:
+                for _ in range(30):
+                    if "running" in seen:
+                        break
+                    await asyncio.sleep(0.05)
+            finally:
                 proc.send_signal(signal.SIGCONT)
+            await asyncio.sleep(0.05)
 
-    holder = asyncio.create_task(hold_now_and_then())
+    holder = asyncio.create_task(hold_until_seen_running())
     try:
         async with app.run_test(size=SIZE) as pilot:
             screen = await wait_for(pilot, lambda: isinstance(app.screen, WatchScreen) and app.screen)
@@ -121,7 +129,7 @@ def _free_port() -> int:
 @pytest.mark.skipif(not shutil.which("chromium-headless-shell"), reason="needs chromium-headless-shell")
 def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
     """``labctl tui --watch FILE --serve``: bound to 127.0.0.1; a headless Chromium page receives the app (its
-    terminal gets the first bytes), and the session's output carries the header (WATCHING … COMPLETE)."""
+    terminal gets the first bytes), and what the page receives carries the header (WATCHING … COMPLETE)."""
     import asyncio
 
     from tests.engine_util import short_campaign_file
@@ -141,24 +149,24 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
 
 
 async def _browse(host: str) -> tuple[str, bytes]:
-    """Open the served page in headless Chromium (DevTools protocol) until the app has drawn, and read one
-    session's output over the same websocket the page uses."""
+    """Open the served page in headless Chromium (DevTools protocol) until the app has drawn its header, and
+    collect what the page's own websocket received (the DevTools Network events carry its frames)."""
     import asyncio
-    import json
+    import base64
 
     import aiohttp
 
     async with aiohttp.ClientSession() as http:
-        for _ in range(240):  # the server imports textual-serve and starts
+        for _ in range(600):  # the server imports textual-serve and starts
             try:
                 async with http.get(f"http://{host}/") as r:
                     if r.status == 200:
                         break
             except aiohttp.ClientError:
                 pass
-            await asyncio.sleep(0.25)
+            await asyncio.sleep(0.1)
         chrome = subprocess.Popen(["chromium-headless-shell", "--no-sandbox", "--headless", "--disable-gpu",
-                                   "--remote-debugging-port=0", "--window-size=1200,800", f"http://{host}/"],
+                                   "--remote-debugging-port=0", "--window-size=1200,800", "about:blank"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                   start_new_session=True)
         try:
@@ -172,30 +180,31 @@ async def _browse(host: str) -> tuple[str, bytes]:
             debug = devtools.split("/devtools/")[0].replace("ws://", "http://")
             async with http.get(f"{debug}/json") as r:
                 page = next(p for p in await r.json() if p["type"] == "page")
-            body = ""
+            body, output, n = "", b"", 0
             async with http.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0) as cdp:
-                for n in range(1, 240):
-                    await cdp.send_json({"id": n, "method": "Runtime.evaluate",
-                                         "params": {"expression": "document.body.className"}})
+
+                async def call(method: str, **params: object) -> dict:
+                    """One DevTools command; the frames the page's websocket receives meanwhile are collected."""
+                    nonlocal n, output
+                    n += 1
+                    await cdp.send_json({"id": n, "method": method, "params": params})
                     while (reply := await cdp.receive_json()).get("id") != n:
-                        pass
+                        if reply.get("method") == "Network.webSocketFrameReceived":
+                            frame = reply["params"]["response"]
+                            data = frame["payloadData"]
+                            output += base64.b64decode(data) if frame["opcode"] == 2 else data.encode()
+                    return reply
+
+                await call("Network.enable")  # before the page opens its websocket: every frame is seen
+                await call("Page.navigate", url=f"http://{host}/")
+                for _ in range(600):
+                    reply = await call("Runtime.evaluate", expression="document.body.className")
                     body = str(reply.get("result", {}).get("result", {}).get("value", ""))
-                    if "-first-byte" in body:
+                    if "-first-byte" in body and b"WATCHING" in output and b"COMPLETE" in output:
                         break
-                    await asyncio.sleep(0.25)
+                    await asyncio.sleep(0.1)
         finally:  # chromium and its helpers: their own process group
             _stop_group(chrome)
-        output = b""
-        async with http.ws_connect(f"ws://{host}/ws?width=100&height=30") as ws:
-            await ws.send_str(json.dumps(["resize", {"width": 100, "height": 30}]))
-            try:
-                while not (b"WATCHING" in output and b"COMPLETE" in output):
-                    msg = await asyncio.wait_for(ws.receive(), 60)
-                    if msg.type not in (aiohttp.WSMsgType.BINARY, aiohttp.WSMsgType.TEXT):
-                        break
-                    output += msg.data if isinstance(msg.data, bytes) else msg.data.encode()
-            except TimeoutError:
-                pass
         return body, output
 
 

@@ -7,6 +7,7 @@ Quitting mid-run asks the engine to stop at its next safe point and waits for it
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -55,18 +56,8 @@ class TuiSettings:
         return self.out
 
 
-class EngineEvent(Message):
-    """An engine event handed to the UI thread."""
-
-    def __init__(self, event: ev.Event) -> None:
-        super().__init__()
-        self.event = event
-
-
-class OperatorNotice(Message):
-    def __init__(self, text: str) -> None:
-        super().__init__()
-        self.text = text
+class EngineEvents(Message):
+    """Engine events are waiting in the app's inbox: the UI takes them all at once and draws them once."""
 
 
 class PromptPosted(Message):
@@ -101,7 +92,8 @@ class LabApp(App[Outcome | None]):
         self.watch_path, self.watch_interval_s = watch_path, watch_interval_s
         self.control = RunControl()
         self.operator = TuiOperator(self._post_prompt, self.show_prompt, self._tell, settings.review_hits,
-                                    settings.arm_grace_s)
+                                    settings.arm_grace_s, held=lambda: self.control.paused or
+                                    bool(self.control.stop_status))
         self.auto_confirm = settings.auto_confirm_s is not None and settings.backend == "sim"
         self.auto_confirm_delay_s = settings.auto_confirm_s if settings.auto_confirm_s is not None \
             else DEFAULT_AUTO_CONFIRM_S
@@ -113,6 +105,8 @@ class LabApp(App[Outcome | None]):
         self.held_prompt: PromptRequest | None = None  # arrived while the technician answered a question
         self.monitor = MonitorScreen(settings.protocol)
         self.blows = StepBlows()  # the step's blows so far, for the gate's FRF (filled in the engine thread)
+        self._inbox: list[ev.Event | str] = []  # engine events and notices not yet on the screen, in order
+        self._inbox_lock = threading.Lock()
         self._plan_counters()
 
     # --- screens --------------------------------------------------------------------------------------------
@@ -186,13 +180,28 @@ class LabApp(App[Outcome | None]):
                             seed=s.seed, rig=s.rig, devices=s.devices, operator=self.operator,
                             subscribers=(self.blows, self._forward, *self.extra_subscribers), control=self.control)
 
-    def _forward(self, event: ev.Event) -> None:
-        self.post_message(EngineEvent(event))
+    def _forward(self, event: ev.Event | str) -> None:
+        """Queue an event or notice (engine thread); a burst is drawn once. One message is posted per burst, ahead
+        of any prompt posted after the events, so a prompt still never reaches the screen before them."""
+        with self._inbox_lock:
+            self._inbox.append(event)
+            first = len(self._inbox) == 1
+        if first:
+            self.post_message(EngineEvents())
 
-    def on_engine_event(self, message: EngineEvent) -> None:
-        e = message.event
+    def on_engine_events(self, message: EngineEvents) -> None:
+        with self._inbox_lock:
+            events, self._inbox = self._inbox, []
         if not self.monitor.is_attached:  # the app is closing: events still in flight have no screen
             return
+        with self.batch_update():
+            for e in events:
+                if isinstance(e, str):
+                    self.monitor.log_line(e, "yellow")
+                else:
+                    self._show_event(e)
+
+    def _show_event(self, e: ev.Event) -> None:
         if isinstance(e, ev.ImpactRejected):
             self.rejection = reason_text(e.reasons)
         elif isinstance(e, ev.ImpactAcquired | ev.StepStarted):
@@ -212,11 +221,7 @@ class LabApp(App[Outcome | None]):
         message.show(message.request)
 
     def _tell(self, text: str) -> None:
-        self.post_message(OperatorNotice(text))
-
-    def on_operator_notice(self, message: OperatorNotice) -> None:
-        self.monitor.log_line(message.text, "yellow")
-
+        self._forward(text)  # a notice from the operator: in the same inbox, so in order with the events
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.worker is not self.worker or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR,
                                                                   WorkerState.CANCELLED):
@@ -278,6 +283,7 @@ class LabApp(App[Outcome | None]):
             self.monitor.log_line("resuming")
         else:
             self.control.pause()
+            self.operator.wake()
             self.monitor.log_line("pause requested: the engine holds at the next safe point")
 
     def action_verdict(self, accept: bool) -> None:
@@ -306,6 +312,7 @@ class LabApp(App[Outcome | None]):
             return
         was_paused = self.control.paused
         self.control.pause()
+        self.operator.wake()
         if not was_paused:
             self.monitor.log_line("paused while the question is open")
 
@@ -330,8 +337,9 @@ class LabApp(App[Outcome | None]):
         self.monitor.log_line(f"stopping ({status}) after the current impact…", "bold yellow")
 
     def on_unmount(self) -> None:
-        """The screen is going away (also in tests): never leave the engine waiting on a dialog nobody sees."""
-        if self.running:
+        """The screen is going away (also in tests): never leave the engine waiting on a dialog nobody sees (its
+        thread may outlive a worker already marked cancelled by the closing app, so this does not ask ``running``)."""
+        if self.worker is not None and self.outcome is None:
             self.control.stop()
             self.operator.stop("interrupted")
 

@@ -28,6 +28,13 @@ ACTION_TITLES = {
 }
 REFUSALS = {"abort", "cancel", "no", "stop"}
 
+
+def show_text(widget: Static, text: str) -> None:
+    """Put ``text`` in ``widget`` only when it differs from what it shows: every update lays out and redraws the
+    screen (under a dialog, the dimmed screen beneath too), and the countdowns ask ten times a second."""
+    if widget.content != text:
+        widget.update(text)
+
 DIALOG_CSS = """
 PromptDialog, ConfirmDialog { align: center middle; }
 PromptDialog > Vertical, ConfirmDialog > Vertical {
@@ -113,13 +120,14 @@ class PromptDialog(ModalScreen[str]):
         delay = self.auto_delay_s()
         label = self.query_one("#countdown", Static)
         if delay is None:
-            label.update("")
+            show_text(label, "")
             return
         left = self.shown_at + delay - time.monotonic()
         if left <= 0:
             self.answer(self.request.choices[0])
         else:
-            label.update(f"simulated rig: '{self.request.choices[0]}' by itself in {left:.0f} s  (t: auto-confirm off)")
+            show_text(label, f"simulated rig: '{self.request.choices[0]}' by itself in {left:.0f} s  "
+                             "(t: auto-confirm off)")
 
     def restart_countdown(self) -> None:
         self.shown_at = time.monotonic()
@@ -278,18 +286,19 @@ class ReviewDialog(ModalScreen[str]):
             return
         label = self.query_one("#countdown", Static)
         if self.pending is not None:
-            label.update(self.note or f"{self.pending} overrides the checks: type the reason, Enter (Esc: back)")
+            show_text(label, self.note or f"{self.pending} overrides the checks: type the reason, Enter (Esc: back)")
             return
         delay = self.auto_delay_s()
         if not self.clean or delay is None or self.touched:
-            label.update("waiting for your verdict" + ("" if self.clean else " (a flagged hit never accepts itself)"))
+            show_text(label, "waiting for your verdict"
+                      + ("" if self.clean else " (a flagged hit never accepts itself)"))
             return
         left = self.shown_at + delay - time.monotonic()
         if left <= 0:
             self.request.reply("accept", automatic=True)
             self.finish()
         else:
-            label.update(f"simulated rig: a clean hit is accepted by itself in {left:.0f} s  (t: auto-confirm off)")
+            show_text(label, f"simulated rig: a clean hit is accepted by itself in {left:.0f} s  (t: auto-confirm off)")
 
     def restart_countdown(self) -> None:
         self.shown_at = time.monotonic()

@@ -17,7 +17,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from labctl import events as ev
 from labctl.protocol import Protocol
 from labctl.tui import plotdata as pd
-from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title
+from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title, show_text
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
@@ -142,8 +142,8 @@ class MonitorScreen(Screen):
             status = "WAITING FOR THE OPERATOR"
         header = self.query_one("#header", Static)
         prompt = s.prompt_text()
-        header.update(f"[b]{escape(status)}[/b]  {escape(title)}\n{escape(s.counters_text())}"
-                      + (f"\n[b]{escape(prompt)}[/b]" if prompt else ""))
+        show_text(header, f"[b]{escape(status)}[/b]  {escape(title)}\n{escape(s.counters_text())}"
+                  + (f"\n[b]{escape(prompt)}[/b]" if prompt else ""))
         header.set_class(s.status == "paused" or bool(s.waiting and s.status == "running"), "-paused")
         header.set_class(s.status == "complete", "-done")
         header.set_class(s.status in ("failed", "aborted", "interlock"), "-failed")
@@ -207,7 +207,7 @@ class MonitorScreen(Screen):
 
     def _step_processed(self, e: ev.StepProcessed) -> None:
         p = e.position
-        self.query_one("#modes", Static).update(self.state.modes_text())
+        show_text(self.query_one("#modes", Static), self.state.modes_text())
         tilt = tilt_text(e.tilt_hz)
         table = self.query_one("#steps", DataTable)
         table.add_row(*row_cells(self.state.steps[-1]))

@@ -57,10 +57,13 @@ class TuiOperator:
     name = "operator@tui"
 
     def __init__(self, call_in_ui: Callable[..., object], show: Callable[[PromptRequest], object],
-                 tell: Callable[[str], object], reviews_hits: bool = False, arm_grace_s: float = 0.0) -> None:
+                 tell: Callable[[str], object], reviews_hits: bool = False, arm_grace_s: float = 0.0,
+                 held: Callable[[], bool] = lambda: False) -> None:
         self._call, self._show, self._tell = call_in_ui, show, tell
         self.reviews_hits = reviews_hits
         self.arm_grace_s = arm_grace_s  # after a person's verdict: time for a `p` before the next blow is armed
+        self._held = held  # a pause or stop is asked for: the engine holds at its next safe point, no grace needed
+        self._wake = threading.Event()
         self._lock = threading.Lock()
         self._pending: PromptRequest | None = None
         self._stopped: str | None = None
@@ -84,8 +87,21 @@ class TuiOperator:
         answer = self._ask(request)
         if request.automatic:
             return None
-        time.sleep(self.arm_grace_s)  # the engine arms only after this: a pause pressed just after `y` holds it
+        self._grace()  # the engine arms only after this: a pause pressed just after `y` holds it
         return answer, request.reason or default_reason(review, answer)
+
+    def _grace(self) -> None:
+        """Wait ``arm_grace_s`` after a person's verdict, or until a pause or stop is asked for (``wake``): the
+        engine then holds at its next safe point, before arming, so the rest of the grace has nothing to wait for."""
+        deadline = time.monotonic() + self.arm_grace_s
+        self._wake.clear()
+        while not (self._stopped or self._held()) and (left := deadline - time.monotonic()) > 0:
+            self._wake.wait(left)
+            self._wake.clear()
+
+    def wake(self) -> None:
+        """A pause or stop was just asked for (UI thread): end a grace in progress at once."""
+        self._wake.set()
 
     def verdicts(self, review: ImpactReview) -> dict[int, bool]:
         """The technician's answers on the blows of ``review``'s step so far: attempt → accepted."""
@@ -124,6 +140,7 @@ class TuiOperator:
             pending = self._pending
         if pending is not None:
             pending.withdraw(self._stopped)
+        self._wake.set()
 
 
 def default_reason(review: ImpactReview, answer: str) -> str:

@@ -29,7 +29,17 @@ class TracePlot(PlotextPlot):
         self.log_y = False
         self.y_range: tuple[float, float] | None = None  # fixed y span (coherence: 0–1)
         self.x_range: tuple[float, float] | None = None  # fixed x span (FRF: 0–2000 Hz)
+        self._drawn: tuple[tuple[object, ...], object] | None = None  # (what it was drawn for, the drawing)
+        self._version = 0  # one more at every redraw: the drawing kept for an older one is stale
         self.redraw()
+
+    def render(self):  # noqa: ANN201 - the plot as PlotextPlot draws it, drawn again only when it would differ
+        """Textual asks again at every screen switch (each dialog opening or closing) and plotext's build and the
+        ANSI parse are the costliest part of a redraw: the drawing is kept until the lines, size or theme change."""
+        key = (self._version, self.size.width, self.size.height, self.app.theme)
+        if self._drawn is None or self._drawn[0] != key:
+            self._drawn = (key, super().render())
+        return self._drawn[1]
 
     def set_lines(self, lines: dict[str, tuple[Sequence[float], Sequence[float]]], title: str | None = None,
                   marks: list[tuple[float, str]] | None = None) -> None:
@@ -59,6 +69,7 @@ class TracePlot(PlotextPlot):
         for x, color in self.marks:
             plt.vline(x, color)
         self._axes()
+        self._version += 1
         self.refresh()
 
     def _axes(self) -> None:

@@ -19,6 +19,7 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, RichLog, Static
 
 from labctl.errors import InputError
+from labctl.tui.dialogs import show_text
 from labctl.tui.plots import StiffnessPlot
 from labctl.tui.watch import Snapshot, read_snapshot
 
@@ -143,7 +144,7 @@ class WatchScreen(Screen):
 
     def show(self) -> None:
         header = self.query_one("#w-header", Static)
-        header.update(self.header_text())
+        show_text(header, self.header_text())
         status = self.snapshot.status if self.snapshot else ""
         header.set_class(status == "complete", "-done")
         header.set_class(status in ("failed", "aborted", "interlock"), "-failed")
