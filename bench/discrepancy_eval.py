@@ -174,7 +174,7 @@ def run_blind(task: Task) -> dict[str, Any]:
     points = csv_points(world.rows)
     start = time.process_time()
     try:
-        result = run_discrepancy(points)
+        result = run_discrepancy(points, temperatures=TEMPERATURES)  # every T stored: --rescore decides again
     except InputError as exc:
         return {"suite": "blind", "scenario": task.truth, "seed": task.seed, "noise_scale": task.noise_scale,
                 "refused": str(exc), "truth_name": truth_name(truth)}

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -182,7 +183,7 @@ class Scored:
     explanation: Explanation
     fit: Fit | None
     log_evidence_by_t: dict[float, float]
-    """log p(D | M) at each noise inflation of ``TEMPERATURES``."""
+    """log p(D | M) at the decision's noise inflation and each other one asked for (``TEMPERATURES`` in the bench)."""
     log_prior: float
     n_params: int
     tau: float
@@ -216,8 +217,11 @@ def posterior(scored: list[Scored], temperature: float = TEMPERATURE) -> None:
 class Evidence:
     """Fits and scores every candidate explanation on one dataset."""
 
-    def __init__(self, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> None:
+    def __init__(self, data: Dataset, noise: NoiseFloor, sigma: np.ndarray,
+                 temperatures: Sequence[float] = (TEMPERATURE,)) -> None:
         self.data, self.noise, self.sigma = data, noise, sigma
+        self.temperatures = tuple(dict.fromkeys((TEMPERATURE, *temperatures)))
+        """Noise inflations the evidence is computed at: the decision's, and any a bench rescores at."""
         self.form = FormPrior.of(data, noise, sigma)
         self.n = data.n_points
         self.fits: dict[tuple[str, ...], Fit] = {}
@@ -259,7 +263,7 @@ class Evidence:
                 fit = refit
         bend = self.bend(fit)
         k = fit.spec.n_params()
-        by_t = {t: self.form_evidence(fit.z, bend, t) - 0.5 * k * math.log(self.n) for t in TEMPERATURES}
+        by_t = {t: self.form_evidence(fit.z, bend, t) - 0.5 * k * math.log(self.n) for t in self.temperatures}
         tau = self.form.log_marginal(fit.z, bend, TEMPERATURE)[1]
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
@@ -297,7 +301,7 @@ class Evidence:
                 best, chosen = top[0], [*chosen, top[1]]
             return chosen, best
 
-        by_t = {t: select(t)[1][0] for t in TEMPERATURES}
+        by_t = {t: select(t)[1][0] for t in self.temperatures}
         chosen, (_, tau, e) = select(TEMPERATURE)
         smooth = self.form.smooth(e, tau)
         return Scored(expl, None, by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),

@@ -284,9 +284,12 @@ def unidentifiable_reasons(data: Dataset) -> list[str]:
 
 
 def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *,
-                    setup_stiffness_n_per_m: float | None = None, max_effects: int = MAX_TERMS
-                    ) -> DiscrepancyResult:
-    """Run the whole workflow on measured points; K_setup defaults to the shipped rig file's nominal value."""
+                    setup_stiffness_n_per_m: float | None = None, max_effects: int = MAX_TERMS,
+                    temperatures: Sequence[float] = ()) -> DiscrepancyResult:
+    """Run the whole workflow on measured points; K_setup defaults to the shipped rig file's nominal value.
+
+    ``temperatures``: further noise inflations to store every candidate's evidence at (a bench's rescoring), besides
+    the decision's."""
     if baseline not in BASELINES:
         raise InputError(f"unknown baseline {baseline!r}; expected one of {', '.join(BASELINES)}")
     kept, screening = screen_points(points)
@@ -296,7 +299,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
     spec = ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
     search = Search(data, noise)
-    evidence = Evidence(data, noise, search.sigma)
+    evidence = Evidence(data, noise, search.sigma, temperatures)
     base, scored = evidence.all(spec, max_terms=max_effects)
     scored.sort(key=lambda s: -s.probability)
     top = scored[0]
