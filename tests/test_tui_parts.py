@@ -66,6 +66,31 @@ def test_envelope_keeps_every_extreme_of_a_long_trace():
     assert np.all(np.diff(xs) >= 0)
 
 
+@pytest.mark.parametrize("n", [401, 1000, 4097, 12345])
+def test_the_reduced_traces_are_each_bins_own_extremes(n):
+    """Per bin, written out one bin at a time: the envelope's minimum and maximum in sample order, the peak
+    reduction's largest finite value (the first of equals; NaN ignored; a bin with none keeps its first sample)."""
+    rng = np.random.default_rng(n)
+    y = np.round(rng.normal(size=n), 1)  # ties
+    y[rng.integers(0, n, n // 8)] = np.nan
+    y[: n // 5] = np.nan
+    y[n // 2] = np.inf
+    x = np.arange(n) * 0.5
+    for bins in (200, 150):
+        edges = np.linspace(0, n, bins + 1).astype(int)
+        want_env, want_peak = [], []
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
+            seg = y[a:b]
+            want_env += sorted((a + int(np.argmin(seg)), a + int(np.argmax(seg))))
+            want_peak.append(a + int(np.nanargmax(seg)) if np.isfinite(seg).any() else a)
+        xs, ys = pd.envelope(x, y, bins=bins)
+        np.testing.assert_array_equal(xs, x[want_env])
+        np.testing.assert_array_equal(ys, y[want_env])
+        xs, ys = pd.bin_peaks(x, y, bins=bins)
+        np.testing.assert_array_equal(xs, x[want_peak])
+        np.testing.assert_array_equal(ys, y[want_peak])
+
+
 def test_frf_band_keeps_the_resonance_at_its_frequency():
     f = np.linspace(0, 2500, 8001)
     zeta, fn = 0.018, 638.97

@@ -48,19 +48,27 @@ def nice_range(lo: float, hi: float, count: int = 5) -> tuple[float, float]:
     return float(np.floor(lo / step + 1e-9) * step), float(np.ceil(hi / step - 1e-9) * step)
 
 
+def _bins(y: np.ndarray, bins: int, fill: float) -> tuple[np.ndarray, np.ndarray]:
+    """The samples as one row per bin (bins of np.linspace edges, padded with ``fill``) and each bin's start."""
+    edges = np.linspace(0, y.size, bins + 1).astype(int)
+    start, width = edges[:-1], np.diff(edges)
+    cols = np.arange(int(width.max()))
+    idx = start[:, None] + cols[None, :]
+    inside = cols[None, :] < width[:, None]
+    return np.where(inside, y[np.minimum(idx, y.size - 1)], fill), start
+
+
 def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
     """Min/max per bin, interleaved, so the reduced trace spans the same extremes as the full one."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= 2 * bins:
         return x, y
-    edges = np.linspace(0, y.size, bins + 1).astype(int)
-    xs, ys = [], []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        seg = y[a:b]
-        i, j = sorted((int(np.argmin(seg)), int(np.argmax(seg))))
-        xs += [x[a + i], x[a + j]]
-        ys += [seg[i], seg[j]]
-    return np.array(xs), np.array(ys)
+    low, start = _bins(y, bins, np.inf)
+    high, _ = _bins(y, bins, -np.inf)
+    i, j = start + np.argmin(low, axis=1), start + np.argmax(high, axis=1)
+    first, second = np.minimum(i, j), np.maximum(i, j)
+    order = np.column_stack([first, second]).ravel()
+    return x[order], y[order]
 
 
 def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
@@ -68,9 +76,9 @@ def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int = 300) -> tuple[np.ndarray, 
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= bins:
         return x, y
-    edges = np.linspace(0, y.size, bins + 1).astype(int)
-    idx = np.array([a + int(np.nanargmax(y[a:b])) if np.isfinite(y[a:b]).any() else a
-                    for a, b in zip(edges[:-1], edges[1:], strict=True)])
+    rows, start = _bins(np.where(np.isnan(y), -np.inf, y), bins, -np.inf)
+    finite = np.isfinite(_bins(y, bins, np.nan)[0]).any(axis=1)
+    idx = np.where(finite, start + np.argmax(rows, axis=1), start)
     return x[idx], y[idx]
 
 
