@@ -122,6 +122,8 @@ def test_gate_drift_prompt_and_browser_are_readable_at_100x30(tmp_path: Path):
             asked = dialog_lines(pane)
             wait_until(session, lambda now, asked=asked: dialog_lines(now) != asked, timeout_s=10)
         assert "COMPLETE" in pane or "ABORTED" in pane, pane
+        # as a technician would: the finished screen whole, its footer offering the browser, before the key
+        settled(session, "o open", "COMPLETE" if "COMPLETE" in pane else "ABORTED")
         keys(session, "o")
         opened = settled(session, "select a series")  # the browser, nothing selected yet
         keys(session, "Down", "Down", "Down")
