@@ -48,6 +48,12 @@ def nice_range(lo: float, hi: float, count: int = 5) -> tuple[float, float]:
     return float(np.floor(lo / step + 1e-9) * step), float(np.ceil(hi / step - 1e-9) * step)
 
 
+PLOT_DOTS = 200
+"""The widest plot's resolution: a 100-column terminal drawn in braille, two dots per column. A trace reduced to
+this many points (an envelope: half as many bins, each its minimum and maximum) looks the same as the full one,
+and plotext's drawing time grows with the points it is given."""
+
+
 def _bins(y: np.ndarray, bins: int, fill: float) -> tuple[np.ndarray, np.ndarray]:
     """The samples as one row per bin (bins of np.linspace edges, padded with ``fill``) and each bin's start."""
     edges = np.linspace(0, y.size, bins + 1).astype(int)
@@ -96,7 +102,7 @@ def pulse_window(force_n: ArrayLike, sample_rate_hz: float, before_s: float = 1e
 
 
 def response_window(accel: ArrayLike, sample_rate_hz: float, duration_s: float = 0.1,
-                    bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
+                    bins: int = PLOT_DOTS // 2) -> tuple[np.ndarray, np.ndarray]:
     """The first ``duration_s`` of one acceleration trace as an envelope: time in ms, m/s²."""
     a = np.asarray(accel, dtype=float)
     n = min(a.size, max(int(round(duration_s * sample_rate_hz)), 1))
@@ -111,7 +117,7 @@ def vertical_channels(channels: Sequence[str]) -> list[int]:
 
 
 def frf_band(frequencies_hz: ArrayLike, values: ArrayLike, f_max_hz: float,
-             bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
+             bins: int = PLOT_DOTS) -> tuple[np.ndarray, np.ndarray]:
     """One FRF (or coherence) curve from 0 to ``f_max_hz``, reduced to the peak of each bin."""
     f, v = np.asarray(frequencies_hz, dtype=float), np.asarray(values, dtype=float)
     keep = (f > 0) & (f <= f_max_hz)
