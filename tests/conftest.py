@@ -3,12 +3,25 @@
 from __future__ import annotations
 
 import fcntl
+import gc
 import json
 from pathlib import Path
 
 import pytest
 
 from drivers.sim import RigTwin
+
+GC_YOUNG_THRESHOLD = 50_000
+"""Allocations between collections of the youngest generation in the test process (Python's default: 700)."""
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """The garbage collector of the test process: what collection built (every module, table and parameter) is
+    frozen, never scanned again, and the young generation is collected less often. The suite's numpy-heavy tests
+    spent about 7 % of their CPU in collections; no test relies on when garbage is collected."""
+    gc.collect()
+    gc.freeze()
+    gc.set_threshold(GC_YOUNG_THRESHOLD, 50, 100)
 
 
 @pytest.fixture
