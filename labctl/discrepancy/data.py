@@ -80,7 +80,7 @@ class Dataset:
     @property
     def load_per_length_n_per_m(self) -> np.ndarray:
         """F/L_we of every point (the roller's effective contact length)."""
-        return np.concatenate([c.load_n / c.case.roller.contact_length_m for c in self.cases])
+        return self.load_n / self.stacked_case.roller.contact_length_m
 
     def case_slices(self) -> list[slice]:
         """Where each case's points sit in the concatenated vectors."""

@@ -229,12 +229,12 @@ def identify(
     if step.dropped:
         warnings.append(f"channel(s) {', '.join(step.dropped)} saturated in every impact: dropped, the step goes on "
                         "with the other channels")
-    lin = step_linearity(fit.modes, fit.spectra, fit.used, step.peak_forces_n(fit.used), fit.sigma_f, fit.live,
-                         fit.noise, fit.widen)
+    peaks = step.peak_forces_n(fit.used)
+    lin = step_linearity(fit.modes, fit.spectra, fit.used, peaks, fit.sigma_f, fit.live, fit.noise, fit.widen)
     small_blow = small_blow_limit(fit.modes, fit.spectra, fit.used, lin, fs_hz)
     b = fit.modes.classes.bounce
     blow = blow_effect(rig, float(fit.modes.fit.frequencies_hz[b]), float(fit.modes.fit.frequency_std_hz[b]), lin,
-                       small_blow, step.peak_forces_n(fit.used))
+                       small_blow, peaks)
     if small_blow is not None and small_blow.significant:
         fit.modes = widened(fit.modes, small_blow)  # the σ covers the small-blow limit whether or not that is material
     if blow is not None and blow.warning():

@@ -33,7 +33,7 @@ def mode_bins(freqs: np.ndarray, frequency_hz: float) -> np.ndarray:
 
 
 def mode_coherence(frf: FrfEstimate, modes: ContactModes) -> list[float]:
-    """Coherence within ±2 lines of each mode, channels weighted by the mode's constants²."""
+    """Coherence within ±``MODE_LINES`` lines of each mode, channels weighted by the mode's constants²."""
     out = []
     for r, fr in enumerate(modes.fit.frequencies_hz):
         w = modes.fit.constants[r] ** 2

@@ -54,14 +54,14 @@ this many points (an envelope: half as many bins, each its minimum and maximum) 
 and plotext's drawing time grows with the points it is given."""
 
 
-def _bins(y: np.ndarray, bins: int, fill: float) -> tuple[np.ndarray, np.ndarray]:
-    """The samples as one row per bin (bins of np.linspace edges, padded with ``fill``) and each bin's start."""
+def _bins(y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples as one row per bin (bins of np.linspace edges, rows padded past a bin's end), which cells of a
+    row are the bin's own, and each bin's first sample."""
     edges = np.linspace(0, y.size, bins + 1).astype(int)
     start, width = edges[:-1], np.diff(edges)
     cols = np.arange(int(width.max()))
-    idx = start[:, None] + cols[None, :]
     inside = cols[None, :] < width[:, None]
-    return np.where(inside, y[np.minimum(idx, y.size - 1)], fill), start
+    return y[np.minimum(start[:, None] + cols[None, :], y.size - 1)], inside, start
 
 
 def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
@@ -69,11 +69,10 @@ def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, n
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= 2 * bins:
         return x, y
-    low, start = _bins(y, bins, np.inf)
-    high, _ = _bins(y, bins, -np.inf)
-    i, j = start + np.argmin(low, axis=1), start + np.argmax(high, axis=1)
-    first, second = np.minimum(i, j), np.maximum(i, j)
-    order = np.column_stack([first, second]).ravel()
+    rows, inside, start = _bins(y, bins)
+    i = start + np.argmin(np.where(inside, rows, np.inf), axis=1)
+    j = start + np.argmax(np.where(inside, rows, -np.inf), axis=1)
+    order = np.column_stack([np.minimum(i, j), np.maximum(i, j)]).ravel()
     return x[order], y[order]
 
 
@@ -82,9 +81,9 @@ def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int = 300) -> tuple[np.ndarray, 
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= bins:
         return x, y
-    rows, start = _bins(np.where(np.isnan(y), -np.inf, y), bins, -np.inf)
-    finite = np.isfinite(_bins(y, bins, np.nan)[0]).any(axis=1)
-    idx = np.where(finite, start + np.argmax(rows, axis=1), start)
+    rows, inside, start = _bins(y, bins)
+    rows = np.where(inside & ~np.isnan(rows), rows, -np.inf)  # NaN ignored, as np.nanargmax does
+    idx = np.where(np.isfinite(rows).any(axis=1), start + np.argmax(rows, axis=1), start)
     return x[idx], y[idx]
 
 
