@@ -24,6 +24,17 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     gc.set_threshold(GC_YOUNG_THRESHOLD, 50, 100)
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Test files that wait on other processes or real time (``waits``) are handed out first, then files with
+    ``slow`` tests, then the rest, each group in its collected order: under xdist's per-file distribution the
+    waiting overlaps the other workers' computing, and the last files to finish are short ones."""
+    tier: dict[str, int] = {}
+    for item in items:
+        rank = 0 if item.get_closest_marker("waits") else 1 if item.get_closest_marker("slow") else 2
+        tier[item.path.name] = min(rank, tier.get(item.path.name, 2))
+    items.sort(key=lambda item: tier[item.path.name])
+
+
 @pytest.fixture
 def first_blow_double(monkeypatch):
     """The campaign's first blow is a double hit (a second pulse 100 ms later, 10 % as strong)."""

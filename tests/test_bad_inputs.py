@@ -144,14 +144,15 @@ CHANNELS = np.array(["A1X", "A2X", "A3X", "A4X"])
 
 def _npz(name: str, edit: Callable[[bytearray], None] | None = None, *, compressed: bool = False,
          force: np.ndarray | None = None) -> Callable[[Path], None]:
-    """An impacts NPZ (random samples unless ``force`` is given), its bytes then edited (a damaged file)."""
+    """An impacts NPZ (random samples, or the given ``force`` with silent accelerations), its bytes then edited
+    (a damaged file)."""
 
     def make(folder: Path) -> None:
         rng = np.random.default_rng(1)
         f = rng.normal(size=(2, 4096)) if force is None else force
         save = np.savez_compressed if compressed else np.savez
-        save(folder / name, fs=np.float64(20480.0), force=f, accel=rng.normal(size=(f.shape[0], 4, f.shape[1])),
-             channels=CHANNELS)
+        accel = rng.normal(size=(f.shape[0], 4, f.shape[1])) if force is None else np.zeros((f.shape[0], 4, f.shape[1]))
+        save(folder / name, fs=np.float64(20480.0), force=f, accel=accel, channels=CHANNELS)
         if edit is not None:
             raw = bytearray((folder / name).read_bytes())
             edit(raw)

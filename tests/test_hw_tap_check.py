@@ -21,6 +21,8 @@ from tests.emulators.instruments import MtSicsDevice
 from tests.emulators.pty_serial import PtySerialEmulator
 from tests.test_hw_devices import PAPER_CHANNELS, daq_section, devices_file
 
+pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+
 G = 9.80665
 FS = 40e6 / 1953  # the MCC pacer's rate for 20 480 Hz
 TAP = TapSettings(sample_rate_hz=20480.0, record_s=0.4, trigger_level_n=10.0, timeout_s=5.0, reading_interval_s=0.01)

@@ -11,6 +11,8 @@ import pytest
 from labctl.errors import InputError
 from labctl.storage.isolated import TornRead, call_isolated
 
+pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+
 
 def crash() -> None:
     os.kill(os.getpid(), signal.SIGSEGV)

@@ -24,6 +24,8 @@ from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot
 from tests.engine_util import Recorder, impact_event, short_protocol
 
+pytestmark = pytest.mark.slow  # each test runs a campaign through the app
+
 SNAPSHOT = Path(__file__).parent / "snapshots" / "tui_running.svg"
 SIZE = (160, 48)
 

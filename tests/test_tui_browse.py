@@ -21,6 +21,8 @@ from labctl.tui.plots import StiffnessPlot, TracePlot
 from labctl.tui.setup import SetupScreen
 from tests.test_tui import SIZE, wait_for
 
+pytestmark = pytest.mark.slow  # each test runs a campaign through the app
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

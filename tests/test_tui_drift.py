@@ -19,6 +19,8 @@ from tests.engine_util import Recorder
 from tests.test_tui import SIZE, wait_for
 from tests.test_tui_gate import gate_settings, next_dialog
 
+pytestmark = pytest.mark.slow  # each test runs a campaign through the app
+
 
 @pytest.fixture
 def creeping_twin(monkeypatch) -> list[RigTwin]:

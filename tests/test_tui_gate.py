@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from labctl import events as ev
 from labctl.protocol import load_protocol
@@ -19,6 +20,8 @@ from labctl.tui import LabApp, TuiSettings
 from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
 from tests.engine_util import Recorder
 from tests.test_tui import SIZE, wait_for
+
+pytestmark = pytest.mark.slow  # each test runs a campaign through the app
 
 PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
 

@@ -22,7 +22,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 COLS, ROWS = 100, 30
 
-pytestmark = [pytest.mark.slow,
+pytestmark = [pytest.mark.slow, pytest.mark.waits,
               pytest.mark.skipif(not shutil.which("tmux"), reason="needs tmux")]
 
 

@@ -22,6 +22,8 @@ from labctl.tui.watcher import WatchScreen
 from tests.engine_util import stepped_protocol_text
 from tests.test_tui import SIZE, wait_for
 
+pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
