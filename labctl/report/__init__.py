@@ -31,14 +31,19 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     import matplotlib
 
     matplotlib.use("Agg")  # files only, never a window
-    from labctl.report.data import load_report_data
-    from labctl.report.figures import is_simulated, make_figures, save
+    from labctl.report.data import report_data
+    from labctl.report.figures import Plot, is_simulated, make_figures, save
     from labctl.report.html import write_html
+    from labctl.report.static_figure import compare_methods, static_figure
     from labctl.report.verdict import series_verdicts
     from labctl.stiffness_table import write_stiffness_table
-    from labctl.storage import campaign_stiffness_points
+    from labctl.storage import CampaignReader
+    from labctl.storage.table import stiffness_points
 
-    data = load_report_data(path, frf_step)
+    with CampaignReader(path) as reader:  # opened and its repetitions read once, for every part of the report
+        data = report_data(reader, frf_step)
+        methods = compare_methods(reader, data.runs)  # a combined campaign: static against the hammer (§2.5)
+        points = stiffness_points(reader, data.runs)
     folder = Path(out)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -48,15 +53,10 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     for plot in make_figures(data):
         png, svg = save(plot, folder)
         written.append((plot.name, plot.title, png, svg))
-    from labctl.report.figures import Plot
-    from labctl.report.static_figure import compare, static_figure
-
-    methods = compare(path)  # a combined campaign: the static method against the hammer (§2.5)
     if methods:
         plot = Plot("fig08_static_vs_hammer", "Static vs hammer stiffness (cf. Fig. 8, §2.5)",
                     static_figure(methods, is_simulated(data)))
         written.append((plot.name, plot.title, *save(plot, folder)))
-    points = campaign_stiffness_points(path)
     csv = folder / "stiffness.csv" if points else None
     if csv is not None:
         write_stiffness_table(csv, points)

@@ -147,6 +147,7 @@ class ReportData:
     config: dict[str, str]
     rig: RigConfig
     failed_steps: list[tuple[int, int, int, str]]
+    runs: dict[int, list[RunInfo]] = field(default_factory=dict)  # series → its repetitions, as read
 
 
 def _verdicts(step: StepInfo) -> tuple[int, int, list[str]]:
@@ -200,24 +201,30 @@ def load_report_data(path: str | Path, frf_step: tuple[int, int, int] | None = N
     """Read everything the report shows; ``frf_step`` = (series, run, step) for Fig. 7 (default: the first
     repetition's highest load)."""
     with CampaignReader(path) as reader:
-        rig = rig_of(reader)
-        if reader.step_count() == 0:
-            raise InputError(f"{path}: the campaign holds no load step yet (nothing to report)")
-        series: list[SeriesData] = []
-        stats = ImpactStats()
-        failed: list[tuple[int, int, int, str]] = []
-        for s in reader.series_indices():
-            spec = reader.specimen(s)
-            runs = reader.runs(s)
-            for run in runs:
-                for st in run.steps:
-                    stats.rows.append(ImpactRow(s, run.run, st.step, st.load_n, *_verdicts(st)))
-                    if st.result is not None and st.result.error:
-                        failed.append((s, run.run, st.step, st.result.error))
-            curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
-            series.append(SeriesData(s, spec.label or f"series {s}", spec.kind, spec, spec.case(), curves,
-                                     [step_events(st) for run in runs for st in run.steps]))
-        config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
-                  if (text := reader.config_text(name))}
-        return ReportData(Path(path), reader.attrs, series, stats, _frf(reader, series, frf_step), config,
-                          rig, failed)
+        return report_data(reader, frf_step)
+
+
+def report_data(reader: CampaignReader, frf_step: tuple[int, int, int] | None = None) -> ReportData:
+    """``load_report_data`` on an open campaign; the repetitions it read are kept (``ReportData.runs``)."""
+    path = Path(reader.path)
+    rig = rig_of(reader)
+    if reader.step_count() == 0:
+        raise InputError(f"{path}: the campaign holds no load step yet (nothing to report)")
+    series: list[SeriesData] = []
+    stats = ImpactStats()
+    failed: list[tuple[int, int, int, str]] = []
+    read: dict[int, list[RunInfo]] = {}
+    for s in reader.series_indices():
+        spec = reader.specimen(s)
+        runs = read[s] = reader.runs(s)
+        for run in runs:
+            for st in run.steps:
+                stats.rows.append(ImpactRow(s, run.run, st.step, st.load_n, *_verdicts(st)))
+                if st.result is not None and st.result.error:
+                    failed.append((s, run.run, st.step, st.result.error))
+        curves = [c for c in (_run_curve(r) for r in runs) if c is not None]
+        series.append(SeriesData(s, spec.label or f"series {s}", spec.kind, spec, spec.case(), curves,
+                                 [step_events(st) for run in runs for st in run.steps]))
+    config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
+              if (text := reader.config_text(name))}
+    return ReportData(path, reader.attrs, series, stats, _frf(reader, series, frf_step), config, rig, failed, read)

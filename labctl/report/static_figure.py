@@ -9,6 +9,7 @@ step (their difference over the quadrature of the two independent σ), and the s
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from labctl.engine.static import stored_static_curve
-from labctl.storage.reader import CampaignReader
+from labctl.storage.reader import CampaignReader, RunInfo
 
 N_PER_UM = 1e-6
 AGREE_Z = 2.0
@@ -64,31 +65,37 @@ class MethodComparison:
 def compare(path: str | Path) -> list[MethodComparison]:
     """The series of a campaign that have static curves, with the hammer's results at the same steps (NaN where
     a step has none, as in a static-only campaign)."""
+    with CampaignReader(path) as reader:
+        return compare_methods(reader)
+
+
+def compare_methods(reader: CampaignReader, runs: Mapping[int, list[RunInfo]] | None = None
+                    ) -> list[MethodComparison]:
+    """``compare`` on an open campaign; ``runs`` (series → its repetitions) when the caller has read them already."""
     nan5 = (np.nan,) * 5
     out = []
-    with CampaignReader(path) as reader:
-        for series in reader.series_indices():
-            rows: dict[int, dict[int, tuple[float, ...]]] = {}
-            reps = []
-            for info in reader.runs(series):
-                static = stored_static_curve(reader.run_attrs(series, info.run))
-                if not static:
-                    continue
-                reps.append(info.run)
-                curve = reader.curve(series, info.run)
-                hammer = {} if curve is None else {
-                    int(n): (float(k), float(sd)) for n, k, sd in
-                    zip(curve.step, curve.stiffness_n_per_m, curve.stiffness_std_n_per_m, strict=True)}
-                for st in static:
-                    k, sd = hammer.get(st.step, (np.nan, np.nan))
-                    rows.setdefault(st.step, {})[info.run] = (st.load_n, k, sd, st.stiffness_n_per_m,
-                                                              st.std_independent_n_per_m)
-            if not rows:
+    for series in reader.series_indices():
+        rows: dict[int, dict[int, tuple[float, ...]]] = {}
+        reps = []
+        for info in runs[series] if runs is not None else reader.runs(series):
+            static = stored_static_curve(reader.run_attrs(series, info.run))
+            if not static:
                 continue
-            steps = sorted(rows)
-            table = np.array([[rows[step].get(run, nan5) for run in reps] for step in steps], dtype=float)
-            out.append(MethodComparison(series, reader.specimen(series).label, np.array(steps),
-                                        *np.moveaxis(table, 2, 0)))
+            reps.append(info.run)
+            curve = reader.curve(series, info.run)
+            hammer = {} if curve is None else {
+                int(n): (float(k), float(sd)) for n, k, sd in
+                zip(curve.step, curve.stiffness_n_per_m, curve.stiffness_std_n_per_m, strict=True)}
+            for st in static:
+                k, sd = hammer.get(st.step, (np.nan, np.nan))
+                rows.setdefault(st.step, {})[info.run] = (st.load_n, k, sd, st.stiffness_n_per_m,
+                                                          st.std_independent_n_per_m)
+        if not rows:
+            continue
+        steps = sorted(rows)
+        table = np.array([[rows[step].get(run, nan5) for run in reps] for step in steps], dtype=float)
+        out.append(MethodComparison(series, reader.specimen(series).label, np.array(steps),
+                                    *np.moveaxis(table, 2, 0)))
     return out
 
 
