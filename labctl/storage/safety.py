@@ -16,7 +16,7 @@ from typing import Any
 
 import h5py
 import numpy as np
-from h5py import h5d, h5z
+from h5py import h5d, h5l, h5o, h5z
 
 from labctl.errors import InputError
 
@@ -34,8 +34,11 @@ def _where(path: object, name: str) -> str:
 def check_dataset(ds: h5py.Dataset, path: object = None) -> None:
     """Refuse a dataset whose data is outside the file (external storage, virtual) or behind a filter
     labctl does not write."""
-    where = _where(path if path is not None else ds.file.filename, ds.name.lstrip("/"))
-    plist = ds.id.get_create_plist()
+    _check_layout(ds.id, _where(path if path is not None else ds.file.filename, ds.name.lstrip("/")))
+
+
+def _check_layout(dataset: h5d.DatasetID, where: str) -> None:
+    plist = dataset.get_create_plist()
     if plist.get_layout() == h5d.VIRTUAL:
         raise InputError(f"{where}: a virtual dataset (its data comes from other files); labctl reads only "
                          "data stored in the campaign file")
@@ -51,34 +54,44 @@ def check_dataset(ds: h5py.Dataset, path: object = None) -> None:
                              f"(expected {', '.join(sorted(ALLOWED_FILTERS.values()))})")
 
 
+def _text(raw: bytes | str) -> str:
+    return raw.decode("utf-8", "replace") if isinstance(raw, bytes) else raw
+
+
 def check_structure(h5: h5py.File, path: object = None) -> None:
-    """Walk every link of the file without following one; refuse soft and external links, and datasets
-    ``check_dataset`` refuses. Reads no data."""
+    """Walk every link of the file without following one; refuse soft, external and user-defined links, and
+    datasets ``check_dataset`` refuses. Reads no data. The walk is HDF5's own link iteration with each link's
+    type (h5py's high-level walk looks every name up again: five times slower on a campaign file)."""
     shown = path if path is not None else h5.filename
     count = 0
 
-    def problem(name: str, link: Any) -> InputError | None:
-        if isinstance(link, h5py.ExternalLink):
-            return InputError(f"{_where(shown, name)}: an external link to {link.filename}:{link.path}; labctl "
-                              "reads only objects stored in the campaign file")
-        if isinstance(link, h5py.SoftLink):
-            return InputError(f"{_where(shown, name)}: a soft link to {link.path}; labctl's writer makes none")
-        obj = h5.get(name)
-        if isinstance(obj, h5py.Dataset):
+    def problem(name: bytes, info: Any) -> InputError | None:
+        where = _where(shown, _text(name))
+        if info.type == h5l.TYPE_EXTERNAL:
+            filename, target = h5.id.links.get_val(name)
+            return InputError(f"{where}: an external link to {_text(filename)}:{_text(target)}; labctl reads only "
+                              "objects stored in the campaign file")
+        if info.type == h5l.TYPE_SOFT:
+            return InputError(f"{where}: a soft link to {_text(h5.id.links.get_val(name))}; labctl's writer makes "
+                              "none")
+        if info.type != h5l.TYPE_HARD:
+            return InputError(f"{where}: a user-defined link (type {info.type}); labctl's writer makes none")
+        obj = h5o.open(h5.id, name)
+        if isinstance(obj, h5d.DatasetID):
             try:
-                check_dataset(obj, shown)
+                _check_layout(obj, where)
             except InputError as exc:
                 return exc
         return None
 
-    def visit(name: str, link: Any) -> InputError | None:  # a non-None return ends the walk (no raising in
-        nonlocal count                                     # HDF5's callback)
+    def visit(name: bytes, info: Any) -> InputError | None:  # a non-None return ends the walk (no raising in
+        nonlocal count                                        # HDF5's callback)
         count += 1
         if count > MAX_OBJECTS:
             return InputError(f"{shown}: more than {MAX_OBJECTS} objects; not a campaign file")
-        return problem(name, link)
+        return problem(name, info)
 
-    found = h5.visititems_links(visit)
+    found = h5.id.links.visit(visit, info=True)
     if found is not None:
         raise found
 
