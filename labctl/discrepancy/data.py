@@ -198,14 +198,13 @@ def _is_ball(p: StiffnessPoint) -> bool:
 
 def _campaign_points(path: Path) -> list[StiffnessPoint]:
     try:
-        from labctl.storage import campaign_stiffness_points
+        from labctl.storage import CampaignReader
+        from labctl.storage.table import stiffness_points
     except ImportError:
         raise InputError(f"{path}: reading campaign HDF5 files needs labctl.storage, which is not available in "
                          "this installation; export the campaign as a stiffness-table CSV instead") from None
     if not path.is_file():
         raise InputError(f"{path}: file not found")
-    from labctl.storage import CampaignReader
-
     with CampaignReader(path) as reader:
         for series in reader.series_indices():
             spec = reader.specimen(series)
@@ -214,7 +213,7 @@ def _campaign_points(path: Path) -> list[StiffnessPoint]:
                                  f"{float(spec.ball_diameter_m or spec.diameter_m) * 1e3:g} mm): labctl "
                                  "discrepancy compares rollers with line-contact models, a ball is the rig's Hertz "
                                  "check (labctl report compares it with Hertz): give the roller campaigns alone")
-    points = list(campaign_stiffness_points(path))
+        points = stiffness_points(reader)
     if not points:
         raise InputError(f"{path}: the campaign holds no processed stiffness points")
     return points
