@@ -84,12 +84,15 @@ def check_structure(h5: h5py.File, path: object = None) -> None:
                 return exc
         return None
 
-    def visit(name: bytes, info: Any) -> InputError | None:  # a non-None return ends the walk (no raising in
-        nonlocal count                                        # HDF5's callback)
+    def visit(name: bytes, info: Any) -> Exception | None:  # a non-None return ends the walk, and is raised
+        nonlocal count                                         # after it: no exception may cross HDF5's iteration
         count += 1
         if count > MAX_OBJECTS:
             return InputError(f"{shown}: more than {MAX_OBJECTS} objects; not a campaign file")
-        return problem(name, info)
+        try:
+            return problem(name, info)
+        except Exception as exc:  # noqa: BLE001 - e.g. a link half-written by a running campaign (a live read)
+            return exc
 
     found = h5.id.links.visit(visit, info=True)
     if found is not None:
