@@ -11,6 +11,7 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -110,8 +111,12 @@ class ModelSpec:
 
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
-        return [(n, k, lo, hi) for n in self.terms
-                for k, (lo, hi) in {**_terms(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items()]
+        return list(self._slots)
+
+    @cached_property
+    def _slots(self) -> tuple[tuple[str, str, float, float], ...]:  # a fit decodes its vector thousands of times
+        return tuple((n, k, lo, hi) for n in self.terms
+                     for k, (lo, hi) in {**_terms(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items())
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
         return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}
@@ -119,23 +124,23 @@ class ModelSpec:
     def n_params(self) -> int:
         return int(self.fits_depth) + len(self.slots())
 
-    def law(self, x: np.ndarray) -> ContactLaw:
-        """The contact law for a parameter vector."""
+    def law(self, x: np.ndarray, values: dict[str, dict[str, float]] | None = None) -> ContactLaw:
+        """The contact law for a parameter vector (``values``: its ``decode``, when the caller has it)."""
         depth = 10.0 ** x[0] if self.fits_depth else DEFAULT_DEPTH_M
-        values = self.decode(x)
+        values = self.decode(x) if values is None else values
         effects: list[Effect] = [EFFECTS[n](**values[n], **self.fixed.get(n, {})) for n in self.effects]
         return ContactLaw(self.baseline, depth, tuple(effects))
 
-    def chain(self, x: np.ndarray) -> tuple[Any, ...]:
-        """The measurement-side terms for a parameter vector."""
-        values = self.decode(x)
+    def chain(self, x: np.ndarray, values: dict[str, dict[str, float]] | None = None) -> tuple[Any, ...]:
+        """The measurement-side terms for a parameter vector (``values``: its ``decode``, when the caller has it)."""
+        values = self.decode(x) if values is None else values
         return tuple(MEASUREMENT[n](**values[n]) for n in self.measurement)
 
     def decode(self, x: np.ndarray) -> dict[str, dict[str, float]]:
         """Term parameters (SI) from the vector."""
         out: dict[str, dict[str, float]] = {n: {} for n in self.terms}
-        for u, (n, k, lo, hi) in zip(x[int(self.fits_depth):], self.slots(), strict=True):
-            out[n][k] = float(lo + u * (hi - lo))
+        for u, (n, k, lo, hi) in zip(x[int(self.fits_depth):].tolist(), self._slots, strict=True):
+            out[n][k] = lo + u * (hi - lo)
         return out
 
     def encode(self, depth_m: float, values: dict[str, dict[str, float]]) -> np.ndarray:
@@ -150,15 +155,24 @@ class ModelSpec:
         return np.array(lo + [0.0] * n), np.array(hi + [1.0] * n)
 
 
-def predict_ln(data: Dataset, law: ContactLaw, chain: tuple[Any, ...] = ()) -> np.ndarray:
+def predict_ln(data: Dataset, law: ContactLaw, chain: tuple[Any, ...] = (),
+               baselines: dict[tuple[str, float], np.ndarray] | None = None) -> np.ndarray:
     """ln of the modelled stiffness at every measured point (cases concatenated), evaluated at the true load
-    and moduli the measurement-side terms ``chain`` infer from the recorded ones."""
+    and moduli the measurement-side terms ``chain`` infer from the recorded ones.
+
+    ``baselines``: a fit's memo of the baseline's stiffness at the recorded points per (baseline, depth); used
+    without a chain (which moves the points): a Jacobian column of an effect parameter keeps the depth."""
     case, load = data.stacked_case, data.load_n  # every case in one evaluation (the same numbers)
     for term in chain:
         case, load = term.transform(case, load)
     load = np.asarray(load)
     if (load > 0).all():  # the usual case: nothing to mask
-        return np.log(law.stiffness_n_per_m(case, load))
+        if baselines is None or chain:
+            return np.log(law.stiffness_n_per_m(case, load))
+        key = (law.baseline, law.depth_m)
+        if key not in baselines:
+            baselines[key] = ContactLaw(law.baseline, law.depth_m).stiffness_n_per_m(case, load)
+        return np.log(law.stiffness_n_per_m(case, load, baselines[key]))
     bad = ~(load > 0)  # a load offset larger than the recorded load: no such model
     value = np.log(law.stiffness_n_per_m(case, np.where(bad, 1.0, load)))
     return np.where(bad, np.nan, value)
@@ -239,9 +253,11 @@ def depth_column(fit: Fit, data: Dataset) -> np.ndarray | None:
     return (predict_ln(data, law, fit.chain) - fit.predict(data)) / step
 
 
-def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray) -> np.ndarray:
+def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray,
+               baselines: dict[tuple[str, float], np.ndarray] | None = None) -> np.ndarray:
     with np.errstate(all="ignore"):
-        r = predict_ln(data, spec.law(x), spec.chain(x)) - measured
+        values = spec.decode(x)
+        r = predict_ln(data, spec.law(x, values), spec.chain(x, values), baselines) - measured
     return np.where(np.isfinite(r), r, BAD_RESIDUAL)
 
 
@@ -276,12 +292,14 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
 
     objective = post or (lambda e: e)
     lo, hi = spec.bounds()
+    baselines: dict[tuple[str, float], np.ndarray] = {}
     best: tuple[float, np.ndarray] | None = None
     for x0 in _starts(spec, warm, guess or {}):
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = least_squares(lambda x: objective(white(_residuals(data, spec, x, measured))), x0, bounds=(lo, hi),
+        sol = least_squares(lambda x: objective(white(_residuals(data, spec, x, measured, baselines))), x0,
+                            bounds=(lo, hi),
                             x_scale=1.0, diff_step=1e-6, xtol=1e-6, ftol=FIT_FTOL, max_nfev=200)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:

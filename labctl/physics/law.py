@@ -48,9 +48,13 @@ class ContactLaw:
         if self.baseline not in BASELINES:
             raise ValueError(f"unknown baseline {self.baseline!r}; expected one of {', '.join(BASELINES)}")
 
-    def stiffness_n_per_m(self, case: ContactCase, load_n: ArrayLike) -> FloatArray:
+    def stiffness_n_per_m(self, case: ContactCase, load_n: ArrayLike, baseline_n_per_m: FloatArray | None = None
+                          ) -> FloatArray:
+        """The law's stiffness; ``baseline_n_per_m``: the baseline's stiffness at these loads, when a caller that
+        evaluates many laws on one baseline (a fit's Jacobian) has it already."""
         f = as_load(load_n, self.baseline)
-        k = np.asarray(baseline_model(self.baseline, case, self.depth_m).stiffness_n_per_m(f), dtype=float)
+        k = np.asarray(baseline_model(self.baseline, case, self.depth_m).stiffness_n_per_m(f), dtype=float) \
+            if baseline_n_per_m is None else baseline_n_per_m
         for effect in self.effects:
             k = effect.apply(case, f, k)
         return k
