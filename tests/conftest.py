@@ -32,13 +32,21 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
     gc.freeze()
 
 
+HEAVY_FILES = frozenset({"test_discrepancy_workflow.py", "test_uff.py", "test_bad_inputs.py", "test_planning.py",
+                         "test_discrepancy_cli.py", "test_springs.py", "test_campaign_safety.py"})
+"""Files of five seconds or more in all though none of their tests is ``slow`` (``-p tests.cpu_per_file``): handed
+out with the slow ones, so that the last files to finish are short."""
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Test files that wait on other processes or real time (``waits``) are handed out first, then files with
-    ``slow`` tests, then the rest, each group in its collected order: under xdist's per-file distribution the
-    waiting overlaps the other workers' computing, and the last files to finish are short ones."""
+    ``slow`` tests and the ``HEAVY_FILES``, then the rest, each group in its collected order: under xdist's
+    per-file distribution the waiting overlaps the other workers' computing, and the last files to finish are
+    short ones."""
     tier: dict[str, int] = {}
     for item in items:
-        rank = 0 if item.get_closest_marker("waits") else 1 if item.get_closest_marker("slow") else 2
+        rank = 0 if item.get_closest_marker("waits") else \
+            1 if item.get_closest_marker("slow") or item.path.name in HEAVY_FILES else 2
         tier[item.path.name] = min(rank, tier.get(item.path.name, 2))
     items.sort(key=lambda item: tier[item.path.name])
 
