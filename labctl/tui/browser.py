@@ -10,7 +10,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Static, Tree
+from textual.widgets import Static, Tree
 
 from labctl.errors import LabctlError
 from labctl.protocol import parse_protocol
@@ -18,6 +18,7 @@ from labctl.report.notes import check_words, step_events
 from labctl.storage import CampaignReader, ImpactInfo, StepInfo
 from labctl.storage.records import OPERATOR
 from labctl.tui import plotdata as pd
+from labctl.tui.footer import KeyFooter
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import reason_text, tilt_text
 
@@ -97,7 +98,7 @@ class BrowserScreen(Screen):
                 with Horizontal(classes="row", id="b-traces"):
                     yield TracePlot("impact force", "t [ms] from peak", "F [N]", id="b-force")
                     yield TracePlot("response", "t [ms]", "a [m/s²]", id="b-accel")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.frf = FrfPlots(self.query_one("#b-frf-plot", TracePlot), self.query_one("#b-coh-plot", TracePlot))

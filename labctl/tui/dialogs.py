@@ -11,8 +11,9 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Footer, Input, Label, Static
+from textual.widgets import Button, Input, Label, Static
 
+from labctl.tui.footer import KeyFooter
 from labctl.tui.operator import PromptRequest
 from labctl.tui.plots import FrfPlots, TracePlot
 from labctl.tui.state import reason_text
@@ -46,7 +47,7 @@ PromptDialog .countdown { color: $text-muted; width: 100%; }
 PromptDialog Horizontal, ConfirmDialog Horizontal { height: auto; width: 100%; }
 PromptDialog Button, ConfirmDialog Button { margin-right: 2; }
 ReviewDialog { align: center bottom; background: $background 20%; }
-ReviewDialog > Footer { dock: bottom; }
+ReviewDialog > KeyFooter { dock: bottom; }
 ReviewDialog.-short .hint { display: none; }
 ReviewDialog > Vertical {
     width: 100; max-width: 98%; height: auto; border: thick $success; background: $surface; padding: 0 2;
@@ -258,7 +259,7 @@ class ReviewDialog(ModalScreen[str]):
                 yield Button("r reject", id="reject", variant="default" if self.clean else "error")
             yield Input(placeholder="why? (Enter to confirm, Esc to go back)", id="reason")
             yield Static("", classes="countdown", id="countdown")
-        yield Footer()  # the gate covers the screen's footer: it shows the keys that work here
+        yield KeyFooter()  # the gate covers the screen's footer: it shows the keys that work here
 
     def on_mount(self) -> None:
         self.set_class(not self.clean, "-flagged")

@@ -12,12 +12,13 @@ from rich.markup import escape
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, RichLog, Static
+from textual.widgets import DataTable, RichLog, Static
 
 from labctl import events as ev
 from labctl.protocol import Protocol
 from labctl.tui import plotdata as pd
 from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog, prompt_title, show_text
+from labctl.tui.footer import KeyFooter
 from labctl.tui.plots import FrfPlots, ImpactPlots, StiffnessPlot, TracePlot
 from labctl.tui.state import CampaignState, StepRow, reason_text, row_cells, tilt_text
 
@@ -100,7 +101,7 @@ class MonitorScreen(Screen):
                 yield Static(self.state.modes_text(), id="modes")
                 yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
                 yield RichLog(id="log", markup=True, wrap=True, min_width=20, max_lines=2000)
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.query_one("#impact-panel").border_title = "last impact: waiting"

@@ -9,11 +9,12 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen, Screen
-from textual.widgets import Button, Checkbox, Footer, Input, Label, OptionList, RadioButton, RadioSet, Static
+from textual.widgets import Button, Checkbox, Input, Label, OptionList, RadioButton, RadioSet, Static
 from textual.widgets.option_list import Option
 
 from labctl.errors import LabctlError
 from labctl.protocol import load_protocol, shipped_protocols
+from labctl.tui.footer import KeyFooter
 
 if TYPE_CHECKING:
     from labctl.tui.app import TuiSettings
@@ -75,7 +76,7 @@ class SetupScreen(Screen):
                 yield Button("Start", id="start", variant="primary")
                 yield Button("Open a campaign file…", id="open")
                 yield Button("Quit", id="quit", variant="error")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         options = self.query_one("#protocols", OptionList)
