@@ -144,8 +144,7 @@ CHANNELS = np.array(["A1X", "A2X", "A3X", "A4X"])
 
 def _npz(name: str, edit: Callable[[bytearray], None] | None = None, *, compressed: bool = False,
          force: np.ndarray | None = None) -> Callable[[Path], None]:
-    """An impacts NPZ (random samples, or the given ``force`` with silent accelerations), its bytes then edited
-    (a damaged file)."""
+    """An impacts NPZ (random samples, or ``force`` with silent accelerations), its bytes then edited (damaged)."""
 
     def make(folder: Path) -> None:
         rng = np.random.default_rng(1)
