@@ -71,7 +71,7 @@ class SimDisplacementSensor(_SimInstrument):
         if p <= p0:
             return 0.0
         loads = p0 + (p - p0) * (_NODES + 1.0) / 2.0
-        k = np.array([[r.stiffness_n_per_m(float(q)) for q in loads] for r in twin.rollers])
+        k = np.array([r.stiffness_curve_n_per_m(loads) for r in twin.rollers])
         setup = float(twin.rig.setup_stiffness_n_per_m)
         compliance = np.mean(1.0 / self._path(k, setup), axis=0)
         return float((p - p0) / 2.0 * np.dot(_WEIGHTS, compliance))

@@ -81,6 +81,10 @@ class SeatedRoller(Protocol):
 
     def stiffness_n_per_m(self, load_n: float) -> float: ...
 
+    def stiffness_curve_n_per_m(self, loads_n: np.ndarray) -> np.ndarray:
+        """The stiffness at many loads in one evaluation (the displacement probe integrates the compliance)."""
+        ...
+
 
 SwingStiffnessFunction = Callable[[Callable[[float], float], float, float, float], float]
 """(k(F), load, force swing ΔF, scale) → the contact's effective stiffness while its force swings by ±ΔF about

@@ -75,6 +75,9 @@ class SeatedRoller:
     def stiffness_n_per_m(self, load_n: float) -> float:
         return self.factor * float(self.law.stiffness_n_per_m(self.case, load_n))
 
+    def stiffness_curve_n_per_m(self, loads_n: np.ndarray) -> np.ndarray:
+        return self.factor * np.asarray(self.law.stiffness_n_per_m(self.case, loads_n), dtype=float)
+
 
 @dataclass(frozen=True)
 class BurrSeated:
@@ -86,6 +89,9 @@ class BurrSeated:
     def stiffness_n_per_m(self, load_n: float) -> float:
         k = float(self.inner.stiffness_n_per_m(load_n))
         return 1.0 / (1.0 / k + self.gap_m / load_n)
+
+    def stiffness_curve_n_per_m(self, loads_n: np.ndarray) -> np.ndarray:
+        return 1.0 / (1.0 / self.inner.stiffness_curve_n_per_m(loads_n) + self.gap_m / np.asarray(loads_n))
 
 
 @dataclass(frozen=True)
