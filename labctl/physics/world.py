@@ -73,9 +73,9 @@ class SeatedRoller:
     factor: float = 1.0
 
     def stiffness_n_per_m(self, load_n: float) -> float:
-        return self.factor * float(self.law.stiffness_n_per_m(self.case, load_n))
+        return float(self.stiffness_curve_n_per_m(load_n))
 
-    def stiffness_curve_n_per_m(self, loads_n: np.ndarray) -> np.ndarray:
+    def stiffness_curve_n_per_m(self, loads_n: np.ndarray | float) -> np.ndarray:
         return self.factor * np.asarray(self.law.stiffness_n_per_m(self.case, loads_n), dtype=float)
 
 
@@ -87,10 +87,9 @@ class BurrSeated:
     gap_m: float
 
     def stiffness_n_per_m(self, load_n: float) -> float:
-        k = float(self.inner.stiffness_n_per_m(load_n))
-        return 1.0 / (1.0 / k + self.gap_m / load_n)
+        return float(self.stiffness_curve_n_per_m(load_n))
 
-    def stiffness_curve_n_per_m(self, loads_n: np.ndarray) -> np.ndarray:
+    def stiffness_curve_n_per_m(self, loads_n: np.ndarray | float) -> np.ndarray:
         return 1.0 / (1.0 / self.inner.stiffness_curve_n_per_m(loads_n) + self.gap_m / np.asarray(loads_n))
 
 
