@@ -31,22 +31,20 @@ def _where(path: object, name: str) -> str:
     return f"{path}:/{name}"
 
 
-def check_dataset(ds: h5py.Dataset, path: object = None) -> None:
-    """Refuse a dataset whose data is outside the file (external storage, virtual) or behind a filter
-    labctl does not write."""
-    _check_layout(ds.id, _where(path if path is not None else ds.file.filename, ds.name.lstrip("/")))
+def _text(raw: bytes | str) -> str:
+    return raw.decode("utf-8", "replace") if isinstance(raw, bytes) else raw
 
 
 def _check_layout(dataset: h5d.DatasetID, where: str) -> None:
+    """Refuse a dataset whose data is outside the file (external storage, virtual) or behind a filter
+    labctl does not write."""
     plist = dataset.get_create_plist()
     if plist.get_layout() == h5d.VIRTUAL:
         raise InputError(f"{where}: a virtual dataset (its data comes from other files); labctl reads only "
                          "data stored in the campaign file")
     if plist.get_external_count() > 0:
-        name = plist.get_external(0)[0]
-        shown = name.decode("utf-8", "replace") if isinstance(name, bytes) else str(name)
-        raise InputError(f"{where}: its data is stored in the external file {shown!r}; labctl reads only data "
-                         "stored in the campaign file")
+        raise InputError(f"{where}: its data is stored in the external file {_text(plist.get_external(0)[0])!r}; "
+                         "labctl reads only data stored in the campaign file")
     for i in range(plist.get_nfilters()):
         code = plist.get_filter(i)[0]
         if code not in ALLOWED_FILTERS:
@@ -54,13 +52,9 @@ def _check_layout(dataset: h5d.DatasetID, where: str) -> None:
                              f"(expected {', '.join(sorted(ALLOWED_FILTERS.values()))})")
 
 
-def _text(raw: bytes | str) -> str:
-    return raw.decode("utf-8", "replace") if isinstance(raw, bytes) else raw
-
-
 def check_structure(h5: h5py.File, path: object = None) -> None:
     """Walk every link of the file without following one; refuse soft, external and user-defined links, and
-    datasets ``check_dataset`` refuses. Reads no data. The walk is HDF5's own link iteration with each link's
+    datasets ``_check_layout`` refuses. Reads no data. The walk is HDF5's own link iteration with each link's
     type (h5py's high-level walk looks every name up again: five times slower on a campaign file)."""
     shown = path if path is not None else h5.filename
     count = 0
