@@ -178,7 +178,8 @@ def _run_curve(run: RunInfo) -> RunCurve | None:
                     np.column_stack([c.tilt_a_hz, c.tilt_b_hz]), load_std if np.isfinite(load_std).any() else None)
 
 
-def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int, int] | None) -> FrfStep | None:
+def _frf(reader: CampaignReader, series: list[SeriesData], runs: dict[int, list[RunInfo]],
+         want: tuple[int, int, int] | None) -> FrfStep | None:
     if want is None:
         candidates = [(s.index, r.run, int(r.steps[np.argmax(r.load_n)])) for s in series for r in s.runs]
         if not candidates:
@@ -187,7 +188,7 @@ def _frf(reader: CampaignReader, series: list[SeriesData], want: tuple[int, int,
     s, r, n = want
     try:
         frf = reader.step_frf(s, r, n)
-        info = next(st for run in reader.runs(s) if run.run == r for st in run.steps if st.step == n)
+        info = next(st for run in runs.get(s, ()) if run.run == r for st in run.steps if st.step == n)
     except (KeyError, StopIteration):
         raise InputError(f"{reader.path}: no step series {s} run {r} step {n} (--frf-step)") from None
     if frf is None or info.result is None or not info.result.identified:
@@ -227,4 +228,5 @@ def report_data(reader: CampaignReader, frf_step: tuple[int, int, int] | None = 
                                  [step_events(st) for run in runs for st in run.steps]))
     config = {name: text for name in ("protocol.toml", "rig.toml", "world.toml", "devices.toml", "manifest.csv")
               if (text := reader.config_text(name))}
-    return ReportData(path, reader.attrs, series, stats, _frf(reader, series, frf_step), config, rig, failed, read)
+    frf = _frf(reader, series, read, frf_step)
+    return ReportData(path, reader.attrs, series, stats, frf, config, rig, failed, read)
