@@ -222,6 +222,7 @@ class LabApp(App[Outcome | None]):
 
     def _tell(self, text: str) -> None:
         self._forward(text)  # a notice from the operator: in the same inbox, so in order with the events
+
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.worker is not self.worker or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR,
                                                                   WorkerState.CANCELLED):

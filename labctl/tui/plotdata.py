@@ -64,7 +64,7 @@ def _bins(y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return y[np.minimum(start[:, None] + cols[None, :], y.size - 1)], inside, start
 
 
-def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, np.ndarray]:
+def envelope(x: ArrayLike, y: ArrayLike, bins: int) -> tuple[np.ndarray, np.ndarray]:
     """Min/max per bin, interleaved, so the reduced trace spans the same extremes as the full one."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= 2 * bins:
@@ -76,7 +76,7 @@ def envelope(x: ArrayLike, y: ArrayLike, bins: int = 200) -> tuple[np.ndarray, n
     return x[order], y[order]
 
 
-def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
+def bin_peaks(x: ArrayLike, y: ArrayLike, bins: int) -> tuple[np.ndarray, np.ndarray]:
     """The largest value of each bin at its own abscissa (resonance peaks of an FRF stay at their frequency)."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if y.size <= bins:

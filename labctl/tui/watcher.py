@@ -16,10 +16,11 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, RichLog, Static
+from textual.widgets import DataTable, RichLog, Static
 
 from labctl.errors import InputError
 from labctl.tui.dialogs import show_text
+from labctl.tui.footer import KeyFooter
 from labctl.tui.plots import StiffnessPlot
 from labctl.tui.watch import Snapshot, read_snapshot
 
@@ -63,7 +64,7 @@ class WatchScreen(Screen):
             with Vertical(id="w-side"):
                 yield StiffnessPlot(id="w-stiffness")
                 yield RichLog(id="w-log", markup=True, wrap=True, min_width=20, max_lines=2000)  # wraps at its width
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         table = self.query_one("#w-steps", DataTable)
