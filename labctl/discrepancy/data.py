@@ -96,6 +96,11 @@ class Dataset:
     def run_ids(self) -> np.ndarray:
         """Seating index per point: one per (roller case, repetition); a point without a repetition number is
         its own seating. Points of one seating share its random offset in the statistical model."""
+        return self._run_ids
+
+    @cached_property
+    def _run_ids(self) -> np.ndarray:
+        """``run_ids``, worked out once: every fit and noise whitening of a dataset asks for it (read-only)."""
         ids = np.empty(self.n_points, dtype=int)
         next_id = 0
         for c, sl in zip(self.cases, self.case_slices(), strict=True):
@@ -111,6 +116,7 @@ class Dataset:
                     local[i] = next_id
                     next_id += 1
             ids[sl] = local
+        ids.setflags(write=False)
         return ids
 
     def roller_keys(self) -> list[tuple[float, float]]:

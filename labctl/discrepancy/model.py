@@ -15,9 +15,9 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.lsq import bounded_least_squares
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.noise import whiten
 from labctl.physics.effects import EFFECTS, Effect
@@ -298,9 +298,8 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = least_squares(lambda x: objective(white(_residuals(data, spec, x, measured, baselines))), x0,
-                            bounds=(lo, hi),
-                            x_scale=1.0, diff_step=1e-6, xtol=1e-6, ftol=FIT_FTOL, max_nfev=200)
+        sol = bounded_least_squares(lambda x: objective(white(_residuals(data, spec, x, measured, baselines))),
+                                    x0, lo, hi, ftol=FIT_FTOL)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:
             best = (cost, sol.x)

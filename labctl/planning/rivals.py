@@ -24,10 +24,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import EmpiricalTerm, features
+from labctl.discrepancy.lsq import bounded_least_squares
 from labctl.discrepancy.model import BAD_RESIDUAL, FIT_FTOL, Fit, ModelSpec, predict_ln
 from labctl.discrepancy.search import DECISIVE_BIC, Search
 from labctl.discrepancy.workflow import DiscrepancyResult
@@ -163,8 +163,7 @@ def _slice(rival: Rival, data: Dataset, whiten: Callable[[np.ndarray], np.ndarra
         r = predict(data, x) - measured
         return whiten(np.where(np.isfinite(r), r, BAD_RESIDUAL))
 
-    sol = least_squares(residuals, np.clip(rival.theta[free], lo, hi), bounds=(lo, hi), x_scale=1.0, diff_step=1e-6,
-                        xtol=1e-6, ftol=FIT_FTOL, max_nfev=200)
+    sol = bounded_least_squares(residuals, np.clip(rival.theta[free], lo, hi), lo, hi, ftol=FIT_FTOL)
     chi2 = float(np.sum(sol.fun**2))
     bic = n * math.log(max(chi2 / n, 1e-300)) + rival.theta.size * math.log(n)
     return KinkSlice(u, Rival(rival.terms, predict, sol.x, lo, hi, rival.prior_sd[free], bic), chi2)
