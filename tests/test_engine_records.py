@@ -94,3 +94,30 @@ def test_check_record_keeps_the_delivered_traces():
     impact = check_record(rec, 1, CheckConfig())
     assert impact.force_n is rec.force_n or np.array_equal(impact.force_n, rec.force_n)
     assert impact.info.trigger_index == 200 and impact.channels == ("A1X", "A1Y")
+
+
+def test_the_writers_kept_impact_infos_are_what_a_reader_gets_back(tmp_path):
+    """The engine asks for a step's impact infos before every blow; the writer keeps them from its own writes
+    (the checks' verdict, then the operator's) instead of reading the file again: they must be the file's."""
+    cal = Calibration(0.002, 5000.0, (0.01, 0.01), (500.0, 500.0))
+    force, accel = np.zeros(256), np.zeros((2, 256))
+    rejected = ImpactInfo(2, 20480.0, 12, "2026-01-01T00:00:01.000+00:00",
+                          CheckSummary(False, ("double_hit", "clipped"), 1200.0, 2e-4), Verdict(False), ("A1Y",))
+    path = tmp_path / "w.h5"
+    with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={},
+                               description={}) as w:
+        w.series(1, SpecimenRecord(label="x"))
+        w.run(1, 1)
+        w.step(1, 1, 1, {"load_n": 40.0, "knob_angle_deg": 0.0})
+        assert w.impact_infos(1, 1, 1) == []
+        w.write_impact(1, 1, 1, _record(1, force, accel, cal))
+        w.write_impact(1, 1, 1, ImpactRecord(rejected, ("A1X", "A1Y"), force, accel, cal))
+        w.set_verdict(1, 1, 1, 2, Verdict(True, "operator", "monitor"))
+        w.set_verdict(1, 1, 1, 1, Verdict(False, "operator", "hand slipped"))
+        kept = w.impact_infos(1, 1, 1)
+    with CampaignReader(path) as r:
+        assert kept == r.impact_infos(1, 1, 1)
+    assert [(i.attempt, i.accepted) for i in kept] == [(1, False), (2, True)]
+    assert kept[1].checks.reasons == ("double_hit", "clipped") and kept[1].verdict.reason == "monitor"
+    with CampaignWriter.open_existing(path) as w:  # a resumed writer starts from the file
+        assert w.impact_infos(1, 1, 1) == kept

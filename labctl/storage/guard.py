@@ -40,6 +40,7 @@ class WriteGuard:
     h5: h5py.File
     path: str
     _accepted: int | None
+    _infos: dict[tuple[int, int, int], Any]
     _drop_incomplete: Callable[[], None]
     """The writer's own: remove an impact whose write did not finish (``CampaignWriter._drop_incomplete``)."""
 
@@ -75,6 +76,7 @@ class WriteGuard:
         """Drop the failed handle unflushed, reopen the file as of its last flush, remove partial groups."""
         discard(self.h5)
         self._accepted = None
+        self._infos.clear()
         try:
             self.h5 = JournaledFile(self.path)
             self._drop_incomplete()

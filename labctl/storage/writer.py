@@ -58,6 +58,9 @@ class CampaignWriter(WriteGuard):
         self.h5 = h5
         self.path = str(h5.filename)
         self._accepted: int | None = None  # accepted impacts in the file, counted once then kept up to date
+        self._infos: dict[tuple[int, int, int], list[ImpactInfo]] = {}
+        """Each step's impact infos as stored, read once then kept up to date by this writer's own writes (the
+        engine asks before every blow)."""
 
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
@@ -216,8 +219,13 @@ class CampaignWriter(WriteGuard):
         return {} if g is None else attrs_of(g)
 
     def impact_infos(self, series: int, run: int, step: int) -> list[ImpactInfo]:
-        g = self._step_group(series, run, step)
-        return [] if g is None else [impact_info(ig) for ig in complete_impacts(g)]
+        key = (series, run, step)
+        if key not in self._infos:
+            g = self._step_group(series, run, step)
+            if g is None:
+                return []
+            self._infos[key] = [impact_info(ig) for ig in complete_impacts(g)]
+        return list(self._infos[key])
 
     def impacts(self, series: int, run: int, step: int) -> list[ImpactRecord]:
         """The step's complete impacts as stored (read back, so live processing sees what reprocessing will)."""
@@ -258,6 +266,7 @@ class CampaignWriter(WriteGuard):
         _attrs(g, impact_attrs(record))
         g.attrs[s.COMPLETE] = True
         self.h5.flush()
+        self._infos.get((series, run, step), []).append(info)
         return replace(record, force_n=force_n, accel_m_per_s2=accel)
 
     def _verdict(self, g: h5py.Group, verdict: Verdict) -> None:
@@ -271,9 +280,11 @@ class CampaignWriter(WriteGuard):
     @guarded
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
-        self._verdict(self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)],
-                      verdict)
+        g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)]
+        self._verdict(g, verdict)
         self.h5.flush()
+        infos = self._infos.get((series, run, step), [])
+        infos[:] = [impact_info(g) if i.attempt == attempt else i for i in infos]
 
     @guarded
     def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
