@@ -144,9 +144,8 @@ class FormPrior:
         vals = []
         if bend is None or bend.shape[1] == 0 or self.a is None:
             proj2 = (self.u.T @ e) ** 2
-            for tau in TAU_GRID:
-                g = tau**2 * self.s2 / inflation
-                vals.append(-0.5 * (ee - float(np.sum(g / (1 + g) * proj2))) - 0.5 * float(np.sum(np.log1p(g))))
+            g = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2 * self.s2 / inflation  # one row per τ
+            vals = list(-0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=1)) - 0.5 * np.sum(np.log1p(g), axis=1))
         else:
             a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
             ata, ate = a.T @ a, a.T @ e
