@@ -4,6 +4,7 @@ operator's hand-over between threads, and ``labctl tui`` argument errors (one li
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import threading
 
@@ -268,3 +269,15 @@ def test_step_blows_average_the_accepted_blows_and_the_one_under_review():
     assert blows.frf_so_far(review(5), {}) is None and blows.frf_so_far(review(1, step=3), {}) is None
     blows(ev.StepStarted(2.0, ev.Position(1, 1, 3), 3, 720.0, 80.0))
     assert blows.frf_so_far(review(4), {}) is None
+
+
+@pytest.mark.parametrize(("env", "period_s"), [(None, 1 / 20), ("60", 1 / 60)])
+def test_the_screen_redraws_at_most_twenty_times_a_second_unless_textual_fps_says(env, period_s):
+    """The acquisition PC draws the screen too: 20 frames a second by default, TEXTUAL_FPS still overrides."""
+    import sys
+
+    environ = {k: v for k, v in os.environ.items() if k != "TEXTUAL_FPS"}
+    environ |= {} if env is None else {"TEXTUAL_FPS": env}
+    code = "import labctl.tui, textual.screen as s; print(repr(s.UPDATE_PERIOD))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=environ, check=True)
+    assert float(out.stdout) == pytest.approx(period_s)
