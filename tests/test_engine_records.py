@@ -57,6 +57,15 @@ def _record(attempt: int, force: np.ndarray, accel: np.ndarray, cal: Calibration
     return ImpactRecord(info, ("A1X", "A1Y"), force, accel, cal)
 
 
+def _one_step_file(path) -> CampaignWriter:  # noqa: ANN001
+    """A new campaign file with series 1, repetition 1 and step 1 begun, open for writing impacts."""
+    w = CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={}, description={})
+    w.series(1, SpecimenRecord(label="x"))
+    w.run(1, 1)
+    w.step(1, 1, 1, {"load_n": 40.0, "knob_angle_deg": 0.0})
+    return w
+
+
 @pytest.mark.parametrize("exact_adc", [True, False])
 def test_write_impact_returns_the_record_a_reader_gets_back(tmp_path, exact_adc):
     rng = np.random.default_rng(1)
@@ -67,11 +76,7 @@ def test_write_impact_returns_the_record_a_reader_gets_back(tmp_path, exact_adc)
     if exact_adc:  # samples on the ADC grid are stored as counts, bit-exact
         force, accel = np.rint(force / step_f) * step_f, np.rint(accel / step_a) * step_a
     path = tmp_path / "w.h5"
-    with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={},
-                               description={}) as w:
-        w.series(1, SpecimenRecord(label="x"))
-        w.run(1, 1)
-        w.step(1, 1, 1, {"load_n": 40.0, "knob_angle_deg": 0.0})
+    with _one_step_file(path) as w:
         written = w.write_impact(1, 1, 1, _record(1, force, accel, cal))
     with CampaignReader(path) as r:
         (back,) = r.impacts(1, 1, 1)
@@ -104,11 +109,7 @@ def test_the_writers_kept_impact_infos_are_what_a_reader_gets_back(tmp_path):
     rejected = ImpactInfo(2, 20480.0, 12, "2026-01-01T00:00:01.000+00:00",
                           CheckSummary(False, ("double_hit", "clipped"), 1200.0, 2e-4), Verdict(False), ("A1Y",))
     path = tmp_path / "w.h5"
-    with CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={},
-                               description={}) as w:
-        w.series(1, SpecimenRecord(label="x"))
-        w.run(1, 1)
-        w.step(1, 1, 1, {"load_n": 40.0, "knob_angle_deg": 0.0})
+    with _one_step_file(path) as w:
         assert w.impact_infos(1, 1, 1) == []
         w.write_impact(1, 1, 1, _record(1, force, accel, cal))
         w.write_impact(1, 1, 1, ImpactRecord(rejected, ("A1X", "A1Y"), force, accel, cal))
