@@ -41,8 +41,6 @@ class WriteGuard:
     path: str
     _accepted: int | None
     _infos: dict[tuple[int, int, int], Any]
-    _drop_incomplete: Callable[[], None]
-    """The writer's own: remove an impact whose write did not finish (``CampaignWriter._drop_incomplete``)."""
 
     def _kept(self) -> int:
         try:
@@ -87,3 +85,14 @@ class WriteGuard:
                 self.h5 = h5py.File(self.path, "r")
             except OSError:
                 self.h5 = None  # type: ignore[assignment]
+
+    def _drop_incomplete(self) -> None:
+        """Remove every group whose write did not finish (no ``complete``): impacts, step results, curves."""
+        for run in list(s.all_runs(self.h5)):
+            for step in s.children(run, "step_"):
+                for group in [*s.children(step, "impact_"), step.get(s.RESULT)]:
+                    if group is not None and not group.attrs.get(s.COMPLETE, False):
+                        del self.h5[group.name]
+            curve = run.get(s.CURVE)
+            if curve is not None and not curve.attrs.get(s.COMPLETE, False):
+                del self.h5[curve.name]

@@ -58,9 +58,7 @@ class CampaignWriter(WriteGuard):
         self.h5 = h5
         self.path = str(h5.filename)
         self._accepted: int | None = None  # accepted impacts in the file, counted once then kept up to date
-        self._infos: dict[tuple[int, int, int], list[ImpactInfo]] = {}
-        """Each step's impact infos as stored, read once then kept up to date by this writer's own writes (the
-        engine asks before every blow)."""
+        self._infos: dict[tuple[int, int, int], list[ImpactInfo]] = {}  # per step: read once, then kept current
 
     @classmethod
     def create(cls, path: str | Path, *, protocol_name: str, backend: str, seed: int | None,
@@ -141,16 +139,6 @@ class CampaignWriter(WriteGuard):
         h5.flush()
         return writer
 
-    def _drop_incomplete(self) -> None:
-        for run in list(s.all_runs(self.h5)):
-            for step in s.children(run, "step_"):
-                for group in [*s.children(step, "impact_"), step.get(s.RESULT)]:
-                    if group is not None and not group.attrs.get(s.COMPLETE, False):
-                        del self.h5[group.name]
-            curve = run.get(s.CURVE)
-            if curve is not None and not curve.attrs.get(s.COMPLETE, False):
-                del self.h5[curve.name]
-
     def config_text(self, name: str) -> str | None:
         return s.stored_text(self.h5, name)
 
@@ -219,13 +207,10 @@ class CampaignWriter(WriteGuard):
         return {} if g is None else attrs_of(g)
 
     def impact_infos(self, series: int, run: int, step: int) -> list[ImpactInfo]:
-        key = (series, run, step)
-        if key not in self._infos:
-            g = self._step_group(series, run, step)
-            if g is None:
-                return []
+        key = (series, run, step)  # asked before every blow: the writer's own writes keep the list current
+        if key not in self._infos and (g := self._step_group(series, run, step)) is not None:
             self._infos[key] = [impact_info(ig) for ig in complete_impacts(g)]
-        return list(self._infos[key])
+        return list(self._infos.get(key, []))
 
     def impacts(self, series: int, run: int, step: int) -> list[ImpactRecord]:
         """The step's complete impacts as stored (read back, so live processing sees what reprocessing will)."""
