@@ -5,6 +5,7 @@ way configuration files are read: ``labctl.data.schema`` (typed keys, one error 
 from __future__ import annotations
 
 import tomllib
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -12,8 +13,10 @@ from typing import Any
 from labctl.errors import InputError
 
 
+@cache
 def data_path(name: str) -> Path:
-    """Path of a shipped data file, e.g. ``data_path("rigs/paper_rig.toml")``."""
+    """Path of a shipped data file, e.g. ``data_path("rigs/paper_rig.toml")`` (looked up once per name: the
+    catalogues ask for theirs at every roller and material they resolve)."""
     return Path(str(resources.files("labctl.data").joinpath(name)))
 
 
