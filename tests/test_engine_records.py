@@ -3,6 +3,8 @@ are exactly what a reader of the file returns (bit for bit, verdicts included); 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -57,7 +59,7 @@ def _record(attempt: int, force: np.ndarray, accel: np.ndarray, cal: Calibration
     return ImpactRecord(info, ("A1X", "A1Y"), force, accel, cal)
 
 
-def _one_step_file(path) -> CampaignWriter:  # noqa: ANN001
+def _one_step_file(path: Path) -> CampaignWriter:
     """A new campaign file with series 1, repetition 1 and step 1 begun, open for writing impacts."""
     w = CampaignWriter.create(path, protocol_name="t", backend="sim", seed=None, config_files={}, description={})
     w.series(1, SpecimenRecord(label="x"))

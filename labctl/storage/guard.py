@@ -18,6 +18,7 @@ import h5py
 from labctl.storage import schema as s
 from labctl.storage.diskspace import RESERVE_BYTES, DiskFull, discard, is_full, reserve
 from labctl.storage.reader import complete_impacts
+from labctl.storage.records import ImpactInfo
 from labctl.storage.rollback import JournaledFile
 
 T = TypeVar("T")
@@ -40,7 +41,7 @@ class WriteGuard:
     h5: h5py.File
     path: str
     _accepted: int | None
-    _infos: dict[tuple[int, int, int], Any]
+    _infos: dict[tuple[int, int, int], list[ImpactInfo]]
 
     def _kept(self) -> int:
         try:

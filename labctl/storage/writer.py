@@ -254,22 +254,26 @@ class CampaignWriter(WriteGuard):
         self._infos.get((series, run, step), []).append(info)
         return replace(record, force_n=force_n, accel_m_per_s2=accel)
 
-    def _verdict(self, g: h5py.Group, verdict: Verdict) -> None:
+    def _verdict(self, g: h5py.Group, verdict: Verdict) -> ImpactInfo:
+        """Write the verdict and return the impact's info as a reader will read it (the reasons attribute is
+        rewritten from it: the checks' reasons are read without the operator's, so it does not change them)."""
         if self._accepted is not None:
             self._accepted += int(verdict.accepted) - int(bool(g.attrs.get("accepted", False)))
         g.attrs["accepted"] = bool(verdict.accepted)
         g.attrs["verdict_source"] = verdict.source
         g.attrs["verdict_reason"] = verdict.reason
-        g.attrs["reasons"] = json.dumps(list(impact_info(g).reasons))
+        info = impact_info(g)
+        g.attrs["reasons"] = json.dumps(list(info.reasons))
+        return info
 
     @guarded
     def set_verdict(self, series: int, run: int, step: int, attempt: int, verdict: Verdict) -> None:
         """Record the operator's (or the checks') verdict on a stored impact and flush."""
         g = self.h5[s.series_name(series)][s.run_name(run)][s.step_name(step)][s.impact_name(attempt)]
-        self._verdict(g, verdict)
+        info = self._verdict(g, verdict)
         self.h5.flush()
         infos = self._infos.get((series, run, step), [])
-        infos[:] = [impact_info(g) if i.attempt == attempt else i for i in infos]
+        infos[:] = [info if i.attempt == attempt else i for i in infos]
 
     @guarded
     def write_step_result(self, series: int, run: int, step: int, result: StepResult) -> None:
