@@ -5,11 +5,17 @@ from __future__ import annotations
 import fcntl
 import gc
 import json
+import os
 from pathlib import Path
 
 import pytest
 
-from drivers.sim import RigTwin
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+"""One BLAS thread per test process, set before numpy loads: pytest runs three workers on two cores, where
+OpenBLAS's own threads only wait for each other (the linear-algebra-heavy files spent a third more CPU on it).
+Inherited by the workers and every subprocess; an environment that sets it keeps its own."""
+
+from drivers.sim import RigTwin  # noqa: E402 - numpy loads here, after the setting above
 
 GC_YOUNG_THRESHOLD = 50_000
 """Allocations between collections of the youngest generation in the test process (Python's default: 700)."""
