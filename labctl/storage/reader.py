@@ -186,6 +186,18 @@ class StepInfo:
         return float(self.attrs.get("load_after_n", np.nan))
 
 
+def processed_steps(run_group: h5py.Group) -> list[tuple[int, float, float, StepResult]]:
+    """(step, load, knob angle, result) of a repetition's identified steps, in step order: what its curve is built
+    from (the impacts' attributes are not read)."""
+    out = []
+    for g in s.children(run_group, "step_"):
+        result = step_result_of(g)
+        if result is not None:
+            a = g.attrs
+            out.append((s.number(g), float(a.get("load_n", np.nan)), float(a.get("knob_angle_deg", np.nan)), result))
+    return out
+
+
 def step_info(series: int, run: int, g: h5py.Group) -> StepInfo:
     a = attrs_of(g)
     return StepInfo(series, run, s.number(g), float(a.get("load_n", np.nan)), float(a.get("knob_angle_deg", np.nan)),
@@ -207,9 +219,7 @@ def curve_of(run_group: h5py.Group, series: int, specimen: str) -> RepetitionCur
     if c is None:
         return None
     run = s.number(run_group)
-    steps = [step_info(series, run, g) for g in s.children(run_group, "step_")]
-    built = curve_from_steps(series, run, specimen,
-                             [(st.step, st.load_n, st.knob_angle_deg, st.result) for st in steps if st.result])
+    built = curve_from_steps(series, run, specimen, processed_steps(run_group))
     stored = {k: np.asarray(c[k][()]) for k in c}
     if "step" not in stored:  # schema 1 stored no step numbers: the identified steps in order
         stored["step"] = built.step if built.step.size == stored["load_n"].size else np.arange(

@@ -27,7 +27,7 @@ from labctl.storage.diskspace import DiskFull, discard, trim
 from labctl.storage.encode import _attrs, _write_trace, impact_attrs, write_frf
 from labctl.storage.guard import WriteGuard, guarded
 from labctl.storage.inuse import clear_writer, in_use_message, is_lock_error, mark_writer
-from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, step_info
+from labctl.storage.reader import attrs_of, complete_impacts, curves_of, impact_info, impact_record, processed_steps
 from labctl.storage.records import (
     ImpactInfo,
     ImpactRecord,
@@ -299,13 +299,7 @@ class CampaignWriter(WriteGuard):
 
     def step_results(self, series: int, run: int) -> list[tuple[int, float, float, StepResult]]:
         """(step, load, knob angle, result) of a repetition's processed steps, in step order."""
-        rg = self.h5[s.series_name(series)][s.run_name(run)]
-        out = []
-        for g in s.children(rg, "step_"):
-            info = step_info(series, run, g)
-            if info.result is not None:
-                out.append((info.step, info.load_n, info.knob_angle_deg, info.result))
-        return out
+        return processed_steps(self.h5[s.series_name(series)][s.run_name(run)])
 
     def run_attrs(self, series: int, run: int) -> dict[str, Any]:
         """A repetition's attributes (decoded), e.g. the load steps an adaptive campaign added to it."""
