@@ -15,7 +15,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 OpenBLAS's own threads only wait for each other (the linear-algebra-heavy files spent a third more CPU on it).
 Inherited by the workers and every subprocess; an environment that sets it keeps its own."""
 
-from drivers.sim import RigTwin  # noqa: E402 - numpy loads here, after the setting above
+os.environ.setdefault("TEXTUAL_FPS", "5")
+"""The tests' own Textual apps draw 5 frames a second (the shipped default is 20: ``labctl.tui.FRAME_RATE_HZ``): they
+run headless, no one watches their frames, and what the tests assert is the widgets' state and explicit renders and
+screenshots. A quarter of the redraws saved about a sixth of the TUI files' CPU. The tests that run the app in a
+real terminal or browser (tmux, the served page) start it without this setting, at the shipped rate."""
+
+from drivers.sim import RigTwin  # noqa: E402 - numpy loads here, after the settings above
 
 GC_YOUNG_THRESHOLD = 50_000
 """Allocations between collections of the youngest generation in the test process (Python's default: 700)."""

@@ -107,8 +107,8 @@ def test_tmux_acceptance_shows_step_progress_and_bounce_frequency(tmp_path):
     # another checkout's)
     # --auto-confirm 0.1: the clean blows and the prompts answer themselves at once (the default 3 s countdown,
     # nine times over, is what the test waited for; the countdown itself is test_tui_gate's)
-    cmd = (f"env PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml --backend sim "
-           "--autostart --auto-confirm 0.1")
+    cmd = (f"env -u TEXTUAL_FPS PYTHONPATH={ROOT} {sys.executable} -m labctl tui protocols/quick_check.toml "
+           "--backend sim --autostart --auto-confirm 0.1")
     subprocess.run(["tmux", "new", "-d", "-s", session, "-x", "80", "-y", "24", "-c", str(tmp_path), cmd], check=True)
     def capture() -> str:
         return subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True, text=True).stdout

@@ -85,8 +85,8 @@ def test_gate_drift_prompt_and_browser_are_readable_at_100x30(tmp_path: Path):
                      + "\n[faults]\ncreep_rate = 1.0\ncreep_n_per_s = -10.0\ndead_channel_rate = 1.0\n",
                      encoding="utf-8")
     session = f"labctl-h28-{os.getpid()}"
-    cmd = (f"env -u COLUMNS -u LINES PYTHONPATH={ROOT} {sys.executable} -m labctl tui quick_check --autostart "
-           f"--no-auto-confirm --world {world} --seed 2 --out t.h5")
+    cmd = (f"env -u COLUMNS -u LINES -u TEXTUAL_FPS PYTHONPATH={ROOT} {sys.executable} -m labctl tui quick_check "
+           f"--autostart --no-auto-confirm --world {world} --seed 2 --out t.h5")
     tmux("new", "-d", "-s", session, "-x", str(COLS), "-y", str(ROWS), "-c", str(tmp_path), cmd, check=True)
     shots: dict[str, str] = {}
     try:

@@ -138,7 +138,7 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
 
     campaign = short_campaign_file(tmp_path / "c.h5", seed=3, reps=1)
     port = _free_port()
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**{k: v for k, v in os.environ.items() if k != "TEXTUAL_FPS"}, "PYTHONPATH": str(ROOT)}  # the shipped rate
     server = subprocess.Popen([sys.executable, "-m", "labctl", "tui", "--watch", str(campaign), "--serve",
                                "--port", str(port)], env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL, start_new_session=True)
