@@ -32,7 +32,9 @@ def timed_ci(repo: Path, revision: str, work: Path) -> tuple[float, float, str]:
                           capture_output=True, text=True)
     wall, after = time.monotonic() - start, os.times()
     lines = [ln for ln in proc.stdout.splitlines() if ln.strip()]
-    return wall, after.children_user - before.children_user, (lines[-1] if lines else proc.stderr.strip()[-200:])
+    failed = [ln for ln in lines if ln.startswith(("FAILED", "ERROR"))]
+    last = lines[-1] if lines else proc.stderr.strip()[-200:]
+    return wall, after.children_user - before.children_user, "\n".join([last, *failed])
 
 
 def main() -> None:
