@@ -54,6 +54,12 @@ def labctl_process(*args: str, timeout: float = 300, cwd: str | None = None) -> 
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=env)
 
 
+def shipped_environment(**extra: str) -> dict[str, str]:
+    """This process's environment without the tests' own frame rate (``TEXTUAL_FPS``, set in conftest), plus
+    ``extra``: a labctl started with it draws at the rate labctl ships."""
+    return {**{k: v for k, v in os.environ.items() if k != "TEXTUAL_FPS"}, **extra}
+
+
 def labctl_json(*args: str, **kw: Any) -> dict[str, Any]:
     return one_json_object(labctl(*args, "--json", **kw))
 

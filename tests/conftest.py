@@ -12,14 +12,14 @@ import pytest
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 """One BLAS thread per test process, set before numpy loads: pytest runs three workers on two cores, where
-OpenBLAS's own threads only wait for each other (the linear-algebra-heavy files spent a third more CPU on it).
+OpenBLAS's own threads only wait for each other (the linear-algebra-heavy files spent half as much CPU again).
 Inherited by the workers and every subprocess; an environment that sets it keeps its own."""
 
 os.environ.setdefault("TEXTUAL_FPS", "5")
 """The tests' own Textual apps draw 5 frames a second (the shipped default is 20: ``labctl.tui.FRAME_RATE_HZ``): they
 run headless, no one watches their frames, and what the tests assert is the widgets' state and explicit renders and
 screenshots. A quarter of the redraws saved about a sixth of the TUI files' CPU. The tests that run the app in a
-real terminal or browser (tmux, the served page) start it without this setting, at the shipped rate."""
+real terminal or browser (tmux, the served page) start it without this setting (``shipped_environment``)."""
 
 from drivers.sim import RigTwin  # noqa: E402 - numpy loads here, after the settings above
 

@@ -4,7 +4,6 @@ operator's hand-over between threads, and ``labctl tui`` argument errors (one li
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 import threading
 
@@ -19,7 +18,7 @@ from labctl.protocol import load_protocol
 from labctl.tui import plotdata as pd
 from labctl.tui.operator import TuiOperator
 from labctl.tui.state import CampaignState, clock, reason_text
-from tests.cli_util import assert_one_line_error, labctl
+from tests.cli_util import assert_one_line_error, labctl, shipped_environment
 from tests.engine_util import impact_event, step_event
 
 
@@ -276,8 +275,7 @@ def test_the_screen_redraws_at_most_twenty_times_a_second_unless_textual_fps_say
     """The acquisition PC draws the screen too: 20 frames a second by default, TEXTUAL_FPS still overrides."""
     import sys
 
-    environ = {k: v for k, v in os.environ.items() if k != "TEXTUAL_FPS"}
-    environ |= {} if env is None else {"TEXTUAL_FPS": env}
+    environ = shipped_environment(**({} if env is None else {"TEXTUAL_FPS": env}))
     code = "import labctl.tui, textual.screen as s; print(repr(s.UPDATE_PERIOD))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=environ, check=True)
     assert float(out.stdout) == pytest.approx(period_s)

@@ -19,6 +19,7 @@ from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.watch import read_snapshot
 from labctl.tui.watcher import WatchScreen
+from tests.cli_util import shipped_environment
 from tests.engine_util import stepped_protocol_text
 from tests.test_tui import SIZE, wait_for
 
@@ -138,7 +139,7 @@ def test_serve_shows_the_watch_screen_in_headless_chromium(tmp_path: Path):
 
     campaign = short_campaign_file(tmp_path / "c.h5", seed=3, reps=1)
     port = _free_port()
-    env = {**{k: v for k, v in os.environ.items() if k != "TEXTUAL_FPS"}, "PYTHONPATH": str(ROOT)}  # the shipped rate
+    env = shipped_environment(PYTHONPATH=str(ROOT))
     server = subprocess.Popen([sys.executable, "-m", "labctl", "tui", "--watch", str(campaign), "--serve",
                                "--port", str(port)], env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL, start_new_session=True)

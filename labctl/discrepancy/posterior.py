@@ -50,7 +50,7 @@ BEND_SIGMA = 0.5
 over all roller cases (the same law for every roller: an approximate form that still generalises)."""
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
-"""The noise-variance inflations every candidate's evidence is computed at (the calibration's grid)."""
+"""The noise-variance inflations a bench stores every candidate's evidence at (``--rescore`` decides again)."""
 TEMPERATURE = 16.0
 """The inflation the decision uses, chosen on the blind worlds: the calibration seeds' lowest log loss (T = 48) ranks
 the truth first less often on the evaluation seeds and on the second judge (docs/discrepancy.md)."""
