@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -63,13 +64,27 @@ def short_npz(impacts_npz, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
+def foreign(short_npz, tmp_path_factory) -> dict[bool, Path]:
+    """The short blows as another system's UFF, ASCII (False) and binary (True), each written once: pyuff's writer
+    re-reads the whole file after every set, so a file costs about half a second."""
+    folder = tmp_path_factory.mktemp("foreign")
+    return {binary: write_foreign_uff(short_npz, folder / f"{binary}.uff", binary=binary) for binary in (False, True)}
+
+
+def copy_of(foreign: dict[bool, Path], dest: Path, *, binary: bool) -> Path:
+    """This test's own copy of the foreign file, under the name it uses."""
+    shutil.copyfile(foreign[binary], dest)
+    return dest
+
+
+@pytest.fixture(scope="module")
 def campaign(tmp_path_factory) -> Path:
     return short_campaign_file(tmp_path_factory.mktemp("campaign") / "c.h5", seed=5)
 
 
 @pytest.mark.parametrize("binary", [False, True])
-def test_uff_written_by_pyuff_identifies_like_the_npz(short_npz, tmp_path, binary, capsys):
-    uff = write_foreign_uff(short_npz, tmp_path / "x.uff", binary=binary)
+def test_uff_written_by_pyuff_identifies_like_the_npz(short_npz, foreign, tmp_path, binary, capsys):
+    uff = copy_of(foreign, tmp_path / "x.uff", binary=binary)
     from_npz = labctl_here_json(capsys, "identify", str(short_npz))
     from_uff = labctl_here_json(capsys, "identify", str(uff))
     assert from_uff["fs_hz"] == 20480.0  # recovered from the 6-digit interval 4.88281e-05 s
@@ -185,8 +200,8 @@ def test_export_and_import_with_the_manifest_reproduce_the_campaign(campaign, tm
     assert curve is not None and len(curve["load_n"]) == sum(1 for s in original if s["run"] == 2)
 
 
-def test_import_of_a_foreign_file_with_a_hand_written_manifest(short_npz, tmp_path, capsys):
-    uff = write_foreign_uff(short_npz, tmp_path / "pak.uff", binary=True)
+def test_import_of_a_foreign_file_with_a_hand_written_manifest(short_npz, foreign, tmp_path, capsys):
+    uff = copy_of(foreign, tmp_path / "pak.uff", binary=True)
     manifest = tmp_path / "m.csv"
     manifest.write_text("load_cases,load_n,repetition\n1-2,440,1\n3,440,2\n", encoding="utf-8")
     res = labctl_here_json(capsys, "import", str(uff), "--manifest", str(manifest), "--out", str(tmp_path / "c.h5"),
@@ -197,11 +212,11 @@ def test_import_of_a_foreign_file_with_a_hand_written_manifest(short_npz, tmp_pa
     assert abs(res["steps"][0]["bounce_hz"] - npz["bounce_hz"]) <= 0.05 + 2 * npz["bounce_hz_std"]
 
 
-def test_manifest_and_option_errors_name_the_row_and_column(short_npz, tmp_path):
+def test_manifest_and_option_errors_name_the_row_and_column(foreign, tmp_path):
     from labctl.errors import InputError
     from labctl.uff.importer import ImportOptions, import_uff
 
-    uff = write_foreign_uff(short_npz, tmp_path / "x.uff", binary=True)
+    uff = copy_of(foreign, tmp_path / "x.uff", binary=True)
     out = tmp_path / "c.h5"
     manifest = tmp_path / "m.csv"
     cases = [
@@ -229,11 +244,11 @@ def test_manifest_and_option_errors_name_the_row_and_column(short_npz, tmp_path)
     assert_one_line_error(proc, "node map entry")
 
 
-def test_corrupt_and_truncated_uff_files_are_refused(short_npz, tmp_path, capsys):
+def test_corrupt_and_truncated_uff_files_are_refused(foreign, tmp_path, capsys):
     from labctl.errors import InputError
     from labctl.uff import load_impacts_uff
 
-    good = write_foreign_uff(short_npz, tmp_path / "good.uff")
+    good = copy_of(foreign, tmp_path / "good.uff", binary=False)
     data = good.read_bytes()
     truncated = tmp_path / "cut.uff"
     truncated.write_bytes(data[: len(data) // 2])
@@ -300,15 +315,15 @@ def test_load_case_lists_and_node_maps():
 
 
 @pytest.mark.parametrize("binary", [False, True])
-def test_fast_reader_decodes_every_set_exactly_as_pyuff(campaign, short_npz, tmp_path, binary, capsys):
+def test_fast_reader_decodes_every_set_exactly_as_pyuff(campaign, foreign, tmp_path, binary, capsys):
     """The vectorised decoding (58b by byte count, ASCII in one call) agrees with pyuff value for value."""
     from labctl.uff import UffFile
 
-    foreign = write_foreign_uff(short_npz, tmp_path / "f.uff", binary=binary)
+    theirs = copy_of(foreign, tmp_path / "f.uff", binary=binary)
     ours = tmp_path / "e.uff"  # real time records, complex FRFs and coherences
     labctl_here_json(capsys, "export", str(campaign), "--uff", str(ours), "--run", "1", "--step", "1",
                      "--binary" if binary else "--ascii")
-    for path in (foreign, ours):
+    for path in (theirs, ours):
         uff = UffFile(path)
         want = _read_all(path)
         assert len(uff.headers) == len(want)
