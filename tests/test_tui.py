@@ -22,7 +22,7 @@ from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot
-from tests.engine_util import Recorder, impact_event, short_protocol
+from tests.engine_util import Recorder, impact_event, quick_check_short, short_protocol
 
 pytestmark = pytest.mark.slow  # each test runs a campaign through the app
 
@@ -54,9 +54,9 @@ def panel_titles(lines: list[str]) -> list[str]:
 
 
 def quick_settings(tmp_path: Path, **kw) -> TuiSettings:
-    """quick_check without the per-hit gate (tests/test_tui_gate.py drives the gate)."""
+    """quick_check (its short-record form) without the per-hit gate (tests/test_tui_gate.py drives the gate)."""
     kw.setdefault("review_hits", False)
-    return TuiSettings(protocol=load_protocol("quick_check"), out=tmp_path / "qc.h5", seed=1, **kw)
+    return TuiSettings(protocol=quick_check_short(), out=tmp_path / "qc.h5", seed=1, **kw)
 
 
 async def test_autostart_quick_check_progress_pause_prompt_and_finish(tmp_path):
@@ -171,7 +171,7 @@ async def test_quit_with_a_prompt_open_stops_cleanly_and_the_file_resumes(tmp_pa
     assert app.outcome is not None and app.outcome.status == "interrupted"
     with CampaignReader(tmp_path / "qc.h5") as r:
         assert r.attrs["status"] == "interrupted"
-    again = run_campaign("quick_check", out=tmp_path / "qc.h5", resume=True)
+    again = run_campaign(quick_check_short(), out=tmp_path / "qc.h5", resume=True)
     assert again.status == "complete" and len(again.curves[0]["load_n"]) == 3
 
 

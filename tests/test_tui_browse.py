@@ -19,6 +19,7 @@ from labctl.tui.browser import BrowserScreen
 from labctl.tui.dialogs import ConfirmDialog, PromptDialog
 from labctl.tui.plots import StiffnessPlot, TracePlot
 from labctl.tui.setup import SetupScreen
+from tests.engine_util import quick_check_short
 from tests.test_tui import SIZE, wait_for
 
 pytestmark = pytest.mark.slow  # each test runs a campaign through the app
@@ -29,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     path = tmp_path_factory.mktemp("browse") / "qc.h5"
-    assert run_campaign("quick_check", out=path, seed=4).status == "complete"
+    assert run_campaign(quick_check_short(), out=path, seed=4).status == "complete"
     return path
 
 

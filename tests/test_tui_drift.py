@@ -130,7 +130,7 @@ async def test_a_drift_a_dead_channel_and_an_override_each_appear_live(tmp_path:
             await wait_for(pilot, lambda d=dialog: d.closed, what="the dialog to close")
             if app.screen is not dialog:
                 app.monitor.refresh_header()
-        log = "\n".join(str(line.text) for line in app.monitor.query_one("#log").lines)
+        log = " ".join(" ".join(str(line.text) for line in app.monitor.query_one("#log").lines).split())  # unwrapped
     assert app.outcome.status == "aborted"
     assert {"WAITING FOR YOU", "JUDGE THE BLOW"} <= headers and "ARMED" not in headers
     assert "load drifted from" in log and "resumed: the operator continued past load drift" in log

@@ -14,21 +14,17 @@ import numpy as np
 import pytest
 
 from labctl import events as ev
-from labctl.protocol import load_protocol
 from labctl.storage import CampaignReader
 from labctl.tui import LabApp, TuiSettings
 from labctl.tui.dialogs import ConfirmDialog, PromptDialog, ReviewDialog
-from tests.engine_util import Recorder
+from tests.engine_util import Recorder, quick_check_short
 from tests.test_tui import SIZE, wait_for
 
 pytestmark = pytest.mark.slow  # each test runs a campaign through the app
 
-PROTOCOL = Path(__file__).parent.parent / "protocols" / "quick_check.toml"
-
-
 def gate_settings(tmp_path: Path, **kw) -> TuiSettings:
     kw.setdefault("arm_grace_s", 0.0)  # no grace after each verdict: the tests answer at once
-    return TuiSettings(protocol=load_protocol(PROTOCOL), out=tmp_path / "gate.h5", seed=2, autostart=True, **kw)
+    return TuiSettings(protocol=quick_check_short(), out=tmp_path / "gate.h5", seed=2, autostart=True, **kw)
 
 
 async def next_dialog(pilot, app):
