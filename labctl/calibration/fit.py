@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import t as student_t
+from scipy.special import stdtrit  # Student t quantile: what scipy.stats.t.ppf computes
 
 from labctl.calibration.data import BallStep
 from labctl.errors import InputError
@@ -349,7 +349,7 @@ def _coverage_factors(problem: _Problem, x: np.ndarray, cov: np.ndarray, seating
         return np.ones(len(x))
     share = np.clip(1.0 - without / np.diag(cov), 1e-6, 1.0)
     nu = (runs - 1) / share**2
-    return np.maximum(student_t.ppf(TWO_SIGMA_COVERAGE, nu) / 2.0, 1.0)
+    return np.maximum(stdtrit(nu, TWO_SIGMA_COVERAGE) / 2.0, 1.0)
 
 
 def _fit_with_scatter(problem: _Problem, obs: Observations, x0: np.ndarray

@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy.special import fdtrc  # the F distribution's survival function: what scipy.stats.f.sf computes
 
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.errors import InputError
@@ -97,7 +97,7 @@ class NoiseFloor:
             if df <= 0 or self.dof <= 0:
                 return None
             f = s_model / df
-            return LackOfFit(f, df, self.dof, float(stats.f.sf(f, df, self.dof)))
+            return LackOfFit(f, df, self.dof, float(fdtrc(df, self.dof, f)))
         m = len(self.groups)
         cells = np.zeros((n, m))
         for j, g in enumerate(self.groups):
@@ -110,7 +110,7 @@ class NoiseFloor:
         if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
             return None
         f = max(0.0, s_model - s_pure) / df_lack / (s_pure / df_pure)
-        return LackOfFit(f, df_lack, df_pure, float(stats.f.sf(f, df_lack, df_pure)))
+        return LackOfFit(f, df_lack, df_pure, float(fdtrc(df_lack, df_pure, f)))
 
     def lack_of_fit_p(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
                       ) -> float | None:
