@@ -42,6 +42,7 @@ from discrepancy_scores import (
     calibrate,
     detail,
     reliability,
+    reliability_by_kind,
     retemper,
     summarize_blind,
     summarize_calibration,
@@ -324,6 +325,7 @@ def main() -> None:
         table, holds = reliability(blind)
         parts.append("Reliability of the top explanation's stated probability\n\n" + table +
                      f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
+        parts.append("The same, by the kind of top explanation\n\n" + reliability_by_kind(blind))
         if calibrating:
             table, best = calibrate(blind, TEMPERATURES)
             parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}")

@@ -216,6 +216,28 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
     return _table(rows, header), ok
 
 
+def reliability_by_kind(results: list[dict[str, Any]]) -> str:
+    """The reliability table split by what the top explanation is: "none" (no effect), a library or
+    measurement-side explanation, or "unlisted" (outside the library); "none" is also split by whether the
+    world's effect is under 3σ (too small for the acceptance's top-1 to count it)."""
+    rows = []
+    kinds = (("none", lambda r: r["top"] == "none"), ("named", lambda r: r["top"] not in ("none", "unlisted")),
+             ("unlisted", lambda r: r["top"] == "unlisted"))
+    for kind, is_kind in kinds:
+        mine = [r for r in results if is_kind(r)]
+        for lo, hi in BINS:
+            inside = [r for r in mine if lo <= r["top_probability"] < hi]
+            if not inside:
+                continue
+            k = sum(r["top"] == r["truth_name"] for r in inside)
+            small = sum(r["truth_name"] != "none" and r["size_sigma"] < 3.0 for r in inside)
+            rows.append([kind, f"{lo:.3g}-{min(hi, 1):.3g}", str(len(inside)),
+                         f"{np.mean([r['top_probability'] for r in inside]):.3f}",
+                         f"{k / len(inside):.3f} ({k}/{len(inside)})", str(small)])
+    return _table(rows, ["top explanation", "stated probability", "n", "mean stated", "share right",
+                         "of them: a world with an effect under 3σ"])
+
+
 def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float]:
     """The temperature minimising the log loss of the true explanation's probability (and each T's score)."""
     rows, best = [], (math.inf, grid[0])
