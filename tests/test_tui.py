@@ -4,6 +4,7 @@ the technician's verdict on an impact, a clean quit mid-run, and the committed S
 
 from __future__ import annotations
 
+import asyncio
 import html
 import os
 import re
@@ -31,13 +32,15 @@ SIZE = (160, 48)
 
 
 async def wait_for(pilot, condition: Callable[[], object], timeout_s: float = 30.0, what: str = "") -> object:
-    """Let the app run until ``condition()`` is truthy (the engine works in its own thread meanwhile)."""
+    """Let the app run until ``condition()`` is truthy (the engine works in its own thread meanwhile). It sleeps
+    between looks rather than ``pilot.pause``, which forces a screen update each time: the app draws at its own
+    frame rate, and the conditions read the app's state, not its pixels."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         value = condition()
         if value:
             return value
-        await pilot.pause(0.05)
+        await asyncio.sleep(0.05)
     raise AssertionError(f"timed out waiting for {what or condition}")
 
 

@@ -8,6 +8,7 @@ test hook (``RigTwin.next_blow_double``) from a wrapper around ``RigTwin.strike`
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 
 import numpy as np
@@ -103,7 +104,7 @@ async def test_auto_accept_takes_clean_hits_after_the_countdown_but_a_flagged_hi
         assert "never accepts itself" in str(gate.query_one("#countdown").render())
         await pilot.press("r")  # agrees with the checks: no reason asked
         while app.outcome is None:  # clean blows accept themselves; any other flagged one waits for "r"
-            await pilot.pause(0.05)
+            await asyncio.sleep(0.05)  # the app draws at its own rate meanwhile (tests/test_tui.py: wait_for)
             if isinstance(app.screen, ReviewDialog) and not app.screen.closed:
                 if app.screen.request.review.checks_accepted:
                     assert app.screen.request.review.attempt > 0
