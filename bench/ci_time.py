@@ -6,12 +6,14 @@ command) is timed there, ``--rounds`` times, the revisions alternating so that t
 
     python bench/ci_time.py --reference c74b05f --rounds 2
 
-Prints each run (wall, user CPU, pytest's summary line) and the ratio of the mean walls.
+Prints each run (wall, user CPU, pytest's summary line), the ratio of the mean walls, each round's ratio and, from
+two rounds on, their mean, spread and one-sided 95 % upper bound (is the ratio at most one half at that level?).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import subprocess
@@ -19,6 +21,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from scipy.special import stdtrit
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -58,6 +62,13 @@ def main() -> None:
                        capture_output=True)
     ref, new = statistics.mean(walls[args.reference]), statistics.mean(walls[head])
     print(f"mean wall: {args.reference} {ref:.1f} s, {head} {new:.1f} s; ratio {new / ref:.3f}")
+    ratios = [n / r for r, n in zip(walls[args.reference], walls[head], strict=True)]
+    print("each round's ratio: " + ", ".join(f"{q:.3f}" for q in ratios))
+    if len(ratios) >= 2:
+        mean, sd = statistics.mean(ratios), statistics.stdev(ratios)
+        upper = mean + stdtrit(len(ratios) - 1, 0.95) * sd / math.sqrt(len(ratios))
+        print(f"ratio {mean:.3f} ± {sd:.3f} (mean ± sd of {len(ratios)} rounds); one-sided 95 % upper bound "
+              f"(Student t) {upper:.3f}: {'at most' if upper <= 0.5 else 'not shown to be at most'} half")
 
 
 if __name__ == "__main__":
