@@ -218,8 +218,8 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
 
 def reliability_by_kind(results: list[dict[str, Any]]) -> str:
     """The reliability table split by what the top explanation is: "none" (no effect), a library or
-    measurement-side explanation, or "unlisted" (outside the library); "none" is also split by whether the
-    world's effect is under 3σ (too small for the acceptance's top-1 to count it)."""
+    measurement-side explanation, or "unlisted" (outside the library); each row also counts its worlds whose effect
+    is under 3σ (too small for the acceptance's top-1 to count it)."""
     rows = []
     kinds = (("none", lambda r: r["top"] == "none"), ("named", lambda r: r["top"] not in ("none", "unlisted")),
              ("unlisted", lambda r: r["top"] == "unlisted"))
@@ -233,7 +233,7 @@ def reliability_by_kind(results: list[dict[str, Any]]) -> str:
             small = sum(r["truth_name"] != "none" and r["size_sigma"] < 3.0 for r in inside)
             rows.append([kind, f"{lo:.3g}-{min(hi, 1):.3g}", str(len(inside)),
                          f"{np.mean([r['top_probability'] for r in inside]):.3f}",
-                         f"{k / len(inside):.3f} ({k}/{len(inside)})", str(small)])
+                         _frac(k, len(inside)), str(small)])
     return _table(rows, ["top explanation", "stated probability", "n", "mean stated", "share right",
                          "of them: a world with an effect under 3σ"])
 

@@ -4,7 +4,6 @@ identification that runs the engine's logic into a ``MemoryStore`` in millisecon
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
@@ -12,7 +11,7 @@ from drivers.errors import DeviceTimeout
 from drivers.interfaces import Channel, LoadReading, Record, Rig, TriggerSpec
 from drivers.operators import ScriptedOperator
 from labctl import events as ev
-from labctl.protocol import parse_protocol
+from labctl.protocol import load_protocol, parse_protocol
 from labctl.storage.memory import MemoryStore
 from labctl.storage.records import ImpactOutcome, StepFrf, StepResult, failed_step
 
@@ -42,15 +41,13 @@ def short_protocol(max_load: float = 120.0, step: float = 360.0, samples: int = 
                           "short.toml")
 
 
-QUICK_CHECK_TEXT = (Path(__file__).parent.parent / "protocols" / "quick_check.toml").read_text(encoding="utf-8")
-
-
 def quick_check_short(samples: int = 16384):  # noqa: ANN201 - a Protocol
     """The shipped quick_check, name and steps, with records of ``samples`` (0.8 s: the blow has died out) instead
     of 3.2 s: for tests of the flow (screens, dialogs, the gate), not of the numbers; a quarter of the twin's work
     per blow."""
-    text = QUICK_CHECK_TEXT.replace("samples = 65536", f"samples = {samples}")
-    assert text != QUICK_CHECK_TEXT, "quick_check.toml no longer says samples = 65536"
+    shipped = load_protocol("quick_check").source_text
+    text = shipped.replace("samples = 65536", f"samples = {samples}")
+    assert text != shipped, "quick_check.toml no longer says samples = 65536"
     return parse_protocol(text, "quick_check.toml")
 
 
