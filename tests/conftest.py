@@ -50,17 +50,31 @@ HEAVY_FILES = frozenset({"test_discrepancy_workflow.py", "test_uff.py", "test_ba
 out with the slow ones, so that the last files to finish are short."""
 
 
+WAITING_SHARE = 3
+"""One test file that waits is handed out for every ``WAITING_SHARE`` files handed out in all: three workers on two
+cores keep both busy while one of them waits, not while two or three do."""
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Test files that wait on other processes or real time (``waits``) are handed out first, then files with
-    ``slow`` tests and the ``HEAVY_FILES``, then the rest, each group in its collected order: under xdist's
-    per-file distribution the waiting overlaps the other workers' computing, and the last files to finish are
-    short ones."""
+    """The order test files are handed out in (under xdist's per-file distribution, each to the next free worker):
+    files that wait on other processes or real time (``waits``) interleaved one in ``WAITING_SHARE`` with the
+    computing ones, which come as files with ``slow`` tests and the ``HEAVY_FILES`` first, then the rest, each group
+    in its collected order. The waiting overlaps the other workers' computing, and the last files to finish are
+    short computing ones."""
     tier: dict[str, int] = {}
     for item in items:
         rank = 0 if item.get_closest_marker("waits") else \
             1 if item.get_closest_marker("slow") or item.path.name in HEAVY_FILES else 2
         tier[item.path.name] = min(rank, tier.get(item.path.name, 2))
-    items.sort(key=lambda item: tier[item.path.name])
+    files = list(dict.fromkeys(item.path.name for item in items))
+    waiting = [f for f in files if tier[f] == 0]
+    computing = sorted((f for f in files if tier[f] > 0), key=lambda f: tier[f])
+    order: list[str] = []
+    while waiting or computing:
+        take_waiting = waiting and (not computing or len(order) % WAITING_SHARE == 0)
+        order.append(waiting.pop(0) if take_waiting else computing.pop(0))
+    position = {f: i for i, f in enumerate(order)}
+    items.sort(key=lambda item: position[item.path.name])
 
 
 @pytest.fixture

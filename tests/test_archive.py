@@ -24,7 +24,7 @@ from labctl.storage import campaign_stiffness_points, result_summary
 from labctl.storage.results import jsonable, read_results, results_path, write_results
 from tests.cli_util import assert_one_line_error, labctl_here, labctl_here_json
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 TYPES = (1, 3, 5, 6, 7)
 RAS_UM = (0.2, 0.03)

@@ -6,6 +6,8 @@ import pytest
 
 from tests.cli_util import assert_one_line_error, labctl, labctl_json, labctl_process, one_json_object
 
+pytestmark = pytest.mark.waits  # on labctl subprocesses (tests/conftest.py)
+
 
 def test_model_tripp_default_and_fitted_depth():
     out = one_json_object(labctl_process("model", "tripp", "--roller-type", "1", "--load-n", "440", "--json"))

@@ -22,7 +22,7 @@ from labctl.storage import CampaignReader
 from labctl.storage.rollback import RollbackFile, journal_path
 from tests.test_campaign_safety import SMALL
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 FORK = multiprocessing.get_context("fork")
 

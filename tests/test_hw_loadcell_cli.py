@@ -5,10 +5,13 @@ from __future__ import annotations
 import json
 import time
 
+import pytest
+
 from tests.cli_util import assert_one_line_error, labctl, labctl_json
 from tests.emulators.instruments import MtSicsDevice
 from tests.emulators.pty_serial import ExpectedProtocol, PtySerialEmulator
 
+pytestmark = pytest.mark.waits  # on labctl subprocesses against an emulated balance (tests/conftest.py)
 
 def test_read_prints_the_force_as_json() -> None:
     protocol = ExpectedProtocol([("SI", "S S      123.45 N")])

@@ -26,6 +26,8 @@ from tests.emulators import maker_mtsics
 from tests.emulators import maker_ni9234 as maker_ni
 from tests.emulators.maker_mcc1608fsplus_backend import Usb1608FsPlusBackend
 
+pytestmark = pytest.mark.waits  # on emulated instruments answering in real time (tests/conftest.py)
+
 G = 9.80665
 FORCE_V_PER_N, ACCEL_V_PER_MS2 = 0.23e-3, 0.1 / G
 T_BLOW = 0.05  # s after the scan starts

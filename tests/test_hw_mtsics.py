@@ -17,6 +17,8 @@ from drivers.interfaces import LoadCell, LoadReading
 from tests.emulators.instruments import MtSicsDevice
 from tests.emulators.pty_serial import ExpectedProtocol, Pause, PtySerialEmulator
 
+pytestmark = pytest.mark.waits  # on an emulated balance on a pseudo-terminal, in real time (tests/conftest.py)
+
 
 @contextmanager
 def exchange(pairs: list[tuple[str, Any]], **options: Any) -> Iterator[MtSicsLoadCell]:

@@ -16,6 +16,8 @@ from drivers.interfaces import Channel, Daq, TriggerSpec
 from tests.emulators import fake_nidaqmx as fake
 from tests.emulators.fake_nidaqmx import FakeNiHardware
 
+pytestmark = pytest.mark.waits  # on subprocesses and the emulated DAQ's real-time waits (tests/conftest.py)
+
 G = 9.80665
 N, PRE = 2048, 128
 TRIGGER = TriggerSpec(level_n=20.0, pretrigger_samples=PRE)

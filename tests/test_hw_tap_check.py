@@ -21,7 +21,7 @@ from tests.emulators.instruments import MtSicsDevice
 from tests.emulators.pty_serial import PtySerialEmulator
 from tests.test_hw_devices import PAPER_CHANNELS, daq_section, devices_file
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 G = 9.80665
 FS = 40e6 / 1953  # the MCC pacer's rate for 20 480 Hz

@@ -11,7 +11,7 @@ import pytest
 from labctl.errors import InputError
 from labctl.storage.isolated import TornRead, call_isolated
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 
 def crash() -> None:

@@ -17,6 +17,8 @@ from tests.emulators import maker_mtsics as mt
 from tests.emulators import maker_ni9234 as ni
 from tests.emulators.maker_mcc1608fsplus_backend import Usb1608FsPlusBackend
 
+pytestmark = pytest.mark.waits  # on emulated instruments answering in real time (tests/conftest.py)
+
 VENDOR_OUT, VENDOR_IN = 0x40, 0xC0
 
 

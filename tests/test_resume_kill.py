@@ -17,7 +17,7 @@ from labctl.storage import CampaignReader
 from tests.cli_util import labctl
 from tests.engine_util import short_protocol
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 
 def _labctl_cmd(*args: str) -> list[str]:

@@ -21,6 +21,8 @@ from labctl.tui.state import CampaignState, clock, reason_text
 from tests.cli_util import assert_one_line_error, labctl, shipped_environment
 from tests.engine_util import impact_event, step_event
 
+pytestmark = pytest.mark.waits  # on subprocesses and frame rates measured over real time (tests/conftest.py)
+
 
 def step_processed(step: int, load: float, bounce: float, k: float) -> ev.StepProcessed:
     f = np.linspace(0, 2000, 11)

@@ -23,7 +23,7 @@ from tests.cli_util import shipped_environment
 from tests.engine_util import stepped_protocol_text
 from tests.test_tui import SIZE, wait_for
 
-pytestmark = pytest.mark.waits  # on other processes or real time: scheduled first (tests/conftest.py)
+pytestmark = pytest.mark.waits  # on other processes or real time (tests/conftest.py)
 
 ROOT = Path(__file__).resolve().parents[1]
 
