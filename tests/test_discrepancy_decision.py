@@ -129,3 +129,24 @@ def test_a_ball_series_in_a_campaign_file_is_refused_with_one_line(tmp_path):
     with pytest.raises(InputError, match=r"series 1 is a ball run \(ball 8 mm, diameter 8 mm\)") as exc:
         load_points([path])
     assert "\n" not in str(exc.value)
+
+
+def test_a_baseline_the_lack_of_fit_test_rejects_leaves_none_no_probability():
+    """A tilt on a blind world (bench/blind, misalignment, seed 0, noise 0.5×): the baseline fails the lack-of-fit
+    test by far, yet the tempered evidence used to leave "none" the most probable explanation (0.55) under an
+    "unexplained" verdict."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from discrepancy_blind import blind_worlds, csv_points
+
+    from labctl.discrepancy.noise import CONSISTENT_P
+
+    result = run_discrepancy(csv_points(blind_worlds("blind").generate("misalignment", 0, 0.5).rows))
+    base = result.baseline
+    assert result.noise.lack_of_fit_p(result.data, base.residuals, base.sigma, base.spec.n_params()) < CONSISTENT_P
+    probability = {s.explanation.name: s.probability for s in result.scored}
+    assert probability["none"] == 0.0 and result.scored[0].explanation.name != "none"
+    assert math.isclose(sum(probability.values()), 1.0)
+    assert "none" not in result.verdict_text().split("most probable explanations:")[-1]
