@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from discrepancy_worlds import CALIBRATION
 
-from labctl.discrepancy.noise import CONSISTENT_P
+from labctl.discrepancy.posterior import rejected_explanations
 from labctl.physics import EFFECTS
 
 
@@ -167,11 +167,10 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
-    workflow's grid), most probable first; "none" left out where the baseline failed its lack-of-fit test, as in the
-    workflow."""
-    cands = r["candidates"]
-    if r.get("baseline_lof_p") is not None and r["baseline_lof_p"] < CONSISTENT_P:  # the workflow's rule
-        cands = [c for c in cands if c["explanation"] != "none"]  # (labctl.discrepancy.posterior.Evidence.rejected)
+    workflow's grid), most probable first; without the explanations the workflow rules out
+    (``rejected_explanations``)."""
+    ruled_out = rejected_explanations(r.get("baseline_lof_p"))
+    cands = [c for c in r["candidates"] if c["explanation"] not in ruled_out]
     lp = np.array([c["log_prior"] + c["log_evidence_by_temperature"][f"{temperature:g}"] for c in cands])
     p = np.exp(lp - lp.max())
     p /= p.sum()

@@ -207,9 +207,16 @@ class Scored:
                 "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
 
 
+def rejected_explanations(baseline_lof_p: float | None) -> frozenset[str]:
+    """The explanations the data have already ruled out: "none" when the lack-of-fit test at level ``CONSISTENT_P``
+    rejects the baseline. The tempered evidence (``TEMPERATURE``) shrinks a decisive misfit to less than "none"'s
+    prior lead, and an "unexplained" verdict then listed "none" as its most probable explanation. Without
+    repetitions (no test: ``None``) nothing is ruled out."""
+    return frozenset({"none"}) if baseline_lof_p is not None and baseline_lof_p < CONSISTENT_P else frozenset()
+
+
 def posterior(scored: list[Scored], temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> None:
-    """Fill in every candidate's probability; the ``rejected`` explanations get none (``Evidence.all``: "none"
-    once the lack-of-fit test has rejected the baseline)."""
+    """Fill in every candidate's probability; the ``rejected`` explanations (``rejected_explanations``) get none."""
     lp = np.array([-np.inf if s.explanation.name in rejected else s.log_prior + s.log_evidence_by_t[temperature]
                    for s in scored])
     p = np.exp(lp - logsumexp(lp))
@@ -332,12 +339,6 @@ class Evidence:
                     fits[(a,)].x))
                 fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
             scored.append(self.score(expl, fits[key], candidates))
-        posterior(scored, rejected=self.rejected(base))
+        lof_p = self.noise.lack_of_fit_p(self.data, base.residuals, base.sigma, base.spec.n_params())
+        posterior(scored, rejected=rejected_explanations(lof_p))
         return base, scored
-
-    def rejected(self, base: Fit) -> frozenset[str]:
-        """"none" when the lack-of-fit test at level ``CONSISTENT_P`` rejects the baseline: the tempered evidence
-        (``TEMPERATURE``) shrinks a decisive misfit to less than "none"'s prior lead, and an "unexplained" verdict
-        then listed "none" as its most probable explanation. Without repetitions (no test) nothing is rejected."""
-        p = self.noise.lack_of_fit_p(self.data, base.residuals, base.sigma, base.spec.n_params())
-        return frozenset({"none"}) if p is not None and p < CONSISTENT_P else frozenset()
