@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import fcntl
 import gc
+import importlib
 import json
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -34,6 +36,28 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     gc.collect()
     gc.freeze()
     gc.set_threshold(GC_YOUNG_THRESHOLD, 50, 100)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection(session: pytest.Session) -> None:
+    """Each xdist worker of a whole-suite run imports its share of the test modules first (every ``n``-th file,
+    from its own index), with its bytecode written, then collects as usual. Every worker imports every test
+    module, and pytest's assertion rewriting of them is half of each worker's collection (about 2 s): so each
+    module is rewritten once and the other workers load the cached result (the ``__pycache__`` folders, which git
+    ignores; pytest checks the source's size and time before using one). Without this the workers, collecting in
+    the same order at the same moment, each rewrote every module, also where the environment sets
+    PYTHONDONTWRITEBYTECODE (it only stops writing: a cached module is still read)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if not worker.startswith("gw") or session.config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+        return
+    sys.dont_write_bytecode = False
+    index, count = int(worker[2:]), int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    for path in sorted(Path(__file__).parent.glob("test_*.py"))[index::count]:
+        try:
+            importlib.import_module(f"tests.{path.stem}")
+        except BaseException as exc:  # noqa: BLE001 - collection imports it again and reports the failure
+            if isinstance(exc, KeyboardInterrupt):
+                raise
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
