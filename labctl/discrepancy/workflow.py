@@ -208,7 +208,7 @@ def consistent_with_noise(fit: Fit, noise: NoiseFloor, data: Dataset) -> bool:
     return noise.consistent(data, fit.residuals, fit.sigma, fit.spec.n_params())
 
 
-def _clean(data: Dataset, screening: Screening) -> tuple[Dataset, NoiseFloor]:
+def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, NoiseFloor]:
     """Estimate the noise, setting gross outliers aside (reported) until none is left."""
     noise = estimate_noise(data)
     for _ in range(3):
@@ -295,7 +295,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     kept, screening = screen_points(points)
     data = build_dataset(kept)
     check_units(data)
-    data, noise = _clean(data, screening)
+    data, noise = set_aside_outliers(data, screening)
     k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
     spec = ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
     search = Search(data, noise)
