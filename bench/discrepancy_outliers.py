@@ -6,13 +6,13 @@ workflow's own screen (``screen_points``, then ``set_aside_outliers``: the noise
 any model fit. An injected point's size is |ln factor| over the point σ the judge states for it (its
 ``stiffness_std_n_per_m``, seating included): how far it sits outside the noise it came with.
 
-Printed: per size band, the injected points set aside; per world, clean points set aside (false alarms), with and
-without injected outliers; and worlds where a clean repetition of an injected step was set aside in place of a bad
-one.
+Printed: per size band, the injected points set aside (and beyond 8 σ, at an end load step or elsewhere); per
+world, clean points set aside (false alarms), with and without injected outliers; and worlds where a clean
+repetition of an injected step was set aside in place of a bad one.
 
     python bench/discrepancy_outliers.py [--seeds 8] [--calibration]
 
-Run by hand (not a test); about a minute for the default 768 worlds.
+Run by hand (not a test); about 15 s for the default 384 worlds.
 """
 
 from __future__ import annotations
@@ -79,6 +79,18 @@ def set_aside(rows: list[dict[str, Any]]) -> set[Key]:
     return {_key(types[o["case"]], o["repetition"], o["load_n"]) for o in screening.outliers}
 
 
+def steps_of(rows: list[dict[str, Any]]) -> list[int]:
+    """Load steps per (roller type, repetition) in the judge's rows (the duplicated row not counted)."""
+    count: dict[tuple[int, int], int] = {}
+    previous = None
+    for row in rows:
+        if row != previous:
+            key = (int(row["roller_type"]), int(row["repetition"]))
+            count[key] = count.get(key, 0) + 1
+        previous = row
+    return list(count.values())
+
+
 def worlds(seeds: Iterable[int]) -> Iterable[tuple[str, int, float, Any]]:
     judge = blind_worlds("blind")
     for scenario in judge.SCENARIOS:
@@ -94,11 +106,15 @@ def main() -> int:
     args = ap.parse_args()
     first = CALIBRATION_SEEDS if args.calibration else 0
     sizes: list[tuple[float, bool]] = []
+    far_at: dict[str, list[bool]] = {"at an end step": [], "elsewhere": []}
     false_with, false_without, clean_rep_instead = [], [], 0
     for _, _, _, world in worlds(range(first, first + args.seeds)):
         bad = injected(world.rows, world.truth["faults"])
         found = set_aside(world.rows)
         sizes += [(size, key in found) for key, size in bad.items()]
+        if bad:
+            end = world.truth["faults"]["outliers"]["step"] in (0, max(steps_of(world.rows)) - 1)
+            far_at["at an end step" if end else "elsewhere"] += [key in found for key, size in bad.items() if size >= 8]
         false = len(found - set(bad))
         (false_with if bad else false_without).append(false)
         steps = {(t, round(math.log(load), 1)) for t, _, load in bad}
@@ -113,6 +129,7 @@ def main() -> int:
         band = [hit for size, hit in sizes if lo <= size < hi]
         share = f"{np.mean(band):.3f} ({sum(band)}/{len(band)})" if band else "-"
         print(f"| {lo:g}–{hi:g} | {len(band)} | {share} |")
+    print("\n" + "beyond 8 σ: " + "; ".join(f"{k} {sum(v)}/{len(v)} set aside" for k, v in far_at.items()))
     print("\n| worlds | n | clean points set aside (mean per world) | worlds with any |")
     print("|---|---|---|---|")
     for name, false in (("with injected outliers", false_with), ("without", false_without)):

@@ -52,8 +52,9 @@ def test_points_measured_while_the_load_drifted_are_set_aside_and_said_in_the_ve
     assert "drifted" not in clean.verdict_text()
 
 
-@pytest.mark.xfail(strict=True, reason="known limit: the neighbour screen sets aside points next to scattered "
-                                       "outliers too (13 for 7 here); reported to the lead")
+@pytest.mark.xfail(strict=True, reason="known limit: of two outliers two steps apart near the low end of one "
+                                       "seating, the screen keeps one and sets its clean end neighbour aside (7 "
+                                       "set aside, one clean); the noise floor comes out 1.6 x the clean one")
 def test_three_percent_outliers_are_reported_and_the_verdict_holds(setup_campaign):
     points, clean = setup_campaign
     rng = np.random.default_rng(50)
@@ -73,3 +74,25 @@ def test_stiffness_in_n_per_mm_is_refused_with_a_hint(setup_campaign):
     points, _ = setup_campaign
     with pytest.raises(InputError, match="N/mm"):
         run_discrepancy([replace(p, stiffness_n_per_m=p.stiffness_n_per_m / 1000) for p in points])
+
+
+@pytest.mark.parametrize("seed", [6, 7])
+def test_two_outliers_next_to_the_end_of_a_seating_are_set_aside_not_their_clean_neighbours(seed):
+    # Two gross outliers (+12 %, +15 %) at the second-highest load of two repetitions of one roller: the end point
+    # beyond each is extrapolated through it and looks as far off. Before the screen judged a point against the
+    # lines that avoid one neighbour, it set those clean end points (or more) aside and kept a bad one.
+    from labctl.discrepancy.data import build_dataset
+    from labctl.discrepancy.screen import screen_points
+    from labctl.discrepancy.workflow import set_aside_outliers
+    from labctl.physics import SurfaceRoughness
+
+    points = synthesize(world(SurfaceRoughness(asperity_scale=1.2)), noise=GENERATOR_NOISE, seed=seed)
+    bad = []
+    for rep, factor in ((1, 1.12), (2, 1.15)):
+        i = sorted((i for i, p in enumerate(points) if p.roller_type == 1 and p.repetition == rep),
+                   key=lambda i: points[i].load_n)[-2]
+        points[i] = replace(points[i], stiffness_n_per_m=points[i].stiffness_n_per_m * factor)
+        bad.append((rep, points[i].load_n))
+    kept, screening = screen_points(points)
+    set_aside_outliers(build_dataset(kept), screening)
+    assert sorted((o["repetition"], o["load_n"]) for o in screening.outliers) == sorted(bad)

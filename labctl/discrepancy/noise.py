@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.special import fdtrc  # the F distribution's survival function: what scipy.stats.f.sf computes
+from scipy.special import fdtrc, ndtri  # the F distribution's survival function (scipy.stats.f.sf); the normal quantile
 
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.errors import InputError
@@ -33,8 +33,16 @@ CONSISTENT_P = 0.01
 BAND_DOF = 12
 """Least degrees of freedom pooled in one load band."""
 MAX_BANDS = 4
-OUTLIER_Z = 5.0
-"""A point this many robust σ of its load band off its own seating's neighbours is a gross outlier."""
+OUTLIER_ALPHA = 0.01
+"""Chance, on clean Gaussian data, that the screen sets any point of a dataset aside (Bonferroni over its points)."""
+SMOOTH_Z = 2.5
+"""A repetition within this many robust σ of its neighbours passes a load step smoothly."""
+
+
+def outlier_z(n_points: int) -> float:
+    """How many robust σ off every line through its neighbours a point must be to be set aside as a gross outlier:
+    two-sided, ``OUTLIER_ALPHA`` shared among the dataset's points (4.1 for 231 points, 3.8 for 66)."""
+    return float(ndtri(1.0 - OUTLIER_ALPHA / (2.0 * max(1, n_points))))
 MAD_TO_SIGMA = 1.4826
 
 
@@ -226,31 +234,59 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
     return ss, n
 
 
-def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> np.ndarray:
-    """Each kept point against the line (in ln F) through its own seating's neighbouring steps, standardised for
-    the neighbours' own noise; NaN where a seating has fewer than three kept points."""
+def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
+    """Positions (in load order, of ``n``) of the neighbour pairs a point at position ``p`` is judged against: first
+    its two nearest neighbours (at an end: the two nearest on its one side), then each alternative with one of
+    them replaced by the next point beyond it (next to an end, where there is none beyond the end point: the two
+    nearest on the other side)."""
+    left, right = list(range(p - 1, -1, -1)), list(range(p + 1, n))
+    if left and right:
+        pairs = [(left[0], right[0])] + ([(left[1], right[0])] if len(left) > 1 else []) + \
+            ([(left[0], right[1])] if len(right) > 1 else [])
+        if len(left) == 1 and len(right) > 1:  # next to an end: the end point may be the bad one
+            pairs.append((right[0], right[1]))
+        if len(right) == 1 and len(left) > 1:
+            pairs.append((left[0], left[1]))
+        return pairs
+    side = right or left  # nearest first
+    return [(side[0], side[1])] + ([(side[0], side[2]), (side[1], side[2])] if len(side) > 2 else [])
+
+
+def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each kept point against the line (in ln F) through two of its own seating's neighbouring steps, standardised
+    for the neighbours' own noise: against its two nearest neighbours, and the smallest (in size) over the
+    ``_reference_pairs`` — which a single bad neighbour cannot inflate, as it moves its lines, not all of them.
+    NaN where a seating has fewer than three kept points."""
     y, x, runs = data.ln_stiffness, np.log(data.load_n), data.run_ids()
-    eps = np.full(y.size, np.nan)
+    nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
     for run in np.unique(runs):
         idx = np.flatnonzero((runs == run) & keep)
         if idx.size < 3:
             continue
         idx = idx[np.argsort(x[idx], kind="stable")]
         for pos, i in enumerate(idx):
-            j, k = (idx[1], idx[2]) if pos == 0 else (idx[-2], idx[-3]) if pos == idx.size - 1 else \
-                (idx[pos - 1], idx[pos + 1])
-            span = x[k] - x[j]
-            t = (x[i] - x[j]) / span if span != 0 else 0.5
-            eps[i] = (y[i] - (1 - t) * y[j] - t * y[k]) / math.sqrt(1 + (1 - t) ** 2 + t**2)
-    return eps
+            for n, (a, b) in enumerate(_reference_pairs(pos, idx.size)):
+                j, k = idx[a], idx[b]
+                span = x[k] - x[j]
+                t = (x[i] - x[j]) / span if span != 0 else 0.5
+                e = (y[i] - (1 - t) * y[j] - t * y[k]) / math.sqrt(1 + (1 - t) ** 2 + t**2)
+                if n == 0:
+                    nearest[i] = least[i] = e
+                elif abs(e) < abs(least[i]):
+                    least[i] = e
+    return nearest, least
 
 
 def _robust_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray]) -> list[int]:
-    """Gross outliers judged against the local repetition spread: a point more than OUTLIER_Z robust σ (its load
-    band's) off the line through its own seating's neighbours, the worst of its neighbourhood, in a load step
-    where another repetition passes smoothly. A deviation every repetition shares is the contact's (a kink), not
-    an outlier; two bad points of one step never outvote the clean repetition."""
-    eps = _neighbour_residuals(data, keep)
+    """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
+    band's, from the residuals against the nearest neighbours) off every line through its own seating's
+    neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
+    another repetition passes smoothly. A deviation every repetition shares is the contact's (a kink), not an
+    outlier; two bad points of one step never outvote the clean repetition; a bad point's neighbours, off the
+    lines through it but not off the others, are not taken for it (at the end of a seating above all, where the
+    end point extrapolated from two neighbours moves with its neighbour's error as much as the neighbour does).
+    The price: a bad end point is judged against extrapolations only and is set aside only when far off."""
+    eps, least = _neighbour_residuals(data, keep)
     ok = np.flatnonzero(np.isfinite(eps))
     if ok.size < 2 * BAND_DOF:
         return []
@@ -260,17 +296,19 @@ def _robust_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray]) 
         s = MAD_TO_SIGMA * float(np.median(np.abs(eps[part])))
         scale[part] = s if s > 0 else np.inf
     ratio = np.where(np.isfinite(eps), np.abs(np.nan_to_num(eps)) / scale, 0.0)
+    firm = np.where(np.isfinite(least), np.abs(np.nan_to_num(least)) / scale, 0.0)
     runs, ln_f = data.run_ids(), np.log(data.load_n)
+    z = outlier_z(int(ok.size))
     out = []
     for g in groups:
         g = g[keep[g]]
-        smooth = g[ratio[g] <= OUTLIER_Z / 2]
-        for i in g[ratio[g] > OUTLIER_Z]:
+        smooth = g[ratio[g] <= SMOOTH_Z]
+        for i in g[firm[g] > z]:
             if g.size > 1 and smooth.size == 0:
                 continue  # every repetition shares it: the contact's own shape
             same = np.flatnonzero((runs == runs[i]) & keep)
             near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
-            if ratio[i] >= ratio[near].max():
+            if firm[i] >= firm[near].max():
                 out.append(int(i))
     return out
 
