@@ -52,9 +52,6 @@ def test_points_measured_while_the_load_drifted_are_set_aside_and_said_in_the_ve
     assert "drifted" not in clean.verdict_text()
 
 
-@pytest.mark.xfail(strict=True, reason="known limit: of two outliers two steps apart near the low end of one "
-                                       "seating, the screen keeps one and sets its clean end neighbour aside (7 "
-                                       "set aside, one clean); the noise floor comes out 1.6 x the clean one")
 def test_three_percent_outliers_are_reported_and_the_verdict_holds(setup_campaign):
     points, clean = setup_campaign
     rng = np.random.default_rng(50)

@@ -236,20 +236,21 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
 
 def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
     """Positions (in load order, of ``n``) of the neighbour pairs a point at position ``p`` is judged against: first
-    its two nearest neighbours (at an end: the two nearest on its one side), then each alternative with one of
-    them replaced by the next point beyond it (next to an end, where there is none beyond the end point: the two
-    nearest on the other side)."""
-    left, right = list(range(p - 1, -1, -1)), list(range(p + 1, n))
+    its two nearest neighbours (at an end: the two nearest on its one side), then, for each of them, a pair
+    without it — the other with the next point beyond the one left out (next to an end, where there is none
+    beyond the end point: two points on the other side, one apart, which extrapolate with less noise than two
+    adjacent ones)."""
+    left, right = list(range(p - 1, -1, -1)), list(range(p + 1, n))  # nearest first
     if left and right:
         pairs = [(left[0], right[0])] + ([(left[1], right[0])] if len(left) > 1 else []) + \
             ([(left[0], right[1])] if len(right) > 1 else [])
         if len(left) == 1 and len(right) > 1:  # next to an end: the end point may be the bad one
-            pairs.append((right[0], right[1]))
+            pairs.append((right[0], right[min(2, len(right) - 1)]))
         if len(right) == 1 and len(left) > 1:
-            pairs.append((left[0], left[1]))
+            pairs.append((left[0], left[min(2, len(left) - 1)]))
         return pairs
-    side = right or left  # nearest first
-    return [(side[0], side[1])] + ([(side[0], side[2]), (side[1], side[2])] if len(side) > 2 else [])
+    side = right or left
+    return [(side[0], side[1])] + ([(side[1], side[min(3, len(side) - 1)])] if len(side) > 2 else [])
 
 
 def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
