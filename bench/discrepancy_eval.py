@@ -192,8 +192,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
-            "baseline_lof_p": result.noise.lack_of_fit_p(result.data, result.baseline.residuals,
-                                                         result.baseline.sigma, result.baseline.spec.n_params()),
+            "baseline_lof_p": result.baseline_lack_of_fit_p,
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior,
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
                            for c in result.scored]}

@@ -47,26 +47,31 @@ def _key(roller_type: int, repetition: int, load_n: float) -> Key:
     return roller_type, repetition, float(f"{load_n:.6g}")
 
 
-def injected(rows: list[dict[str, Any]], faults: dict[str, Any]) -> dict[Key, float]:
-    """The judge's outlier rows and each one's size (|ln factor| over its stated σ); the duplicated row is skipped
-    when counting a repetition's steps."""
-    o = faults.get("outliers")
-    if not o:
-        return {}
-    out: dict[Key, float] = {}
-    position: dict[tuple[int, int], int] = {}
+def points(rows: list[dict[str, Any]]) -> dict[Key, tuple[int, dict[str, Any]]]:
+    """Each point of the judge's rows by its key: its load step in its repetition (the judge's order) and its
+    row; the duplicated row counted once."""
+    out: dict[Key, tuple[int, dict[str, Any]]] = {}
+    count: dict[tuple[int, int], int] = {}
     previous = None
     for row in rows:
-        if row == previous:
-            continue
+        if row != previous:
+            t, rep = int(row["roller_type"]), int(row["repetition"])
+            count[(t, rep)] = count.get((t, rep), 0) + 1
+            out[_key(t, rep, row["load_n"])] = (count[(t, rep)] - 1, row)
         previous = row
-        t, rep = int(row["roller_type"]), int(row["repetition"])
-        step = position.get((t, rep), 0)
-        position[(t, rep)] = step + 1
-        if t == o["roller_type"] and step == o["step"] and rep in o["repetitions"]:
-            factor = o["factors"][o["repetitions"].index(rep)]
-            sigma = row["stiffness_std_n_per_m"] / row["stiffness_n_per_m"]
-            out[_key(t, rep, row["load_n"])] = abs(math.log(factor)) / sigma
+    return out
+
+
+def injected(at: dict[Key, tuple[int, dict[str, Any]]], outliers: dict[str, Any] | None) -> dict[Key, float]:
+    """The judge's outlier points (``at``: ``points`` of its rows) and each one's size (|ln factor| over its
+    stated σ)."""
+    if not outliers:
+        return {}
+    out = {}
+    for (t, rep, load), (step, row) in at.items():
+        if t == outliers["roller_type"] and step == outliers["step"] and rep in outliers["repetitions"]:
+            factor = outliers["factors"][outliers["repetitions"].index(rep)]
+            out[(t, rep, load)] = abs(math.log(factor)) / (row["stiffness_std_n_per_m"] / row["stiffness_n_per_m"])
     return out
 
 
@@ -79,24 +84,11 @@ def set_aside(rows: list[dict[str, Any]]) -> set[Key]:
     return {_key(types[o["case"]], o["repetition"], o["load_n"]) for o in screening.outliers}
 
 
-def steps_of(rows: list[dict[str, Any]]) -> list[int]:
-    """Load steps per (roller type, repetition) in the judge's rows (the duplicated row not counted)."""
-    count: dict[tuple[int, int], int] = {}
-    previous = None
-    for row in rows:
-        if row != previous:
-            key = (int(row["roller_type"]), int(row["repetition"]))
-            count[key] = count.get(key, 0) + 1
-        previous = row
-    return list(count.values())
-
-
-def worlds(seeds: Iterable[int]) -> Iterable[tuple[str, int, float, Any]]:
-    judge = blind_worlds("blind")
+def worlds(judge: Any, seeds: Iterable[int]) -> Iterable[Any]:
     for scenario in judge.SCENARIOS:
         for seed in seeds:
             for scale in SCALES:
-                yield scenario, seed, scale, judge.generate(scenario, seed, scale)
+                yield judge.generate(scenario, seed, scale)
 
 
 def main() -> int:
@@ -108,18 +100,19 @@ def main() -> int:
     sizes: list[tuple[float, bool]] = []
     far_at: dict[str, list[bool]] = {"at an end step": [], "elsewhere": []}
     false_with, false_without, clean_rep_instead = [], [], 0
-    for _, _, _, world in worlds(range(first, first + args.seeds)):
-        bad = injected(world.rows, world.truth["faults"])
+    judge = blind_worlds("blind")
+    for world in worlds(judge, range(first, first + args.seeds)):
+        outliers = world.truth["faults"]["outliers"]
+        at = points(world.rows)
+        bad = injected(at, outliers)
         found = set_aside(world.rows)
         sizes += [(size, key in found) for key, size in bad.items()]
         if bad:
-            end = world.truth["faults"]["outliers"]["step"] in (0, max(steps_of(world.rows)) - 1)
+            end = outliers["step"] in (0, judge.LOAD_STEPS - 1)
             far_at["at an end step" if end else "elsewhere"] += [key in found for key, size in bad.items() if size >= 8]
-        false = len(found - set(bad))
-        (false_with if bad else false_without).append(false)
-        steps = {(t, round(math.log(load), 1)) for t, _, load in bad}
-        if any((t, round(math.log(load), 1)) in steps for t, _, load in found - set(bad)):
-            clean_rep_instead += 1
+            if any(k[0] == outliers["roller_type"] and at[k][0] == outliers["step"] for k in found - set(bad)):
+                clean_rep_instead += 1
+        (false_with if bad else false_without).append(len(found - set(bad)))
     print(f"blind judge, {'calibration' if args.calibration else 'evaluation'} seeds {first}-{first + args.seeds - 1}, "
           f"noise {', '.join(f'{s:g}×' for s in SCALES)}: {len(false_with) + len(false_without)} worlds, "
           f"{len(false_with)} with two injected outliers\n")

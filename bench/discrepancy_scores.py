@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from discrepancy_worlds import CALIBRATION
 
+from labctl.discrepancy.noise import lack_of_fit_rejects
 from labctl.discrepancy.posterior import rejected_explanations
 from labctl.physics import EFFECTS
 
@@ -41,7 +42,7 @@ def summarize_effects(results: list[dict[str, Any]], title: str) -> str:
         n_eff = sum(bool(_truth_set(r)) for r in rs)
         nulls = [r for r in rs if not _truth_set(r)]
         fp = sum(bool(r["named"] or r["measurement"]) for r in nulls)
-        structured = [r for r in rs if r["lack_of_fit_p"] is not None and r["lack_of_fit_p"] < 0.01]
+        structured = [r for r in rs if lack_of_fit_rejects(r["lack_of_fit_p"])]
         stated = sum(r["structured_stated"] for r in structured)
         unexplained = sum(r["verdict"] == "unexplained" for r in big)
         shrink = [r["gap_after"] / r["gap_before"] for r in big if r["named"]]
@@ -130,7 +131,7 @@ def misses(r: dict[str, Any]) -> list[str]:
         out.append("crowned named surface_roughness")
     elif r["suite"] == "robust" and not r["bad"]["verdict_unchanged"]:
         out.append(f"{r['variant']} changed the verdict to {r['bad']['named']} + {r['bad']['measurement']}")
-    if r.get("lack_of_fit_p") is not None and r["lack_of_fit_p"] < 0.01 and not r["structured_stated"]:
+    if lack_of_fit_rejects(r.get("lack_of_fit_p")) and not r["structured_stated"]:
         out.append("structured residual not stated")
     return out
 

@@ -144,8 +144,7 @@ def test_a_baseline_the_lack_of_fit_test_rejects_leaves_none_no_probability():
     from labctl.discrepancy.noise import CONSISTENT_P
 
     result = run_discrepancy(csv_points(blind_worlds("blind").generate("misalignment", 0, 0.5).rows))
-    base = result.baseline
-    assert result.noise.lack_of_fit_p(result.data, base.residuals, base.sigma, base.spec.n_params()) < CONSISTENT_P
+    assert result.baseline_lack_of_fit_p < CONSISTENT_P
     probability = {s.explanation.name: s.probability for s in result.scored}
     assert probability["none"] == 0.0 and result.scored[0].explanation.name != "none"
     assert math.isclose(sum(probability.values()), 1.0)

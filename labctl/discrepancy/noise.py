@@ -37,13 +37,13 @@ OUTLIER_ALPHA = 0.01
 """Chance, on clean Gaussian data, that the screen sets any point of a dataset aside (Bonferroni over its points)."""
 SMOOTH_Z = 2.5
 """A repetition within this many robust σ of its neighbours passes a load step smoothly."""
+MAD_TO_SIGMA = 1.4826
 
 
 def outlier_z(n_points: int) -> float:
     """How many robust σ off every line through its neighbours a point must be to be set aside as a gross outlier:
     two-sided, ``OUTLIER_ALPHA`` shared among the dataset's points (4.1 for 231 points, 3.8 for 66)."""
     return float(ndtri(1.0 - OUTLIER_ALPHA / (2.0 * max(1, n_points))))
-MAD_TO_SIGMA = 1.4826
 
 
 @dataclass(frozen=True)
@@ -128,7 +128,12 @@ class NoiseFloor:
     def consistent(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int) -> bool:
         """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
         p = self.lack_of_fit_p(data, residuals, sigma, n_params)
-        return p is not None and p >= CONSISTENT_P
+        return p is not None and not lack_of_fit_rejects(p)
+
+
+def lack_of_fit_rejects(p: float | None) -> bool:
+    """The lack-of-fit test (p-value ``p``; None: no test) rejects the model at level ``CONSISTENT_P``."""
+    return p is not None and p < CONSISTENT_P
 
 
 def whiten(run_ids: np.ndarray, residuals: np.ndarray, sigma: np.ndarray, seating_sigma: float) -> np.ndarray:
@@ -213,6 +218,14 @@ def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float,
     return tuple(centre), tuple(sigma)
 
 
+def _off_line(x: np.ndarray, y: np.ndarray, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Points ``i`` against the straight lines through points ``j`` and ``k`` (y against x = ln F), standardised
+    for the line's own noise (equal point noise): (y_i − line)/√(1 + w_j² + w_k²); coincident j, k: their mean."""
+    span = x[k] - x[j]
+    t = np.divide(x[i] - x[j], span, out=np.full(np.shape(span), 0.5), where=span != 0)
+    return (y[i] - (1 - t) * y[j] - t * y[k]) / np.sqrt(1 + (1 - t) ** 2 + t**2)
+
+
 def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
     """Gasser-Sargent-Sengupta: each point against the straight line through its neighbours in ln F.
 
@@ -224,13 +237,9 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
         x, y = np.log(c.load_n[order]), c.ln_stiffness[order]
         if x.size < 3:
             continue
-        span = x[2:] - x[:-2]
-        ok = span > 0
-        a = np.where(ok, (x[2:] - x[1:-1]) / np.where(ok, span, 1.0), 0.5)
-        b = 1.0 - a
-        eps = a * y[:-2] + b * y[2:] - y[1:-1]
-        ss += float(np.sum(eps**2 / (a**2 + b**2 + 1.0)))
-        n += eps.size
+        i = np.arange(1, x.size - 1)
+        ss += float(np.sum(_off_line(x, y, i, i - 1, i + 1) ** 2))
+        n += i.size
     return ss, n
 
 
@@ -254,10 +263,10 @@ def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
 
 
 def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each kept point against the line (in ln F) through two of its own seating's neighbouring steps, standardised
-    for the neighbours' own noise: against its two nearest neighbours, and the smallest (in size) over the
-    ``_reference_pairs`` — which a single bad neighbour cannot inflate, as it moves its lines, not all of them.
-    NaN where a seating has fewer than three kept points."""
+    """Each kept point against the lines (in ln F) through two of its own seating's neighbouring steps
+    (``_off_line``): against its two nearest neighbours, and the smallest (in size) over the ``_reference_pairs`` —
+    which a single bad neighbour cannot inflate, as it moves its lines, not all of them. NaN where a seating has
+    fewer than three kept points."""
     y, x, runs = data.ln_stiffness, np.log(data.load_n), data.run_ids()
     nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
     for run in np.unique(runs):
@@ -265,16 +274,12 @@ def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, n
         if idx.size < 3:
             continue
         idx = idx[np.argsort(x[idx], kind="stable")]
-        for pos, i in enumerate(idx):
-            for n, (a, b) in enumerate(_reference_pairs(pos, idx.size)):
-                j, k = idx[a], idx[b]
-                span = x[k] - x[j]
-                t = (x[i] - x[j]) / span if span != 0 else 0.5
-                e = (y[i] - (1 - t) * y[j] - t * y[k]) / math.sqrt(1 + (1 - t) ** 2 + t**2)
-                if n == 0:
-                    nearest[i] = least[i] = e
-                elif abs(e) < abs(least[i]):
-                    least[i] = e
+        pos, a, b = np.array([(p, a, b) for p in range(idx.size) for a, b in _reference_pairs(p, idx.size)]).T
+        e = _off_line(x, y, idx[pos], idx[a], idx[b])
+        first = np.r_[True, pos[1:] != pos[:-1]]  # each point's nearest pair comes first
+        nearest[idx] = e[first]
+        order = np.lexsort((np.abs(e), pos))  # by point, then by size: the first of each point is its least
+        least[idx] = e[order][np.r_[True, pos[order][1:] != pos[order][:-1]]]
     return nearest, least
 
 

@@ -37,7 +37,7 @@ from labctl.discrepancy.empirical import MAX_FEATURES, features
 from labctl.discrepancy.form import contribution
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import Fit, ModelSpec, depth_column, fit_model
-from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor
+from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
 from labctl.physics.effects import EFFECTS
 
 PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10, "mixed": 0.10, "unlisted": 0.10}
@@ -212,7 +212,7 @@ def rejected_explanations(baseline_lof_p: float | None) -> frozenset[str]:
     rejects the baseline. The tempered evidence (``TEMPERATURE``) shrinks a decisive misfit to less than "none"'s
     prior lead, and an "unexplained" verdict then listed "none" as its most probable explanation. Without
     repetitions (no test: ``None``) nothing is ruled out."""
-    return frozenset({"none"}) if baseline_lof_p is not None and baseline_lof_p < CONSISTENT_P else frozenset()
+    return frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset()
 
 
 def posterior(scored: list[Scored], temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> None:

@@ -70,6 +70,12 @@ class DiscrepancyResult:
         return consistent_with_noise(self.final, self.noise, self.data)
 
     @property
+    def baseline_lack_of_fit_p(self) -> float | None:
+        """The lack-of-fit test's p-value for the baseline alone (None without a test)."""
+        b = self.baseline
+        return self.noise.lack_of_fit_p(self.data, b.residuals, b.sigma, b.spec.n_params())
+
+    @property
     def physical_steps(self) -> list[Step]:
         return [s for s in self.steps if s.kind == "physical"]
 
