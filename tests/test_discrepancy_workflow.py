@@ -163,6 +163,12 @@ def test_null_data_tripp_at_another_depth_names_nothing(depth_m, seed):
     assert doc["consistent_with_noise"]
     assert doc["baseline_parameters"]["depth_m"] == pytest.approx(depth_m, rel=0.25)
     assert doc["regions"] == []
+    # "unlisted" is an effect outside the library, never the baseline under another name: it carries a feature
+    # and pays for it (½·ln n + ln C(F, 1) ≈ 5 nats), so it does not share the baseline's probability with "none"
+    prob = {s.explanation.name: s for s in result.scored}
+    assert prob["unlisted"].extra["features"]
+    assert prob["unlisted"].probability <= 0.1 * prob["none"].probability
+    assert "an effect below the detection limit is not ruled out" in doc["verdict_text"]
 
 
 def test_noise_floor_comes_from_the_repetitions_and_falls_with_load():

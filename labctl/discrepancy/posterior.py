@@ -301,8 +301,10 @@ class Evidence:
             return log_m - penalty, tau, e
 
         def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
+            # at least one feature: with none, "unlisted" is the baseline itself — "none" under another name, which
+            # would take "none"'s place (at no Occam cost) where the lack-of-fit test has rejected it
             chosen: list[int] = []
-            best = evaluate(chosen, t)
+            best = (-math.inf, 0.0, y)
             while len(chosen) < min(MAX_FEATURES, len(names)):
                 trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
                 top = max(trial, key=lambda r: r[0][0])

@@ -106,7 +106,8 @@ class DiscrepancyResult:
         top = self.scored[0] if self.scored else None
         parts = []
         if self.verdict == "consistent":
-            parts.append(f"the baseline agrees with the data within the noise ({level})")
+            parts.append(f"the baseline agrees with the data within the noise ({level}); an effect below the "
+                         "detection limit is not ruled out")
             if top is not None:
                 parts.append(f"most probable explanations: {self._top()}")
         elif self.steps:
