@@ -10,7 +10,7 @@ import numpy as np
 from discrepancy_worlds import CALIBRATION
 
 from labctl.discrepancy.noise import lack_of_fit_rejects
-from labctl.discrepancy.posterior import rejected_explanations
+from labctl.discrepancy.posterior import probabilities, rejected_explanations
 from labctl.physics import EFFECTS
 
 
@@ -170,12 +170,12 @@ def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
     workflow's grid), most probable first; without the explanations the workflow rules out
     (``rejected_explanations``)."""
-    ruled_out = rejected_explanations(r.get("baseline_lof_p"))
-    cands = [c for c in r["candidates"] if c["explanation"] not in ruled_out]
-    lp = np.array([c["log_prior"] + c["log_evidence_by_temperature"][f"{temperature:g}"] for c in cands])
-    p = np.exp(lp - lp.max())
-    p /= p.sum()
-    return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)), key=lambda t: -t[1])
+    cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"))
+    p = probabilities([c["explanation"] for c in cands], np.array([c["log_prior"] for c in cands]),
+                      lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]), temperature,
+                      ruled_out)
+    return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)
+                   if c["explanation"] not in ruled_out), key=lambda t: -t[1])
 
 
 def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:

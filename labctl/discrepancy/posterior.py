@@ -14,8 +14,9 @@ not in others needs a large one and loses to the others.
 
 Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA') (averaged over τ) − ½·k·ln n (Laplace/BIC for
 the k fitted parameters, Tripp's depth included), plus for *unlisted* −ln C(F, m) for choosing m of F features.
-Posterior: p(M|D) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance of the
-whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
+Posterior (``probabilities``): "none" against every effect at the noise model's own scale, then the effects against
+each other at p(M|D, effect) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance
+of the whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
 every library term — is treated as extra scatter, so a fit's gain counts 1/T as much while every Occam factor
 (the −½·k·ln n and the discrepancy's log det) keeps its strength. T is chosen on the blind worlds; no T makes the
 probabilities reliable there (docs/discrepancy.md). Priors (``PRIOR_MASS``) are split evenly within each class.
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,6 +56,8 @@ TEMPERATURE = 16.0
 """The inflation the decision uses, chosen on the blind worlds: decided at T = 48 (the calibration seeds' log loss falls
 to the grid's end) the truth is ranked first less often on the evaluation seeds and on the second judge
 (docs/discrepancy.md)."""
+PRESENCE_TEMPERATURE = 1.0
+"""The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
 NAME_AT = 0.9
 LIKELY_AT = 0.5
 
@@ -215,11 +218,33 @@ def rejected_explanations(baseline_lof_p: float | None) -> frozenset[str]:
     return frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset()
 
 
+def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
+                  temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> np.ndarray:
+    """Every candidate's posterior probability, in two questions. Is there any effect? "none" against all the
+    others at the noise model's own scale (``PRESENCE_TEMPERATURE``): the noise comes from the repetitions, and
+    a misfit beyond it is evidence of some effect whatever its law. Which one? The others against each other at
+    the inflated ``temperature``, where every law is only approximate. ``log_evidence(T)``: each candidate's
+    log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability."""
+    names_a = np.array(names)
+    none = names_a == "none"
+    ruled_out = np.isin(names_a, list(rejected))
+    others = ~none & ~ruled_out
+    out = np.zeros(len(names))
+    p_none = 0.0
+    if none.any() and not ruled_out[none].any():
+        s0 = np.where(ruled_out, -np.inf, log_prior + log_evidence(PRESENCE_TEMPERATURE))
+        p_none = float(np.exp(s0[none][0] - logsumexp(s0))) if others.any() else 1.0
+        out[none] = p_none
+    if others.any():
+        s = np.where(others, log_prior + log_evidence(temperature), -np.inf)
+        out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
+    return out
+
+
 def posterior(scored: list[Scored], temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> None:
-    """Fill in every candidate's probability; the ``rejected`` explanations (``rejected_explanations``) get none."""
-    lp = np.array([-np.inf if s.explanation.name in rejected else s.log_prior + s.log_evidence_by_t[temperature]
-                   for s in scored])
-    p = np.exp(lp - logsumexp(lp))
+    """Fill in every candidate's probability (``probabilities``)."""
+    p = probabilities([s.explanation.name for s in scored], np.array([s.log_prior for s in scored]),
+                      lambda t: np.array([s.log_evidence_by_t[t] for s in scored]), temperature, rejected)
     for s, v in zip(scored, p, strict=True):
         s.probability = float(v)
 
@@ -230,8 +255,8 @@ class Evidence:
     def __init__(self, data: Dataset, noise: NoiseFloor, sigma: np.ndarray,
                  temperatures: Sequence[float] = (TEMPERATURE,)) -> None:
         self.data, self.noise, self.sigma = data, noise, sigma
-        self.temperatures = tuple(dict.fromkeys((TEMPERATURE, *temperatures)))
-        """Noise inflations the evidence is computed at: the decision's, and any a bench rescores at."""
+        self.temperatures = tuple(dict.fromkeys((TEMPERATURE, PRESENCE_TEMPERATURE, *temperatures)))
+        """Noise inflations the evidence is computed at: the decision's two, and any a bench rescores at."""
         self.form = FormPrior.of(data, noise, sigma)
         self.n = data.n_points
         self.fits: dict[tuple[str, ...], Fit] = {}
