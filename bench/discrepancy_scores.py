@@ -170,7 +170,7 @@ def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
     workflow's grid), most probable first; without the explanations the workflow rules out
     (``rejected_explanations``)."""
-    cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"))
+    cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
     p = probabilities([c["explanation"] for c in cands], np.array([c["log_prior"] for c in cands]),
                       lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]), temperature,
                       ruled_out)

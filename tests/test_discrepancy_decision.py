@@ -11,7 +11,8 @@ import pytest
 from scipy.special import logsumexp
 
 from labctl.discrepancy import load_points, run_discrepancy
-from labctl.discrepancy.posterior import PRIOR_MASS, TAU_GRID, FormPrior, explanations, log_prior
+from labctl.discrepancy.form import TAU_GRID, FormPrior
+from labctl.discrepancy.posterior import PRIOR_MASS, explanations, log_prior
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import EndEffects

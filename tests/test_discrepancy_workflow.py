@@ -353,13 +353,12 @@ def misalignment_square_law(case, load_n):
     return k * x / np.sqrt(1.0 + x**2)
 
 
-@pytest.mark.parametrize("truth", [misalignment_tilt_spread, pytest.param(
-    misalignment_square_law, marks=pytest.mark.xfail(strict=True, reason="a known limit (docs/discrepancy.md): this "
-                                                     "closing is named setup_compliance + load_offset"))])
+@pytest.mark.parametrize("truth", [misalignment_tilt_spread, misalignment_square_law])
 def test_a_rounded_tilt_law_gets_no_wrong_name(truth):
     # The library's kinked min(1, x) law is not this closing. Whatever the posterior prefers, no other effect is
     # named (probability >= 0.9) for it; a tilt spread over a decade can look like roughness, at most "likely"
-    # (a limit stated in docs/discrepancy.md).
+    # (a limit stated in docs/discrepancy.md). The square law was named setup_compliance + load_offset until the
+    # tilt law's rounding became part of its form's doubt (``Evidence.rounded``).
     result = run_discrepancy(synthesize(truth, noise=NOISE, seed=2, seating_rel=0.002))
     assert set(names(result)) <= {"misalignment"}
     assert any("misalignment" in x.explanation.name for x in result.scored[:3])

@@ -1,18 +1,32 @@
-"""A term's contribution to the model: ln k with the term minus ln k without it (the other parameters unchanged).
+"""The form of every explanation is uncertain: a smooth discrepancy per roller case, and each term bent with load.
 
-The posterior (``labctl.discrepancy.posterior``) bends each term's contribution with load to treat its form as
-uncertain: a real effect whose law differs from the library's term is still that term, bent.
+``FormPrior``: the discrepancy δ_c(ln p) = Σ_j β_cj·P_j(u) per roller case (Legendre P_0..P_2 of ln p scaled to
+[−1, 1] over the case's loads), β ~ N(0, τ²), τ log-uniform on ``TAU_GRID``, integrated out exactly (linear
+Gaussian). ``contribution``: a term's part of the model (ln k with it minus without it), which the posterior
+(``labctl.discrepancy.posterior``) bends with load: a real effect whose law differs from the library's term is
+still that term, bent.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import Fit, predict_ln
+from labctl.discrepancy.noise import NoiseFloor
+
+TAU_GRID = np.geomspace(3e-4, 0.3, 16)
+"""σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
+FORM_DEGREE = 2
+"""Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
+BEND_SIGMA = 0.5
+"""Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
+over all roller cases (the same law for every roller: an approximate form that still generalises)."""
 
 
 def contribution(fit: Fit, data: Dataset, name: str) -> np.ndarray:
@@ -26,3 +40,76 @@ def contribution(fit: Fit, data: Dataset, name: str) -> np.ndarray:
     with np.errstate(all="ignore"):
         d = fit.predict(data) - predict_ln(data, law, chain)
     return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def form_basis(data: Dataset) -> np.ndarray:
+    """Legendre P_0..P_FORM_DEGREE of ln(load per length) per roller case (columns zero outside the case)."""
+    x = np.log(data.load_per_length_n_per_m)
+    cols = []
+    for sl in data.case_slices():
+        u = x[sl]
+        span = float(np.ptp(u))
+        u = (u - u.min()) / span * 2 - 1 if span > 0 else np.zeros_like(u)
+        degree = min(FORM_DEGREE, max(0, np.unique(np.round(u, 6)).size - 1))
+        for j in range(degree + 1):
+            col = np.zeros(x.size)
+            col[sl] = np.polynomial.legendre.legval(u, [0] * j + [1])
+            cols.append(col)
+    return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class FormPrior:
+    """The whitened form basis's SVD: what integrating the discrepancy out needs."""
+
+    u: np.ndarray
+    s2: np.ndarray
+    a: np.ndarray | None = None
+    """The whitened basis itself (for the joint marginal with a term's bend columns)."""
+
+    @classmethod
+    def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
+        a = noise.whiten(data, form_basis(data), sigma)
+        u, s, _ = np.linalg.svd(a, full_matrices=False)
+        keep = s > 1e-9 * s.max()
+        return cls(u[:, keep], s[keep] ** 2, a)
+
+    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
+                     ) -> tuple[float, float]:
+        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
+        same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
+        candidate's terms (or none); ``inflation``: T."""
+        e = e / math.sqrt(inflation)
+        ee = float(e @ e)
+        vals = []
+        if bend is None or bend.shape[1] == 0 or self.a is None:
+            proj2 = (self.u.T @ e) ** 2
+            g = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2 * self.s2 / inflation  # one row per τ
+            vals = list(-0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=1)) - 0.5 * np.sum(np.log1p(g), axis=1))
+        else:
+            a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
+            ata, ate = a.T @ a, a.T @ e
+            m1, n = self.a.shape[1], a.shape[1]
+            # every τ of the grid in one batched factorisation (the same LAPACK calls as one τ at a time)
+            d = np.empty((len(TAU_GRID), n))
+            d[:, :m1] = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2
+            d[:, m1:] = BEND_SIGMA**2
+            m = np.repeat(ata[None], len(TAU_GRID), axis=0)
+            m[:, np.arange(n), np.arange(n)] += 1.0 / d
+            chol = np.linalg.cholesky(m)
+            z = np.linalg.solve(chol, np.repeat(ate[None, :, None], len(TAU_GRID), axis=0))[..., 0]
+            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(np.log(d), axis=1)
+            vals = [-0.5 * (ee - float(zi @ zi)) - 0.5 * float(ld) for zi, ld in zip(z, logdet, strict=True)]
+        v = np.array(vals)
+        return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
+
+    def transform(self, tau: float):  # noqa: ANN201
+        """e → (I + τ²AA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""
+        d = 1.0 - 1.0 / np.sqrt(1.0 + tau**2 * self.s2)
+        u = self.u
+        return lambda e: e - u @ (d * (u.T @ e))
+
+    def smooth(self, e: np.ndarray, tau: float) -> np.ndarray:
+        """The posterior mean of the discrepancy (whitened units) at scale τ."""
+        g = tau**2 * self.s2
+        return self.u @ (g / (1 + g) * (self.u.T @ e))

@@ -27,7 +27,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,27 +35,26 @@ from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
-from labctl.discrepancy.form import contribution
+from labctl.discrepancy.form import FormPrior, contribution
+from labctl.discrepancy.instrument import check_instrument
 from labctl.discrepancy.measurement import MEASUREMENT
-from labctl.discrepancy.model import Fit, ModelSpec, depth_column, fit_model
+from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
 from labctl.physics.effects import EFFECTS
 
 PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10, "mixed": 0.10, "unlisted": 0.10}
 """Prior probability of each class of explanation, split evenly among its members."""
-TAU_GRID = np.geomspace(3e-4, 0.3, 16)
-"""σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
-FORM_DEGREE = 2
-BEND_SIGMA = 0.5
-"""Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
-over all roller cases (the same law for every roller: an approximate form that still generalises)."""
-"""Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
 """The noise-variance inflations a bench stores every candidate's evidence at (``--rescore`` decides again)."""
 TEMPERATURE = 16.0
 """The inflation the decision uses, chosen on the blind worlds: decided at T = 48 (the calibration seeds' log loss falls
 to the grid's end) the truth is ranked first less often on the evaluation seeds and on the second judge
 (docs/discrepancy.md)."""
+ROUNDING_STARTS = (0.3,)
+"""Where a shaped term's rounding is fitted from (the kinked law itself is the other half of the doubt)."""
+INSTRUMENT_CHECK_FROM = 1e-3
+"""A candidate with a measurement-side term has its instrument check (``labctl.discrepancy.instrument``) once its
+probability reaches this; the probabilities are then worked out again without those that fail, until none is due."""
 PRESENCE_TEMPERATURE = 1.0
 """The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
 NAME_AT = 0.9
@@ -107,79 +106,6 @@ def log_prior(expl: Explanation, candidates: list[Explanation]) -> float:
     return math.log(PRIOR_MASS[expl.kind] / members)
 
 
-def form_basis(data: Dataset) -> np.ndarray:
-    """Legendre P_0..P_FORM_DEGREE of ln(load per length) per roller case (columns zero outside the case)."""
-    x = np.log(data.load_per_length_n_per_m)
-    cols = []
-    for sl in data.case_slices():
-        u = x[sl]
-        span = float(np.ptp(u))
-        u = (u - u.min()) / span * 2 - 1 if span > 0 else np.zeros_like(u)
-        degree = min(FORM_DEGREE, max(0, np.unique(np.round(u, 6)).size - 1))
-        for j in range(degree + 1):
-            col = np.zeros(x.size)
-            col[sl] = np.polynomial.legendre.legval(u, [0] * j + [1])
-            cols.append(col)
-    return np.stack(cols, axis=1)
-
-
-@dataclass(frozen=True)
-class FormPrior:
-    """The whitened form basis's SVD: what integrating the discrepancy out needs."""
-
-    u: np.ndarray
-    s2: np.ndarray
-    a: np.ndarray | None = None
-    """The whitened basis itself (for the joint marginal with a term's bend columns)."""
-
-    @classmethod
-    def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
-        a = noise.whiten(data, form_basis(data), sigma)
-        u, s, _ = np.linalg.svd(a, full_matrices=False)
-        keep = s > 1e-9 * s.max()
-        return cls(u[:, keep], s[keep] ** 2, a)
-
-    def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
-                     ) -> tuple[float, float]:
-        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
-        same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
-        candidate's terms (or none); ``inflation``: T."""
-        e = e / math.sqrt(inflation)
-        ee = float(e @ e)
-        vals = []
-        if bend is None or bend.shape[1] == 0 or self.a is None:
-            proj2 = (self.u.T @ e) ** 2
-            g = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2 * self.s2 / inflation  # one row per τ
-            vals = list(-0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=1)) - 0.5 * np.sum(np.log1p(g), axis=1))
-        else:
-            a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
-            ata, ate = a.T @ a, a.T @ e
-            m1, n = self.a.shape[1], a.shape[1]
-            # every τ of the grid in one batched factorisation (the same LAPACK calls as one τ at a time)
-            d = np.empty((len(TAU_GRID), n))
-            d[:, :m1] = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2
-            d[:, m1:] = BEND_SIGMA**2
-            m = np.repeat(ata[None], len(TAU_GRID), axis=0)
-            m[:, np.arange(n), np.arange(n)] += 1.0 / d
-            chol = np.linalg.cholesky(m)
-            z = np.linalg.solve(chol, np.repeat(ate[None, :, None], len(TAU_GRID), axis=0))[..., 0]
-            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(np.log(d), axis=1)
-            vals = [-0.5 * (ee - float(zi @ zi)) - 0.5 * float(ld) for zi, ld in zip(z, logdet, strict=True)]
-        v = np.array(vals)
-        return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
-
-    def transform(self, tau: float):  # noqa: ANN201
-        """e → (I + τ²AA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""
-        d = 1.0 - 1.0 / np.sqrt(1.0 + tau**2 * self.s2)
-        u = self.u
-        return lambda e: e - u @ (d * (u.T @ e))
-
-    def smooth(self, e: np.ndarray, tau: float) -> np.ndarray:
-        """The posterior mean of the discrepancy (whitened units) at scale τ."""
-        g = tau**2 * self.s2
-        return self.u @ (g / (1 + g) * (self.u.T @ e))
-
-
 @dataclass
 class Scored:
     """One candidate explanation with its fit, evidence and posterior probability."""
@@ -210,12 +136,12 @@ class Scored:
                 "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
 
 
-def rejected_explanations(baseline_lof_p: float | None) -> frozenset[str]:
+def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
     """The explanations the data have already ruled out: "none" when the lack-of-fit test at level ``CONSISTENT_P``
-    rejects the baseline. The tempered evidence (``TEMPERATURE``) shrinks a decisive misfit to less than "none"'s
-    prior lead, and an "unexplained" verdict then listed "none" as its most probable explanation. Without
-    repetitions (no test: ``None``) nothing is ruled out."""
-    return frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset()
+    rejects the baseline (the tempered evidence shrinks a decisive misfit to less than "none"'s prior lead; without
+    repetitions there is no test); and ``not_instrument``, the explanations whose measurement-side term differs by
+    roller type (``labctl.discrepancy.instrument``: it mends a law's form, it is no instrument error)."""
+    return frozenset(not_instrument) | (frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset())
 
 
 def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
@@ -304,6 +230,26 @@ class Evidence:
         return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
+    def rounded(self, kinked: Scored, candidates: list[Explanation]) -> Scored:
+        """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing) has its form in doubt
+        too: the evidence averaged over the kinked law and the law with its rounding fitted (½ each), the fit kept
+        the one with more evidence."""
+        fit = kinked.fit
+        shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
+        if fit is None or not shaped:
+            return kinked
+        spec = fit.spec
+        for name in shaped:
+            spec = spec.with_free_shape(name)
+        values = fit.spec.decode(fit.x)
+        trials = [self.fit(spec, warm=fit, guess={n: {**values[n], **dict.fromkeys(FIT_ONLY_BOUNDS[n], w)}
+                                                   for n in shaped}) for w in ROUNDING_STARTS]
+        soft = self.score(kinked.explanation, min(trials, key=lambda f: float(f.z @ f.z)), candidates)
+        best = soft if soft.log_evidence > kinked.log_evidence else kinked
+        by_t = {t: float(np.logaddexp(kinked.log_evidence_by_t[t], soft.log_evidence_by_t[t]) - math.log(2.0))
+                for t in self.temperatures}
+        return replace(best, log_evidence_by_t=by_t)
+
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
         """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
         names, x = features(self.data)
@@ -365,7 +311,18 @@ class Evidence:
                 two = self.fit(base_spec.with_effects(a, b), warm=fits[(b,)], guess=fits[(a,)].spec.decode(
                     fits[(a,)].x))
                 fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
-            scored.append(self.score(expl, fits[key], candidates))
+            scored.append(self.rounded(self.score(expl, fits[key], candidates), candidates))
         lof_p = self.noise.lack_of_fit_p(self.data, base.residuals, base.sigma, base.spec.n_params())
-        posterior(scored, rejected=rejected_explanations(lof_p))
-        return base, scored
+        not_instrument: list[str] = []
+        while True:
+            posterior(scored, rejected=rejected_explanations(lof_p, not_instrument))
+            due = [s for s in scored if s.fit is not None and s.explanation.measurement and "instrument" not in
+                   s.extra and s.probability >= INSTRUMENT_CHECK_FROM]
+            if not due:
+                return base, scored
+            for s in due:
+                assert s.fit is not None
+                checks = check_instrument(self.data, s.fit, self.noise)
+                s.extra["instrument"] = [c.to_dict() for c in checks]
+                if not all(c.passed for c in checks):
+                    not_instrument.append(s.explanation.name)

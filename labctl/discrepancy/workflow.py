@@ -122,6 +122,9 @@ class DiscrepancyResult:
             if self.likely is not None:
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
                              f"below the {NAME_AT:g} needed to name it); candidates: {self._top()}")
+            elif top is not None and top.explanation.unlisted and top.probability >= LIKELY_AT:
+                parts.append(f"unexplained: most probably an effect outside the library (unlisted "
+                             f"{top.probability:.2f}); candidates: {self._top()}")
             else:
                 parts.append(f"unexplained: no explanation reaches probability {LIKELY_AT:g}; candidates: "
                              f"{self._top()}")
@@ -139,12 +142,28 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        stretched = self.not_instrument()
+        if stretched:
+            parts.append("ruled out as instrument errors (a term that mends a law's form is no load cell or modulus "
+                         "error): " + "; ".join(stretched))
         if self.screening.drifted:
             loads = ", ".join(f"{d['load_n']:.1f}->{d['load_after_n']:.1f} N" if d["load_after_n"] is not None
                               else f"{d['load_n']:.1f} N" for d in self.screening.drifted)
             parts.append(f"{len(self.screening.drifted)} point(s) measured while the load drifted set aside "
                          f"({loads}): their load is not known; re-measure those steps to use them")
         return "; ".join(parts)
+
+    def not_instrument(self, k: int = 2) -> list[str]:
+        """The explanations ruled out because a measurement-side term failed its instrument check
+        (``labctl.discrepancy.instrument``) that the evidence alone would have ranked above the most probable one."""
+        top = self.scored[0] if self.scored else None
+        lead = -np.inf if top is None else top.log_prior + top.log_evidence
+        out = []
+        for s in sorted(self.scored, key=lambda s: -(s.log_prior + s.log_evidence)):
+            failed = [c for c in s.extra.get("instrument", []) if not c["passed"]]
+            if failed and s.log_prior + s.log_evidence > lead and len(out) < k:
+                out.append(f"{s.explanation.name} ({', '.join(c['description'] for c in failed)})")
+        return out
 
     def _step_doc(self, s: Step) -> dict[str, Any]:
         params = {**self.final.effect_parameters(), **self.final.measurement_parameters()}
