@@ -1,0 +1,111 @@
+"""The gross-outlier screen: each point judged against the local repetition spread, before the noise is pooled.
+
+A point is compared with lines (in ln F) through two of its own seating's neighbouring steps — the nearest two,
+and each with one of them replaced by the next point beyond — and is set aside when it is far off all of them
+(in robust σ of its load band), the worst of its neighbourhood, in a load step where another repetition passes
+smoothly. The threshold is family-wise: ``OUTLIER_ALPHA`` spread over the dataset's points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtri  # the normal quantile
+
+from labctl.discrepancy.data import Dataset
+
+OUTLIER_ALPHA = 0.01
+"""Chance, on clean Gaussian data, that the screen sets any point of a dataset aside (Bonferroni over its points)."""
+SMOOTH_Z = 2.5
+"""A repetition within this many robust σ of its neighbours passes a load step smoothly."""
+MAD_TO_SIGMA = 1.4826
+
+
+def outlier_z(n_points: int) -> float:
+    """How many robust σ off every line through its neighbours a point must be to be set aside as a gross outlier:
+    two-sided, ``OUTLIER_ALPHA`` shared among the dataset's points (4.1 for 231 points, 3.8 for 66)."""
+    return float(ndtri(1.0 - OUTLIER_ALPHA / (2.0 * max(1, n_points))))
+
+
+def off_line(x: np.ndarray, y: np.ndarray, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Points ``i`` against the straight lines through points ``j`` and ``k`` (y against x = ln F), standardised
+    for the line's own noise (equal point noise): (y_i − line)/√(1 + w_j² + w_k²); coincident j, k: their mean."""
+    span = x[k] - x[j]
+    t = np.divide(x[i] - x[j], span, out=np.full(np.shape(span), 0.5), where=span != 0)
+    return (y[i] - (1 - t) * y[j] - t * y[k]) / np.sqrt(1 + (1 - t) ** 2 + t**2)
+
+
+def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
+    """Positions (in load order, of ``n``) of the neighbour pairs a point at position ``p`` is judged against: first
+    its two nearest neighbours (at an end: the two nearest on its one side), then, for each of them, a pair
+    without it — the other with the next point beyond the one left out (next to an end, where there is none
+    beyond the end point: two points on the other side, one apart, which extrapolate with less noise than two
+    adjacent ones)."""
+    left, right = list(range(p - 1, -1, -1)), list(range(p + 1, n))  # nearest first
+    if left and right:
+        pairs = [(left[0], right[0])] + ([(left[1], right[0])] if len(left) > 1 else []) + \
+            ([(left[0], right[1])] if len(right) > 1 else [])
+        if len(left) == 1 and len(right) > 1:  # next to an end: the end point may be the bad one
+            pairs.append((right[0], right[min(2, len(right) - 1)]))
+        if len(right) == 1 and len(left) > 1:
+            pairs.append((left[0], left[min(2, len(left) - 1)]))
+        return pairs
+    side = right or left
+    return [(side[0], side[1])] + ([(side[1], side[min(3, len(side) - 1)])] if len(side) > 2 else [])
+
+
+def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each kept point against the lines (in ln F) through two of its own seating's neighbouring steps
+    (``off_line``): against its two nearest neighbours, and the smallest (in size) over the ``_reference_pairs`` —
+    which a single bad neighbour cannot inflate, as it moves its lines, not all of them. NaN where a seating has
+    fewer than three kept points."""
+    y, x, runs = data.ln_stiffness, np.log(data.load_n), data.run_ids()
+    nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
+    for run in np.unique(runs):
+        idx = np.flatnonzero((runs == run) & keep)
+        if idx.size < 3:
+            continue
+        idx = idx[np.argsort(x[idx], kind="stable")]
+        pos, a, b = np.array([(p, a, b) for p in range(idx.size) for a, b in _reference_pairs(p, idx.size)]).T
+        e = off_line(x, y, idx[pos], idx[a], idx[b])
+        first = np.r_[True, pos[1:] != pos[:-1]]  # each point's nearest pair comes first
+        nearest[idx] = e[first]
+        order = np.lexsort((np.abs(e), pos))  # by point, then by size: the first of each point is its least
+        least[idx] = e[order][np.r_[True, pos[order][1:] != pos[order][:-1]]]
+    return nearest, least
+
+
+def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], band_dof: int, max_bands: int
+                   ) -> list[int]:
+    """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
+    band's, from the residuals against the nearest neighbours) off every line through its own seating's
+    neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
+    another repetition passes smoothly. A deviation every repetition shares is the contact's (a kink), not an
+    outlier; two bad points of one step never outvote the clean repetition; a bad point's neighbours, off the
+    lines through it but not off the others, are not taken for it (at the end of a seating above all, where the
+    end point extrapolated from two neighbours moves with its neighbour's error as much as the neighbour does).
+    The price: a bad end point is judged against extrapolations only and is set aside only when far off."""
+    eps, least = _neighbour_residuals(data, keep)
+    ok = np.flatnonzero(np.isfinite(eps))
+    if ok.size < 2 * band_dof:
+        return []
+    x = np.log(data.load_per_length_n_per_m)
+    scale = np.full(eps.size, np.inf)
+    for part in np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // (2 * band_dof)))):
+        s = MAD_TO_SIGMA * float(np.median(np.abs(eps[part])))
+        scale[part] = s if s > 0 else np.inf
+    ratio = np.where(np.isfinite(eps), np.abs(np.nan_to_num(eps)) / scale, 0.0)
+    firm = np.where(np.isfinite(least), np.abs(np.nan_to_num(least)) / scale, 0.0)
+    runs, ln_f = data.run_ids(), np.log(data.load_n)
+    z = outlier_z(int(ok.size))
+    out = []
+    for g in groups:
+        g = g[keep[g]]
+        smooth = g[ratio[g] <= SMOOTH_Z]
+        for i in g[firm[g] > z]:
+            if g.size > 1 and smooth.size == 0:
+                continue  # every repetition shares it: the contact's own shape
+            same = np.flatnonzero((runs == runs[i]) & keep)
+            near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
+            if firm[i] >= firm[near].max():
+                out.append(int(i))
+    return out
