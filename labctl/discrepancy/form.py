@@ -9,11 +9,10 @@ still that term, bent.
 
 from __future__ import annotations
 
-import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
@@ -79,29 +78,36 @@ class FormPrior:
         """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
         same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
         candidate's terms (or none); ``inflation``: T."""
-        e = e / math.sqrt(inflation)
-        ee = float(e @ e)
-        vals = []
+        return self.log_marginals(e, bend, (inflation,))[0]
+
+    def log_marginals(self, e: np.ndarray, bend: np.ndarray | None, inflations: Sequence[float]
+                      ) -> list[tuple[float, float]]:
+        """``log_marginal`` at each inflation T, the products with the data formed once."""
+        t = np.asarray(inflations, dtype=float)[:, None]  # one row per T, one column per τ
+        tau2 = np.asarray(TAU_GRID, dtype=float) ** 2
+        ee = float(e @ e) / t
         if bend is None or bend.shape[1] == 0 or self.a is None:
             proj2 = (self.u.T @ e) ** 2
-            g = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2 * self.s2 / inflation  # one row per τ
-            vals = list(-0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=1)) - 0.5 * np.sum(np.log1p(g), axis=1))
+            g = tau2[None, :, None] * self.s2 / t[:, :, None]  # T × τ × singular value
+            v = -0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=2) / t) - 0.5 * np.sum(np.log1p(g), axis=2)
         else:
-            a = np.column_stack([self.a, bend]) / math.sqrt(inflation)
+            a = np.column_stack([self.a, bend])
             ata, ate = a.T @ a, a.T @ e
             m1, n = self.a.shape[1], a.shape[1]
-            # every τ of the grid in one batched factorisation (the same LAPACK calls as one τ at a time)
+            # every (T, τ) in one batched factorisation
             d = np.empty((len(TAU_GRID), n))
-            d[:, :m1] = np.asarray(TAU_GRID, dtype=float)[:, None] ** 2
+            d[:, :m1] = tau2[:, None]
             d[:, m1:] = BEND_SIGMA**2
-            m = np.repeat(ata[None], len(TAU_GRID), axis=0)
-            m[:, np.arange(n), np.arange(n)] += 1.0 / d
+            m = ata[None, None] / t[:, :, None, None] + np.zeros((1, len(TAU_GRID), 1, 1))
+            m[..., np.arange(n), np.arange(n)] += 1.0 / d[None]
             chol = np.linalg.cholesky(m)
-            z = np.linalg.solve(chol, np.repeat(ate[None, :, None], len(TAU_GRID), axis=0))[..., 0]
-            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1) + np.sum(np.log(d), axis=1)
-            vals = [-0.5 * (ee - float(zi @ zi)) - 0.5 * float(ld) for zi, ld in zip(z, logdet, strict=True)]
-        v = np.array(vals)
-        return float(logsumexp(v) - math.log(v.size)), float(TAU_GRID[int(np.argmax(v))])
+            rhs = np.broadcast_to((ate[None, None, :] / t[:, :, None])[..., None], (*m.shape[:3], 1))
+            z = np.linalg.solve(chol, rhs)[..., 0]
+            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=2, axis2=3)), axis=2) + np.sum(np.log(d), axis=1)
+            v = -0.5 * (ee - np.sum(z**2, axis=2)) - 0.5 * logdet
+        top = np.max(v, axis=1)
+        mean = top + np.log(np.mean(np.exp(v - top[:, None]), axis=1))  # log of the mean over τ, without overflow
+        return [(float(x), float(TAU_GRID[int(i)])) for x, i in zip(mean, np.argmax(v, axis=1), strict=True)]
 
     def transform(self, tau: float):  # noqa: ANN201
         """e → (I + τ²AA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 from scipy.special import chdtrc
 
 from labctl.discrepancy.data import Dataset
@@ -29,8 +28,11 @@ MIN_GEOMETRIES = 3
 """Roller geometries needed to compare (with fewer, the test is not made and nothing is ruled out)."""
 BOUND_TOLERANCE = 1e-6
 """How near an end of its range (in the [0, 1] scale) a joint-fit value counts as pinned there."""
-_STEP = 1e-4
-"""Central-difference step (in the parameter's [0, 1] scale) for each value's standard error."""
+_STEP = 1e-6
+"""Forward-difference step (in the parameter's [0, 1] scale) for the Gauss–Newton steps and each value's standard
+error."""
+NEWTON_STEPS = 8
+NEWTON_TOLERANCE = 1e-7
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,8 @@ def _groups(data: Dataset) -> list[list[int]]:
 
 
 def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, float]:
-    """Parameter ``j`` of ``fit`` (in its [0, 1] scale) refitted on ``sub`` alone, and its Fisher information."""
+    """Parameter ``j`` of ``fit`` (in its [0, 1] scale) refitted on ``sub`` alone (Gauss–Newton from the joint
+    fit's value, held in [0, 1]), and its Fisher information there."""
     spec, sigma = fit.spec, noise.sigma_at(sub)
 
     def white(u: float) -> np.ndarray:
@@ -87,11 +90,22 @@ def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, fl
             r = predict_ln(sub, spec.law(x), spec.chain(x)) - sub.ln_stiffness
         return noise.whiten(sub, np.where(np.isfinite(r), r, BAD_RESIDUAL), sigma)
 
-    best = minimize_scalar(lambda u: float(np.sum(white(u) ** 2)), bounds=(0.0, 1.0), method="bounded",
-                           options={"xatol": 1e-6})
-    u = float(best.x)
-    a, b = max(0.0, u - _STEP), min(1.0, u + _STEP)
-    jac = (white(b) - white(a)) / (b - a)
+    u = float(fit.x[j])
+    for _ in range(NEWTON_STEPS):
+        h = _STEP if u + _STEP <= 1.0 else -_STEP
+        r = white(u)
+        jac = (white(u + h) - r) / h
+        info = float(jac @ jac)
+        if info <= 0:
+            return u, 0.0
+        step = -float(jac @ r) / info
+        u_next = min(1.0, max(0.0, u + step))
+        done = abs(u_next - u) < NEWTON_TOLERANCE
+        u = u_next
+        if done:
+            break
+    h = _STEP if u + _STEP <= 1.0 else -_STEP
+    jac = (white(u + h) - white(u)) / h
     return u, float(jac @ jac)
 
 

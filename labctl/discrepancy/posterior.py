@@ -206,26 +206,31 @@ class Evidence:
             return np.zeros((self.n, 0))
         return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
 
-    def form_evidence(self, e: np.ndarray, bend: np.ndarray, inflation: float) -> float:
-        """The term's form is the library's (probability ½) or bent (½): the evidence averaged over both, so an
-        exact law pays at most ln 2 for the doubt and an approximate one is not judged by its exponent."""
-        exact = self.form.log_marginal(e, None, inflation)[0]
+    def form_evidence(self, e: np.ndarray, bend: np.ndarray) -> dict[float, tuple[float, float]]:
+        """At each of the evidence's temperatures: the term's form is the library's (probability ½) or bent (½),
+        the evidence averaged over both, so an exact law pays at most ln 2 for the doubt and an approximate one is
+        not judged by its exponent; and the discrepancy scale τ the bent form (the exact one, without bend columns)
+        favours."""
+        exact = self.form.log_marginals(e, None, self.temperatures)
         if bend.shape[1] == 0:
-            return exact
-        return float(np.logaddexp(exact, self.form.log_marginal(e, bend, inflation)[0]) - math.log(2.0))
+            return dict(zip(self.temperatures, exact, strict=True))
+        bent = self.form.log_marginals(e, bend, self.temperatures)
+        return {t: (float(np.logaddexp(x[0], b[0]) - math.log(2.0)), b[1])
+                for t, x, b in zip(self.temperatures, exact, bent, strict=True)}
 
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
         """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
         bend integrated out with the per-case discrepancy)."""
-        _, tau = self.form.log_marginal(fit.z)
+        first, tau = self.form.log_marginal(fit.z)
         if fit.spec.n_params() > 0:
             refit = self.fit(fit.spec, warm=fit, tau=tau)
-            if self.form.log_marginal(refit.z)[0] > self.form.log_marginal(fit.z)[0]:
+            if self.form.log_marginal(refit.z)[0] > first:
                 fit = refit
         bend = self.bend(fit)
         k = fit.spec.n_params()
-        by_t = {t: self.form_evidence(fit.z, bend, t) - 0.5 * k * math.log(self.n) for t in self.temperatures}
-        tau = self.form.log_marginal(fit.z, bend, TEMPERATURE)[1]
+        evidence = self.form_evidence(fit.z, bend)
+        by_t = {t: v - 0.5 * k * math.log(self.n) for t, (v, _) in evidence.items()}
+        tau = evidence[TEMPERATURE][1]
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
@@ -284,8 +289,9 @@ class Evidence:
                 best, chosen = top[0], [*chosen, top[1]]
             return chosen, best
 
-        by_t = {t: select(t)[1][0] for t in self.temperatures}
-        chosen, (_, tau, e) = select(TEMPERATURE)
+        selected = {t: select(t) for t in self.temperatures}
+        by_t = {t: best[0] for t, (_, best) in selected.items()}
+        chosen, (_, tau, e) = selected[TEMPERATURE]
         smooth = self.form.smooth(e, tau)
         return Scored(expl, None, by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 import numpy as np
@@ -26,12 +26,18 @@ class Material:
     hardness_hrc: float = 60.0
 
     def __post_init__(self) -> None:
-        if not np.all(np.asarray(self.youngs_modulus_pa) > 0):  # arrays too: a stack of cases (stack_cases)
-            raise InputError(f"material {self.name}: Young's modulus {self.youngs_modulus_pa!r} Pa must be > 0")
-        if not np.all((np.asarray(self.poisson_ratio) > -1.0) & (np.asarray(self.poisson_ratio) < 0.5)):
-            raise InputError(f"material {self.name}: Poisson ratio {self.poisson_ratio!r} must lie in (-1, 0.5)")
+        e, nu = self.youngs_modulus_pa, self.poisson_ratio
+        if type(e) is float and type(nu) is float:  # the common case, built thousands of times in a fit
+            e_ok, nu_ok = e > 0, -1.0 < nu < 0.5
+        else:  # arrays too: a stack of cases (stack_cases)
+            e_ok = bool(np.all(np.asarray(e) > 0))
+            nu_ok = bool(np.all((np.asarray(nu) > -1.0) & (np.asarray(nu) < 0.5)))
+        if not e_ok:
+            raise InputError(f"material {self.name}: Young's modulus {e!r} Pa must be > 0")
+        if not nu_ok:
+            raise InputError(f"material {self.name}: Poisson ratio {nu!r} must lie in (-1, 0.5)")
 
-    @property
+    @cached_property
     def plane_strain_compliance(self) -> float:
         """(1 - ν²)/E in 1/Pa: this body's share of 1/E*."""
         return (1.0 - self.poisson_ratio**2) / self.youngs_modulus_pa
