@@ -193,8 +193,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
             "baseline_lof_p": result.baseline_lack_of_fit_p,
-            "not_instrument": [c.explanation.name for c in result.scored
-                               if not all(x["passed"] for x in c.extra.get("instrument", []))],
+            "not_instrument": [c.explanation.name for c in result.scored if c.failed_instrument],
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior,
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
                            for c in result.scored]}

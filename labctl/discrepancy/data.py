@@ -121,12 +121,11 @@ class Dataset:
 
     def roller_keys(self) -> list[tuple[float, float]]:
         """Distinct roller geometries (D, L_we) in case order: the units a held-out check leaves out."""
-        keys: list[tuple[float, float]] = []
-        for c in self.cases:
-            key = (c.case.roller.diameter_m, c.case.roller.contact_length_m)
-            if key not in keys:
-                keys.append(key)
-        return keys
+        return list(dict.fromkeys(_roller_key(c) for c in self.cases))
+
+    def roller_groups(self) -> list[list[int]]:
+        """The case indices of each roller geometry, in ``roller_keys`` order."""
+        return [[i for i, c in enumerate(self.cases) if _roller_key(c) == k] for k in self.roller_keys()]
 
     def drop_points(self, drop: np.ndarray) -> Dataset:
         """The dataset without the points flagged in ``drop`` (a mask over the concatenated points)."""
@@ -150,6 +149,10 @@ class Dataset:
             if np.any(m):
                 out.append(CaseData(c.case, c.load_n[m], c.ln_stiffness[m], c.repetition[m]))
         return Dataset(tuple(out))
+
+
+def _roller_key(c: CaseData) -> tuple[float, float]:
+    return (c.case.roller.diameter_m, c.case.roller.contact_length_m)
 
 
 def build_dataset(points: Sequence[StiffnessPoint]) -> Dataset:

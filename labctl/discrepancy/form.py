@@ -98,7 +98,7 @@ class FormPrior:
             d = np.empty((len(TAU_GRID), n))
             d[:, :m1] = tau2[:, None]
             d[:, m1:] = BEND_SIGMA**2
-            m = ata[None, None] / t[:, :, None, None] + np.zeros((1, len(TAU_GRID), 1, 1))
+            m = np.repeat(ata[None, None] / t[:, :, None, None], len(TAU_GRID), axis=1)
             m[..., np.arange(n), np.arange(n)] += 1.0 / d[None]
             chol = np.linalg.cholesky(m)
             rhs = np.broadcast_to((ate[None, None, :] / t[:, :, None])[..., None], (*m.shape[:3], 1))

@@ -19,7 +19,7 @@ from scipy.special import chdtrc
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
-from labctl.discrepancy.model import BAD_RESIDUAL, Fit, predict_ln
+from labctl.discrepancy.model import Fit, residuals_at
 from labctl.discrepancy.noise import NoiseFloor
 
 CONSISTENCY_LEVEL = 0.01
@@ -72,12 +72,6 @@ class InstrumentCheck:
                 "level": CONSISTENCY_LEVEL, "passed": self.passed, "description": self.describe()}
 
 
-def _groups(data: Dataset) -> list[list[int]]:
-    keys = data.roller_keys()
-    return [[i for i, c in enumerate(data.cases) if (c.case.roller.diameter_m, c.case.roller.contact_length_m) == k]
-            for k in keys]
-
-
 def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, float]:
     """Parameter ``j`` of ``fit`` (in its [0, 1] scale) refitted on ``sub`` alone (Gauss–Newton from the joint
     fit's value, held in [0, 1]), and its Fisher information there."""
@@ -86,9 +80,7 @@ def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, fl
     def white(u: float) -> np.ndarray:
         x = fit.x.copy()
         x[j] = u
-        with np.errstate(all="ignore"):
-            r = predict_ln(sub, spec.law(x), spec.chain(x)) - sub.ln_stiffness
-        return noise.whiten(sub, np.where(np.isfinite(r), r, BAD_RESIDUAL), sigma)
+        return noise.whiten(sub, residuals_at(sub, spec, x, sub.ln_stiffness), sigma)
 
     u = float(fit.x[j])
     for _ in range(NEWTON_STEPS):
@@ -113,7 +105,7 @@ def check_instrument(data: Dataset, fit: Fit, noise: NoiseFloor) -> list[Instrum
     """Every measurement-side parameter of ``fit`` refitted per roller geometry; empty with fewer than
     ``MIN_GEOMETRIES`` geometries or no measurement-side term."""
     spec = fit.spec
-    groups = [data.subset(idx) for idx in _groups(data)]
+    groups = [data.subset(idx) for idx in data.roller_groups()]
     if len(groups) < MIN_GEOMETRIES or not spec.measurement:
         return []
     out = []

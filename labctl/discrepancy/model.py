@@ -253,8 +253,9 @@ def depth_column(fit: Fit, data: Dataset) -> np.ndarray | None:
     return (predict_ln(data, law, fit.chain) - fit.predict(data)) / step
 
 
-def _residuals(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray,
-               baselines: dict[tuple[str, float], np.ndarray] | None = None) -> np.ndarray:
+def residuals_at(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray,
+                 baselines: dict[tuple[str, float], np.ndarray] | None = None) -> np.ndarray:
+    """ln k_model − ``measured`` at parameter vector ``x``; ``BAD_RESIDUAL`` where the model is not physical."""
     with np.errstate(all="ignore"):
         values = spec.decode(x)
         r = predict_ln(data, spec.law(x, values), spec.chain(x, values), baselines) - measured
@@ -298,12 +299,12 @@ def fit_model(data: Dataset, spec: ModelSpec, warm: Fit | None = None, sigma: np
         if x0.size == 0:
             best = (0.0, x0)
             break
-        sol = bounded_least_squares(lambda x: objective(white(_residuals(data, spec, x, measured, baselines))),
+        sol = bounded_least_squares(lambda x: objective(white(residuals_at(data, spec, x, measured, baselines))),
                                     x0, lo, hi, ftol=FIT_FTOL)
         cost = float(np.sum(sol.fun**2))
         if best is None or cost < best[0]:
             best = (cost, sol.x)
     assert best is not None
     x = best[1]
-    r = _residuals(data, spec, x, measured)
+    r = residuals_at(data, spec, x, measured)
     return Fit(spec, x, spec.law(x), r, sig, white(r))

@@ -50,7 +50,7 @@ TEMPERATURE = 16.0
 """The inflation the decision uses, chosen on the blind worlds: decided at T = 48 (the calibration seeds' log loss falls
 to the grid's end) the truth is ranked first less often on the evaluation seeds and on the second judge
 (docs/discrepancy.md)."""
-ROUNDING_STARTS = (0.3,)
+ROUNDING_START = 0.3
 """Where a shaped term's rounding is fitted from (the kinked law itself is the other half of the doubt)."""
 INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a measurement-side term has its instrument check (``labctl.discrepancy.instrument``) once its
@@ -123,6 +123,11 @@ class Scored:
     """… after the posterior-mean form discrepancy is taken off: what neither explains."""
     probability: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def failed_instrument(self) -> list[dict[str, Any]]:
+        """The instrument checks (``labctl.discrepancy.instrument``) its measurement-side terms failed."""
+        return [c for c in self.extra.get("instrument", []) if not c["passed"]]
 
     @property
     def log_evidence(self) -> float:
@@ -247,9 +252,9 @@ class Evidence:
         for name in shaped:
             spec = spec.with_free_shape(name)
         values = fit.spec.decode(fit.x)
-        trials = [self.fit(spec, warm=fit, guess={n: {**values[n], **dict.fromkeys(FIT_ONLY_BOUNDS[n], w)}
-                                                   for n in shaped}) for w in ROUNDING_STARTS]
-        soft = self.score(kinked.explanation, min(trials, key=lambda f: float(f.z @ f.z)), candidates)
+        rounded = self.fit(spec, warm=fit, guess={n: {**values[n], **dict.fromkeys(FIT_ONLY_BOUNDS[n], ROUNDING_START)}
+                                                  for n in shaped})
+        soft = self.score(kinked.explanation, rounded, candidates)
         best = soft if soft.log_evidence > kinked.log_evidence else kinked
         by_t = {t: float(np.logaddexp(kinked.log_evidence_by_t[t], soft.log_evidence_by_t[t]) - math.log(2.0))
                 for t in self.temperatures}
@@ -328,7 +333,6 @@ class Evidence:
                 return base, scored
             for s in due:
                 assert s.fit is not None
-                checks = check_instrument(self.data, s.fit, self.noise)
-                s.extra["instrument"] = [c.to_dict() for c in checks]
-                if not all(c.passed for c in checks):
+                s.extra["instrument"] = [c.to_dict() for c in check_instrument(self.data, s.fit, self.noise)]
+                if s.failed_instrument:
                     not_instrument.append(s.explanation.name)

@@ -165,15 +165,10 @@ class Search:
                        stats["with"][2], stats["without"][0], stats["with"][0], n)
 
 def _folds(data: Dataset) -> tuple[str, bool, list[tuple[Dataset, Dataset]]]:
-    keys = data.roller_keys()
-    if len(keys) >= MIN_GEOMETRIES:
-        def geometry(c: Any) -> tuple[float, float]:
-            return (c.case.roller.diameter_m, c.case.roller.contact_length_m)
-
-        folds = []
-        for k in keys:
-            test = [i for i, c in enumerate(data.cases) if geometry(c) == k]
-            folds.append((data.subset(i for i in range(len(data.cases)) if i not in test), data.subset(test)))
+    groups = data.roller_groups()
+    if len(groups) >= MIN_GEOMETRIES:
+        folds = [(data.subset(i for i in range(len(data.cases)) if i not in test), data.subset(test))
+                 for test in groups]
         return "roller type", False, folds
     reps = data.repetitions()
     if len(reps) >= 2:

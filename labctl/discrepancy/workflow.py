@@ -160,9 +160,8 @@ class DiscrepancyResult:
         lead = -np.inf if top is None else top.log_prior + top.log_evidence
         out = []
         for s in sorted(self.scored, key=lambda s: -(s.log_prior + s.log_evidence)):
-            failed = [c for c in s.extra.get("instrument", []) if not c["passed"]]
-            if failed and s.log_prior + s.log_evidence > lead and len(out) < k:
-                out.append(f"{s.explanation.name} ({', '.join(c['description'] for c in failed)})")
+            if s.failed_instrument and s.log_prior + s.log_evidence > lead and len(out) < k:
+                out.append(f"{s.explanation.name} ({', '.join(c['description'] for c in s.failed_instrument)})")
         return out
 
     def _step_doc(self, s: Step) -> dict[str, Any]:
