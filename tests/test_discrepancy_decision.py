@@ -15,7 +15,7 @@ from labctl.discrepancy.form import TAU_GRID, FormPrior
 from labctl.discrepancy.posterior import PRIOR_MASS, explanations, log_prior
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
-from labctl.physics import EndEffects
+from labctl.physics import EndEffects, Misalignment
 from labctl.stiffness_table import write_stiffness_table
 from tests.discrepancy_util import GENERATOR_NOISE, world
 
@@ -103,6 +103,16 @@ def test_one_roller_type_says_what_the_data_cannot_separate():
     result = run_discrepancy(points)
     assert any("1 roller geometry" in r for r in result.reasons)
     assert "identifiability" in result.to_dict()["decision"]
+    assert "1 roller geometry" in result.verdict_text()
+
+
+def test_a_consistent_verdict_on_one_roller_type_still_says_what_its_design_cannot_test():
+    # a tilt that this one roller closes below the campaign's loads: the baseline passes, and the verdict must not
+    # read as if length-scaling terms had been tested
+    result = run_discrepancy(synthesize(world(Misalignment(tilt_rad=4e-4)), types=[1], noise=GENERATOR_NOISE, seed=1))
+    assert result.verdict == "consistent"
+    text = result.verdict_text()
+    assert "1 roller geometry" in text and "end_effects, misalignment" in text and "one rail roughness" in text
 
 
 def test_ball_rows_are_refused_with_one_line(tmp_path, null_points):

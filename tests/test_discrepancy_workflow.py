@@ -197,6 +197,8 @@ def test_one_roller_type_states_what_the_design_cannot_separate():
     assert "surface_roughness" in result.scored[0].explanation.name
     assert set(names(result)) <= {"surface_roughness"}
     assert any("1 roller geometry" in r for r in result.to_dict()["decision"]["identifiability"])
+    # in the verdict's own words, whatever the probabilities (a named term too: its name rests on load form alone)
+    assert "1 roller geometry" in result.verdict_text() and "one rail roughness" in result.verdict_text()
 
 
 def test_other_baselines_and_limits():

@@ -105,6 +105,7 @@ class DiscrepancyResult:
         residual = _residual_words(list(self.trends_after))
         top = self.scored[0] if self.scored else None
         parts = []
+        said = False
         if self.verdict == "consistent":
             parts.append(f"the baseline agrees with the data within the noise ({level}); an effect below the "
                          "detection limit is not ruled out")
@@ -135,6 +136,7 @@ class DiscrepancyResult:
                 why = "; ".join(self.reasons) or "their signatures are alike over these loads and rollers"
                 parts.append(f"the data cannot separate {self.scored[0].explanation.name} from "
                              f"{self.scored[1].explanation.name}: {why}")
+                said = True
             if self.empirical is not None:
                 held = self.empirical.held_out
                 gen = ("generalises to left-out roller types" if self.empirical.generalises else
@@ -142,6 +144,9 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        if self.reasons and not said:
+            parts.append("what this campaign's design cannot test, whatever the probabilities above: "
+                         + "; ".join(self.reasons))
         stretched = self.not_instrument()
         if stretched:
             parts.append("ruled out as instrument errors (a term that mends a law's form is no load cell or modulus "
