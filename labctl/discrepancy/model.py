@@ -19,7 +19,7 @@ import numpy as np
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.lsq import bounded_least_squares
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
-from labctl.discrepancy.noise import whiten
+from labctl.discrepancy.noise import NoiseFloor, whiten
 from labctl.physics.effects import EFFECTS, Effect
 from labctl.physics.law import ContactLaw
 from labctl.physics.tripp import DEFAULT_DEPTH_M
@@ -33,23 +33,25 @@ quarter less work per fit."""
 BAD_RESIDUAL = 10.0
 """Stands in for ln-residuals where a trial parameter set makes the model non-physical."""
 
+FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {"misalignment": {"transition": (0.0, 0.6)}}
+"""Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
+rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
+spread over about a decade of load). The search frees one only when the data prefer it decisively (nested BIC)."""
+SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3}}
+"""Where a freed shape parameter is fitted from when the law's own form (0) is the other half of the doubt."""
+
+
 STARTS: dict[str, tuple[dict[str, float], ...]] = {
     "surface_roughness": ({"asperity_scale": 1.0},),
     "end_effects": ({"edge_length_m": 0.1e-3},),
     "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5}),
-    "misalignment": ({"tilt_rad": 2e-4, "transition": 0.0}, {"tilt_rad": 1e-3, "transition": 0.3}),
+    "misalignment": ({"tilt_rad": 2e-4, "transition": 0.0}, {"tilt_rad": 1e-3, **SHAPE_STARTS["misalignment"]}),
     "setup_compliance": ({"stiffness_factor": 0.8}, {"stiffness_factor": 1.3}),
     "load_gain": ({"gain": 1.0},),
     "load_offset": ({"offset_n": 0.0},),
     "modulus_scale": ({"scale": 1.0},),
 }
 """Physically plausible starting points per effect; several where the term has a kink to cross."""
-
-
-FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {"misalignment": {"transition": (0.0, 0.6)}}
-"""Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
-rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
-spread over about a decade of load). The search frees one only when the data prefer it decisively (nested BIC)."""
 
 
 SIGNED_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
@@ -207,6 +209,10 @@ class Fit:
     def predict(self, data: Dataset) -> np.ndarray:
         """ln of this model's stiffness at the points of ``data``."""
         return predict_ln(data, self.law, self.chain)
+
+    def lack_of_fit_p(self, data: Dataset, noise: NoiseFloor) -> float | None:
+        """The lack-of-fit test's p-value for this fit on ``data`` (None: no test, without repetitions)."""
+        return noise.lack_of_fit_p(data, self.residuals, self.sigma, self.spec.n_params())
 
     @property
     def n_points(self) -> int:

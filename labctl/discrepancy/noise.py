@@ -115,11 +115,6 @@ class NoiseFloor:
         test = self.lack_of_fit(data, residuals, sigma, n_params)
         return None if test is None else test.p
 
-    def consistent(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int) -> bool:
-        """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
-        p = self.lack_of_fit_p(data, residuals, sigma, n_params)
-        return p is not None and not lack_of_fit_rejects(p)
-
 
 def lack_of_fit_rejects(p: float | None) -> bool:
     """The lack-of-fit test (p-value ``p``; None: no test) rejects the model at level ``CONSISTENT_P``."""

@@ -38,7 +38,7 @@ from labctl.discrepancy.empirical import MAX_FEATURES, features
 from labctl.discrepancy.form import FormPrior, contribution
 from labctl.discrepancy.instrument import check_instrument
 from labctl.discrepancy.measurement import MEASUREMENT
-from labctl.discrepancy.model import FIT_ONLY_BOUNDS, Fit, ModelSpec, depth_column, fit_model
+from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
 from labctl.physics.effects import EFFECTS
 
@@ -50,8 +50,6 @@ TEMPERATURE = 16.0
 """The inflation the decision uses, chosen on the blind worlds: decided at T = 48 (the calibration seeds' log loss falls
 to the grid's end) the truth is ranked first less often on the evaluation seeds and on the second judge
 (docs/discrepancy.md)."""
-ROUNDING_START = 0.3
-"""Where a shaped term's rounding is fitted from (the kinked law itself is the other half of the doubt)."""
 INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a measurement-side term has its instrument check (``labctl.discrepancy.instrument``) once its
 probability reaches this; the probabilities are then worked out again without those that fail, until none is due."""
@@ -252,8 +250,7 @@ class Evidence:
         for name in shaped:
             spec = spec.with_free_shape(name)
         values = fit.spec.decode(fit.x)
-        rounded = self.fit(spec, warm=fit, guess={n: {**values[n], **dict.fromkeys(FIT_ONLY_BOUNDS[n], ROUNDING_START)}
-                                                  for n in shaped})
+        rounded = self.fit(spec, warm=fit, guess={n: {**values[n], **SHAPE_STARTS[n]} for n in shaped})
         soft = self.score(kinked.explanation, rounded, candidates)
         best = soft if soft.log_evidence > kinked.log_evidence else kinked
         by_t = {t: float(np.logaddexp(kinked.log_evidence_by_t[t], soft.log_evidence_by_t[t]) - math.log(2.0))
@@ -323,7 +320,7 @@ class Evidence:
                     fits[(a,)].x))
                 fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
             scored.append(self.rounded(self.score(expl, fits[key], candidates), candidates))
-        lof_p = self.noise.lack_of_fit_p(self.data, base.residuals, base.sigma, base.spec.n_params())
+        lof_p = base.lack_of_fit_p(self.data, self.noise)
         not_instrument: list[str] = []
         while True:
             posterior(scored, rejected=rejected_explanations(lof_p, not_instrument))

@@ -22,7 +22,7 @@ from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
-from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor, estimate_noise
+from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor, estimate_noise, lack_of_fit_rejects
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, TEMPERATURE, Evidence, Scored
 from labctl.discrepancy.screen import Screening, check_units, screen_points
 from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, kind, share
@@ -72,8 +72,7 @@ class DiscrepancyResult:
     @property
     def baseline_lack_of_fit_p(self) -> float | None:
         """The lack-of-fit test's p-value for the baseline alone (None without a test)."""
-        b = self.baseline
-        return self.noise.lack_of_fit_p(self.data, b.residuals, b.sigma, b.spec.n_params())
+        return self.baseline.lack_of_fit_p(self.data, self.noise)
 
     @property
     def physical_steps(self) -> list[Step]:
@@ -105,7 +104,6 @@ class DiscrepancyResult:
         residual = _residual_words(list(self.trends_after))
         top = self.scored[0] if self.scored else None
         parts = []
-        said = False
         if self.verdict == "consistent":
             parts.append(f"the baseline agrees with the data within the noise ({level}); an effect below the "
                          "detection limit is not ruled out")
@@ -133,10 +131,10 @@ class DiscrepancyResult:
                 parts.append(f"the residual is NOT consistent with the noise ({level}) and still {residual}")
             if len(self.scored) > 1 and self.scored[0].probability + self.scored[1].probability >= 0.6 and \
                     self.scored[1].probability >= 0.15:
-                why = "; ".join(self.reasons) or "their signatures are alike over these loads and rollers"
+                why = "the design's limits below" if self.reasons else \
+                    "their signatures are alike over these loads and rollers"
                 parts.append(f"the data cannot separate {self.scored[0].explanation.name} from "
                              f"{self.scored[1].explanation.name}: {why}")
-                said = True
             if self.empirical is not None:
                 held = self.empirical.held_out
                 gen = ("generalises to left-out roller types" if self.empirical.generalises else
@@ -144,7 +142,7 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
-        if self.reasons and not said:
+        if self.reasons:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons))
         stretched = self.not_instrument()
@@ -235,7 +233,8 @@ def _residual_words(found: list[dict[str, Any]]) -> str:
 
 def consistent_with_noise(fit: Fit, noise: NoiseFloor, data: Dataset) -> bool:
     """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
-    return noise.consistent(data, fit.residuals, fit.sigma, fit.spec.n_params())
+    p = fit.lack_of_fit_p(data, noise)
+    return p is not None and not lack_of_fit_rejects(p)
 
 
 def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, NoiseFloor]:
