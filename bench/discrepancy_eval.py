@@ -194,7 +194,9 @@ def run_blind(task: Task) -> dict[str, Any]:
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
             "baseline_lof_p": result.baseline_lack_of_fit_p,
             "not_instrument": [c.explanation.name for c in result.scored if c.failed_instrument],
-            "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior,
+            "n_points": result.data.n_points,
+            "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
+                            "form_chi2": c.form_chi2, "n_params": c.n_params,
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
                            for c in result.scored]}
 

@@ -1,4 +1,4 @@
-"""An instrument error is one value for every roller: the measurement-side terms' consistency check."""
+"""An instrument or rig error is one value for every roller: the rig-level terms' consistency check."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from labctl.discrepancy.instrument import CONSISTENCY_LEVEL, check_instrument
 from labctl.discrepancy.model import ModelSpec, fit_model
 from labctl.discrepancy.noise import estimate_noise
 from labctl.discrepancy.synthetic import synthesize
+from labctl.physics import SetupCompliance
 from tests.discrepancy_util import GENERATOR_NOISE, world
 
 
@@ -17,18 +18,18 @@ def with_offset(inner, offset_of):
     return lambda case, load_n: inner(case, load_n - offset_of(case))
 
 
-def offset_check(truth, seed):
-    """The load-offset model fitted to a simulated campaign, and its instrument check."""
+def term_check(truth, seed, term="load_offset"):
+    """The model with ``term`` fitted to a simulated campaign, and the instrument check of that term."""
     data = build_dataset(synthesize(truth, noise=GENERATOR_NOISE, seed=seed))
     noise = estimate_noise(data)
-    fit = fit_model(data, ModelSpec().with_effects("load_offset"), sigma=noise.sigma_at(data),
+    fit = fit_model(data, ModelSpec().with_effects(term), sigma=noise.sigma_at(data),
                     seating_sigma=noise.seating_sigma)
     (check,) = check_instrument(data, fit, noise)
     return check
 
 
 def test_one_load_cell_offset_for_every_roller_passes_the_instrument_check():
-    check = offset_check(with_offset(world(), lambda case: 15.0), seed=43)
+    check = term_check(with_offset(world(), lambda case: 15.0), seed=43)
     assert check.passed and check.p >= CONSISTENCY_LEVEL and not check.at_bound
     assert len(check.values) == 7
     assert all(v == pytest.approx(15.0, abs=4 * s) for v, s in zip(check.values, check.sigmas, strict=True))
@@ -40,12 +41,57 @@ def test_one_load_cell_offset_for_every_roller_passes_the_instrument_check():
 
 def test_an_offset_that_differs_by_roller_type_is_no_instrument_error():
     # 20 N per 10 mm of contact length: an "offset" the load cell cannot have, since it reads every roller alike
-    check = offset_check(with_offset(world(), lambda case: 2e3 * case.roller.contact_length_m), seed=44)
+    check = term_check(with_offset(world(), lambda case: 2e3 * case.roller.contact_length_m), seed=44)
     assert not check.passed and check.p < CONSISTENCY_LEVEL
     assert "differs by roller type" in check.describe()
 
 
 def test_an_offset_beyond_its_range_is_said_to_be_pinned():
-    check = offset_check(with_offset(world(), lambda case: -120.0), seed=45)
+    check = term_check(with_offset(world(), lambda case: -120.0), seed=45)
     assert check.at_bound and not check.passed
     assert "end of its range" in check.describe()
+
+
+def interlayer(compliance_m2_per_n, thickness_m):
+    """A compliant interlayer in series with each roller: its compliance spreads over the contact length plus the
+    layer's thickness at each end, so it is larger for a short roller — a property of the roller's seat, not of
+    the rig."""
+    inner = world()
+    return lambda case, load_n: 1.0 / (1.0 / inner(case, load_n)
+                                       + compliance_m2_per_n / (case.roller.contact_length_m + 2 * thickness_m))
+
+
+def seat_joint(compliance_at_100n_m_per_n):
+    """A ball seat in the rig's load path: a Hertz point contact, its compliance falling as F^(-1/3) — the same
+    for every roller at a given load."""
+    inner = world()
+    return lambda case, load_n: 1.0 / (1.0 / inner(case, load_n)
+                                       + compliance_at_100n_m_per_n * (load_n / 100.0) ** (-1.0 / 3.0))
+
+
+@pytest.mark.parametrize("truth", [world(SetupCompliance(stiffness_factor=0.7)), seat_joint(1e-9)],
+                         ids=["constant", "stiffening_joint"])
+def test_the_rigs_own_compliance_is_one_curve_for_every_roller(truth):
+    # a constant stand-in fitted to each roller type over its own load range fails the stiffening joint (Q ~ 190)
+    check = term_check(truth, 46, "setup_compliance")
+    assert check.df_within == 14  # 21 seatings, 7 roller types
+    assert check.term == "setup_compliance" and check.parameter == "compliance_m_per_n"
+    assert check.passed and check.p >= CONSISTENCY_LEVEL and check.df == 6 and len(check.values) == 7
+
+
+def test_a_layer_whose_compliance_differs_by_roller_fails_the_rig_check():
+    check = term_check(interlayer(1e-11, 3e-3), 46, "setup_compliance")
+    assert not check.passed and check.p < CONSISTENCY_LEVEL
+    assert "differs by roller type" in check.describe()
+
+
+@pytest.mark.parametrize("seed", [50, 52])
+def test_a_compliant_layer_under_each_roller_is_not_called_a_rig_compliance(seed):
+    # a rig compliance is one K_setup for every roller; this layer's compliance differs by roller length, and
+    # setup_compliance was "likely" (0.60, 0.86) before the rig's own term had the instrument check
+    result = run_discrepancy(synthesize(interlayer(1e-11, 3e-3), noise=GENERATOR_NOISE, seed=seed))
+    assert result.scored[0].explanation.name != "setup_compliance"
+    ruled_out = [s for s in result.scored if s.explanation.name == "setup_compliance"]
+    assert ruled_out[0].failed_instrument and ruled_out[0].probability == 0.0
+    assert "differs by roller type" in ruled_out[0].failed_instrument[0]["description"]
+    assert "rig-stiffness error): setup_compliance" in result.verdict_text()

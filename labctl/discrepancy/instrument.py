@@ -1,13 +1,14 @@
-"""An instrument error is one value for every roller: the consistency test of a measurement-side term.
+"""An instrument error is one value for every roller: the consistency test of a rig-level term.
 
-A load cell offset or gain, or a wrong modulus, is a property of the instrument or the catalogue, so every roller
-type measured with it shows the same value. A term that only mends the form of a physical law (a load offset
-that shifts a tilt law's closing, say) wants a different value for each roller type, because the form error
-differs with the roller's length and diameter. Each measurement-side parameter of a fitted explanation is refitted
-on each roller geometry alone (every other parameter held at the joint fit) and the values are compared: Cochran's
-Q = Σ w_g·(θ_g − θ̄)², w_g = 1/σ_g², against χ² with G − 1 degrees of freedom at level ``CONSISTENCY_LEVEL``. A term
-whose joint fit sits at an end of its range is no instrument error either: it is being stretched to another shape.
-"""
+A load cell offset or gain, or a wrong modulus, is a property of the instrument or the catalogue, and the rig's own
+stiffness (``setup_compliance``: K_setup) a property of the rig, so every roller type measured with it shows the
+same value. A term that only mends the form of a physical law (a load offset that shifts a tilt law's closing, a
+"rig compliance" standing in for a compliant layer under each roller) wants a different value for each roller
+type, because the form error differs with the roller's length and diameter. Each rig-level parameter of a fitted
+explanation is refitted on each roller geometry alone (every other parameter held at the joint fit) and the values
+are compared: Cochran's Q = Σ w_g·(θ_g − θ̄)², w_g = 1/σ_g², against χ² with G − 1 degrees of freedom at level
+``CONSISTENCY_LEVEL``. A term whose joint fit sits at an end of its range is no instrument error either: it is
+being stretched to another shape."""
 
 from __future__ import annotations
 
@@ -15,15 +16,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.special import chdtrc
+from scipy.special import chdtrc, fdtrc
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
-from labctl.discrepancy.model import Fit, residuals_at
+from labctl.discrepancy.model import Fit, depth_column, residuals_at
 from labctl.discrepancy.noise import NoiseFloor
+from labctl.physics.effects import EFFECTS
 
 CONSISTENCY_LEVEL = 0.01
-"""A measurement-side term whose per-roller-type values differ at this level is not an instrument error."""
+"""A rig-level term whose per-roller-type values differ at this level is not an instrument or rig error."""
 MIN_GEOMETRIES = 3
 """Roller geometries needed to compare (with fewer, the test is not made and nothing is ruled out)."""
 BOUND_TOLERANCE = 1e-6
@@ -31,13 +33,21 @@ BOUND_TOLERANCE = 1e-6
 _STEP = 1e-6
 """Forward-difference step (in the parameter's [0, 1] scale) for the Gauss–Newton steps and each value's standard
 error."""
+RIG_CURVE_DEGREE = 2
+"""Degree in ln F of the compliance curve every roller shares when a rig property is compared across roller types."""
 NEWTON_STEPS = 8
 NEWTON_TOLERANCE = 1e-7
 
 
+def rig_level(term: str) -> bool:
+    """One value for every roller measured on the rig: a measurement-side term, or a physical effect of the rig
+    itself (``RIG_LEVEL``)."""
+    return term in MEASUREMENT or bool(getattr(EFFECTS.get(term), "RIG_LEVEL", False))
+
+
 @dataclass(frozen=True)
 class InstrumentCheck:
-    """One measurement-side parameter refitted per roller geometry, and whether the values agree."""
+    """One rig-level parameter refitted per roller geometry, and whether the values agree."""
 
     term: str
     parameter: str
@@ -50,6 +60,9 @@ class InstrumentCheck:
     at_bound: bool
     """The joint fit's value sits at an end of the term's range: the data want more than an instrument error of
     this kind plausibly is (the range is the term's prior support), so the term is bending to fit another shape."""
+    df_within: int = 0
+    """0: ``q`` is Cochran's Q against χ²(``df``); else ``q`` is an F ratio, the roller types' spread against the
+    spread between seatings of one roller type, on (``df``, ``df_within``) degrees of freedom."""
 
     @property
     def passed(self) -> bool:
@@ -63,13 +76,15 @@ class InstrumentCheck:
                     "stretched to another shape")
         p = "p < 1e-10" if self.p < 1e-10 else f"p {self.p:.2g}"
         verb = "agrees across" if self.p >= CONSISTENCY_LEVEL else "differs by"
-        return (f"{self.term} {verb} roller type (Cochran's Q {self.q:.1f}, {self.df} df, {p} at level "
-                f"{CONSISTENCY_LEVEL:g})")
+        test = (f"F {self.q:.1f} on {self.df}, {self.df_within} df against the seatings of one roller type"
+                if self.df_within else f"Cochran's Q {self.q:.1f}, {self.df} df")
+        return f"{self.term} {verb} roller type ({test}, {p} at level {CONSISTENCY_LEVEL:g})"
 
     def to_dict(self) -> dict[str, Any]:
         return {"term": self.term, "parameter": self.parameter, "values": list(self.values),
                 "sigmas": list(self.sigmas), "q": self.q, "df": self.df, "p": self.p, "at_bound": self.at_bound,
-                "level": CONSISTENCY_LEVEL, "passed": self.passed, "description": self.describe()}
+                "df_within": self.df_within, "level": CONSISTENCY_LEVEL, "passed": self.passed,
+                "description": self.describe()}
 
 
 def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, float]:
@@ -101,19 +116,82 @@ def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, fl
     return u, float(jac @ jac)
 
 
+def _same_curve(data: Dataset, fit: Fit, noise: NoiseFloor, term: str, at_bound: bool) -> InstrumentCheck:
+    """A physical property of the rig (its own compliance), compared across roller types at the loads they share.
+
+    The rig's compliance may depend on load (a joint that stiffens), so a constant stand-in fitted to each roller
+    type over its own load range would differ for that reason alone. The joint fit's residuals, read as an extra
+    compliance Δc (Δ ln k = k·Δc), are fitted by one curve in ln F that every roller shares (degree
+    ``RIG_CURVE_DEGREE``; Tripp's depth refitted with it) and then with a level per roller geometry added; the χ²
+    the levels gain is Q on G − 1 degrees of freedom. The values are the levels (m/N, about their weighted mean)
+    with their marginal σ: the depth trades off with one direction of them, so a single level is loosely known and
+    the test is Q. A rig that drifts over the campaign differs by roller type when the types were measured one
+    after another, and fails: the data cannot tell it from a property of each roller's seat."""
+    k = np.exp(fit.predict(data))
+    x = np.log(data.load_n)
+    u = (x - x.mean()) / max(float(x.std()), 1e-12)
+    geometry = np.empty(data.n_points, dtype=int)
+    slices = data.case_slices()
+    groups = data.roller_groups()
+    for g, cases in enumerate(groups):
+        for c in cases:
+            geometry[slices[c]] = g
+    levels = np.column_stack([k * (geometry == g) for g in range(len(groups))])
+    curve = np.column_stack([k * u**d for d in range(1, RIG_CURVE_DEGREE + 1)])
+    depth = depth_column(fit, data)
+    nuisance = curve if depth is None else np.column_stack([curve, depth])  # the baseline's depth refitted too
+    sigma = noise.sigma_at(data)
+    z = noise.whiten(data, fit.residuals, sigma)
+    shared = noise.whiten(data, np.column_stack([k, nuisance]), sigma)
+    both = noise.whiten(data, np.column_stack([levels, nuisance]), sigma)
+    g = len(groups)
+
+    def solve(a: np.ndarray) -> tuple[np.ndarray, float, int, np.ndarray]:
+        """Least squares on unit columns (a compliance column is ~1e9 × the depth's): coefficients, χ², rank and
+        covariance."""
+        norms = np.linalg.norm(a, axis=0)
+        unit = a / norms
+        coef, _, rank, _ = np.linalg.lstsq(unit, z, rcond=None)
+        e = z - unit @ coef
+        return coef / norms, float(e @ e), int(rank), np.linalg.pinv(unit.T @ unit) / np.outer(norms, norms)
+
+    runs = data.run_ids()
+    seatings = noise.whiten(data, np.column_stack([k * (runs == r) for r in np.unique(runs)] + [nuisance]), sigma)
+    _, rss0, rank0, _ = solve(shared)
+    coef, rss1, rank1, cov = solve(both)
+    _, rss2, rank2, _ = solve(seatings)
+    w = 1.0 / np.diag(cov)[:g]
+    about_mean = np.eye(g) - np.outer(np.ones(g), w / w.sum())
+    v = about_mean @ coef[:g]
+    sd = np.sqrt(np.maximum(np.diag(about_mean @ cov[:g, :g] @ about_mean.T), 0.0))
+    between, df = max(0.0, rss0 - rss1), max(0, rank1 - rank0)
+    within, df_within = max(0.0, rss1 - rss2), max(0, rank2 - rank1)
+    values, sigmas = tuple(float(t) for t in v), tuple(float(t) for t in sd)
+    if df_within == 0 or within <= 0:  # one seating per roller type: the noise model is all there is to judge by
+        return InstrumentCheck(term, "compliance_m_per_n", values, sigmas, between, df,
+                               float(chdtrc(df, between)) if df else 1.0, at_bound)
+    f = (between / max(df, 1)) / (within / df_within)
+    return InstrumentCheck(term, "compliance_m_per_n", values, sigmas, f, df,
+                           float(fdtrc(df, df_within, f)) if df else 1.0, at_bound, df_within)
+
+
 def check_instrument(data: Dataset, fit: Fit, noise: NoiseFloor) -> list[InstrumentCheck]:
-    """Every measurement-side parameter of ``fit`` refitted per roller geometry; empty with fewer than
-    ``MIN_GEOMETRIES`` geometries or no measurement-side term."""
+    """Every rig-level parameter (``rig_level``) of ``fit`` compared across roller geometries: a measurement-side
+    one refitted per geometry, the rig's own compliance by ``_same_curve``; empty with fewer than
+    ``MIN_GEOMETRIES`` geometries or no rig-level term."""
     spec = fit.spec
     groups = [data.subset(idx) for idx in data.roller_groups()]
-    if len(groups) < MIN_GEOMETRIES or not spec.measurement:
+    if len(groups) < MIN_GEOMETRIES or not any(rig_level(t) for t in spec.terms):
         return []
     out = []
     for slot, (term, parameter, lo, hi) in enumerate(spec.slots()):
-        if term not in MEASUREMENT:
+        if not rig_level(term):
             continue
         j = int(spec.fits_depth) + slot
         at_bound = bool(min(fit.x[j], 1.0 - fit.x[j]) < BOUND_TOLERANCE)
+        if term not in MEASUREMENT:
+            out.append(_same_curve(data, fit, noise, term, at_bound))
+            continue
         refits = [_refit(sub, fit, j, noise) for sub in groups]
         v = np.array([lo + u * (hi - lo) for u, _ in refits])
         w = np.array([info / (hi - lo) ** 2 for _, info in refits])

@@ -36,7 +36,7 @@ from scipy.special import logsumexp
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
 from labctl.discrepancy.form import FormPrior, contribution
-from labctl.discrepancy.instrument import check_instrument
+from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
@@ -51,8 +51,9 @@ TEMPERATURE = 16.0
 to the grid's end) the truth is ranked first less often on the evaluation seeds and on the second judge
 (docs/discrepancy.md)."""
 INSTRUMENT_CHECK_FROM = 1e-3
-"""A candidate with a measurement-side term has its instrument check (``labctl.discrepancy.instrument``) once its
-probability reaches this; the probabilities are then worked out again without those that fail, until none is due."""
+"""A candidate with a rig-level term (a measurement-side one, or the rig's own compliance) has its instrument check
+(``labctl.discrepancy.instrument``) once its probability reaches this; the probabilities are then worked out again
+without those that fail, until none is due."""
 PRESENCE_TEMPERATURE = 1.0
 """The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
 NAME_AT = 0.9
@@ -124,7 +125,7 @@ class Scored:
 
     @property
     def failed_instrument(self) -> list[dict[str, Any]]:
-        """The instrument checks (``labctl.discrepancy.instrument``) its measurement-side terms failed."""
+        """The instrument checks (``labctl.discrepancy.instrument``) its rig-level terms failed."""
         return [c for c in self.extra.get("instrument", []) if not c["passed"]]
 
     @property
@@ -142,8 +143,8 @@ class Scored:
 def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
     """The explanations the data have already ruled out: "none" when the lack-of-fit test at level ``CONSISTENT_P``
     rejects the baseline (the tempered evidence shrinks a decisive misfit to less than "none"'s prior lead; without
-    repetitions there is no test); and ``not_instrument``, the explanations whose measurement-side term differs by
-    roller type (``labctl.discrepancy.instrument``: it mends a law's form, it is no instrument error)."""
+    repetitions there is no test); and ``not_instrument``, the explanations whose rig-level term differs by
+    roller type (``labctl.discrepancy.instrument``: it mends a law's form, it is no instrument or rig error)."""
     return frozenset(not_instrument) | (frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset())
 
 
@@ -324,8 +325,8 @@ class Evidence:
         not_instrument: list[str] = []
         while True:
             posterior(scored, rejected=rejected_explanations(lof_p, not_instrument))
-            due = [s for s in scored if s.fit is not None and s.explanation.measurement and "instrument" not in
-                   s.extra and s.probability >= INSTRUMENT_CHECK_FROM]
+            due = [s for s in scored if s.fit is not None and any(rig_level(t) for t in s.explanation.terms) and
+                   "instrument" not in s.extra and s.probability >= INSTRUMENT_CHECK_FROM]
             if not due:
                 return base, scored
             for s in due:

@@ -147,8 +147,8 @@ class DiscrepancyResult:
                          + "; ".join(self.reasons))
         stretched = self.not_instrument()
         if stretched:
-            parts.append("ruled out as instrument errors (a term that mends a law's form is no load cell or modulus "
-                         "error): " + "; ".join(stretched))
+            parts.append("ruled out as instrument or rig errors (a term that mends a law's form is no load cell, "
+                         "modulus or rig-stiffness error): " + "; ".join(stretched))
         if self.screening.drifted:
             loads = ", ".join(f"{d['load_n']:.1f}->{d['load_after_n']:.1f} N" if d["load_after_n"] is not None
                               else f"{d['load_n']:.1f} N" for d in self.screening.drifted)
@@ -157,7 +157,7 @@ class DiscrepancyResult:
         return "; ".join(parts)
 
     def not_instrument(self, k: int = 2) -> list[str]:
-        """The explanations ruled out because a measurement-side term failed its instrument check
+        """The explanations ruled out because a rig-level term failed its instrument check
         (``labctl.discrepancy.instrument``) that the evidence alone would have ranked above the most probable one."""
         top = self.scored[0] if self.scored else None
         lead = -np.inf if top is None else top.log_prior + top.log_evidence

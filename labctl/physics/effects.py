@@ -185,6 +185,9 @@ class SetupCompliance(BoundedParams):
     stiffness_factor: float = 1.25
     nominal_setup_n_per_m: float = 1.45e9
     name: ClassVar[str] = "setup_compliance"
+    RIG_LEVEL: ClassVar[bool] = True
+    """A property of the rig, not of the roller: one stiffness factor for every roller measured on it at a given
+    load (a joint in the load path may stiffen with load, so rollers are compared at the loads they share)."""
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"stiffness_factor": (0.3, 5.0)}
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
