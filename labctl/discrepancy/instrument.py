@@ -122,10 +122,13 @@ def _same_curve(data: Dataset, fit: Fit, noise: NoiseFloor, term: str, at_bound:
     The rig's compliance may depend on load (a joint that stiffens), so a constant stand-in fitted to each roller
     type over its own load range would differ for that reason alone. The joint fit's residuals, read as an extra
     compliance Δc (Δ ln k = k·Δc), are fitted by one curve in ln F that every roller shares (degree
-    ``RIG_CURVE_DEGREE``; Tripp's depth refitted with it) and then with a level per roller geometry added; the χ²
-    the levels gain is Q on G − 1 degrees of freedom. The values are the levels (m/N, about their weighted mean)
-    with their marginal σ: the depth trades off with one direction of them, so a single level is loosely known and
-    the test is Q. A rig that drifts over the campaign differs by roller type when the types were measured one
+    ``RIG_CURVE_DEGREE``; Tripp's depth refitted with it), then with a level per roller geometry, then per
+    seating. The levels' gain over the seatings' gain within a type is an F ratio on G − 1 and S − G degrees of
+    freedom (S seatings): the seatings' own scatter, which the noise model may underrate, is the yardstick (a χ²
+    against the noise model alone once ruled out a true constant K_setup error). Without repetitions the yardstick
+    is the noise model (χ² on G − 1). The values are the levels (m/N, about their weighted mean) with their
+    marginal σ: the depth trades off with one direction of them, so a single level is loosely known and the test
+    is the ratio. A rig that drifts over the campaign differs by roller type when the types were measured one
     after another, and fails: the data cannot tell it from a property of each roller's seat."""
     k = np.exp(fit.predict(data))
     x = np.log(data.load_n)
