@@ -270,6 +270,32 @@ def test_a_link_that_fails_mid_walk_is_raised_after_the_walk_for_the_live_reader
         safety.check_structure(f)
 
 
+def _child_stopped_after_first_impact(argv: list[str], log: str) -> None:
+    """`labctl run` that stops itself (SIGSTOP) once its first impact is written, for the parent to signal."""
+    from labctl.storage.writer import CampaignWriter
+
+    write, written = CampaignWriter.write_impact, []
+
+    def write_then_stop(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        record = write(self, *args, **kwargs)
+        if not written:
+            written.append(record)
+            os.kill(os.getpid(), signal.SIGSTOP)
+        return record
+
+    CampaignWriter.write_impact = write_then_stop
+    _child(argv, None, log)
+
+
+def _stopped(pid: int) -> bool:
+    """The process is stopped (state T in /proc)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] == "T"
+    except OSError:
+        return False
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
 def test_sigterm_and_sighup_end_the_run_interrupted_and_resumable(sig: int, protocol: Path, tmp_path: Path,
                                                                    capsys):
@@ -278,13 +304,13 @@ def test_sigterm_and_sighup_end_the_run_interrupted_and_resumable(sig: int, prot
     from labctl.storage.inuse import writer_info
 
     out, log = tmp_path / "c.h5", tmp_path / "log.txt"
-    proc = FORK.Process(target=_child, args=(["run", str(protocol), "--out", str(out), "--seed", "4"], None,
-                                             str(log)))
+    proc = FORK.Process(target=_child_stopped_after_first_impact,
+                        args=(["run", str(protocol), "--out", str(out), "--seed", "4"], str(log)))
     proc.start()
     deadline = time.monotonic() + 60
-    while writer_info(out) is None and proc.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.005)
-    os.kill(proc.pid, signal.SIGSTOP)  # the signal arrives while the campaign is open for writing
+    while not _stopped(proc.pid) and proc.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)  # (polling for the file instead missed the whole run on a loaded machine, 1 in 10)
+    assert writer_info(out) is not None  # the signal arrives while the campaign is open for writing
     os.kill(proc.pid, sig)
     os.kill(proc.pid, signal.SIGCONT)
     proc.join(60)
