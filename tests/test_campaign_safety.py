@@ -205,12 +205,12 @@ def test_a_running_campaign_is_reported_in_use_and_can_be_read_live(tmp_path: Pa
     from labctl.storage.live import read_live
 
     out, log = tmp_path / "c.h5", tmp_path / "log.txt"
-    proc = FORK.Process(target=_child, args=(["run", "quick_check", "--out", str(out), "--seed", "2", "--quiet"],
-                                             None, str(log)))
+    proc = FORK.Process(target=_child_stopped_after_first_impact,
+                        args=(["run", "quick_check", "--out", str(out), "--seed", "2", "--quiet"], str(log)))
     proc.start()
     deadline = time.monotonic() + 60
-    while writer_info(out) is None and time.monotonic() < deadline:
-        time.sleep(0.02)
+    while not _stopped(proc.pid) and proc.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)  # the writer holds after its first impact (a poll for the file can miss a quick run)
     busy = labctl_here(capsys, "process", str(out))
     counts = []
     pacing = threading.Event()
