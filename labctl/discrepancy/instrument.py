@@ -4,11 +4,12 @@ A load cell offset or gain, or a wrong modulus, is a property of the instrument 
 stiffness (``setup_compliance``: K_setup) a property of the rig, so every roller type measured with it shows the
 same value. A term that only mends the form of a physical law (a load offset that shifts a tilt law's closing, a
 "rig compliance" standing in for a compliant layer under each roller) wants a different value for each roller
-type, because the form error differs with the roller's length and diameter. Each rig-level parameter of a fitted
-explanation is refitted on each roller geometry alone (every other parameter held at the joint fit) and the values
-are compared: Cochran's Q = Σ w_g·(θ_g − θ̄)², w_g = 1/σ_g², against χ² with G − 1 degrees of freedom at level
-``CONSISTENCY_LEVEL``. A term whose joint fit sits at an end of its range is no instrument error either: it is
-being stretched to another shape."""
+type, because the form error differs with the roller's length and diameter. Each measurement-side parameter of a
+fitted explanation is refitted on each roller geometry alone (every other parameter held at the joint fit) and the
+values are compared: Cochran's Q = Σ w_g·(θ_g − θ̄)², w_g = 1/σ_g², against χ² with G − 1 degrees of freedom at
+level ``CONSISTENCY_LEVEL``. The rig's compliance may depend on load, so it is compared at the loads the roller
+types share, against the spread between seatings of one type (``_same_curve``). A term whose joint fit sits at an
+end of its range is no instrument error either: it is being stretched to another shape."""
 
 from __future__ import annotations
 
