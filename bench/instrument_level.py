@@ -48,10 +48,7 @@ def level_q(data: Dataset, sigma: np.ndarray, seating: float) -> float:
     fit = fit_model(data, ModelSpec().with_effects("load_offset"), sigma=sigma, seating_sigma=seating)
     runs = data.run_ids()
     z = whiten(runs, fit.residuals, sigma, seating)
-    geometry = np.empty(data.n_points, dtype=int)
-    for g, cases in enumerate(data.roller_groups()):
-        for c in cases:
-            geometry[data.case_slices()[c]] = g
+    geometry = data.roller_index()
     x = fit.x.copy()
     x[1] += 1e-6
     d = (residuals_at(data, fit.spec, x, data.ln_stiffness) - fit.residuals) / 1e-6

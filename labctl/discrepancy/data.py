@@ -127,6 +127,11 @@ class Dataset:
         """The case indices of each roller geometry, in ``roller_keys`` order."""
         return [[i for i, c in enumerate(self.cases) if _roller_key(c) == k] for k in self.roller_keys()]
 
+    def roller_index(self) -> np.ndarray:
+        """Each point's roller geometry, as its position in ``roller_keys``."""
+        keys = {k: g for g, k in enumerate(self.roller_keys())}
+        return np.concatenate([np.full(c.load_n.size, keys[_roller_key(c)]) for c in self.cases])
+
     def drop_points(self, drop: np.ndarray) -> Dataset:
         """The dataset without the points flagged in ``drop`` (a mask over the concatenated points)."""
         out = []

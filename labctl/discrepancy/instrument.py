@@ -48,7 +48,7 @@ def rig_level(term: str) -> bool:
 
 @dataclass(frozen=True)
 class InstrumentCheck:
-    """One rig-level parameter refitted per roller geometry, and whether the values agree."""
+    """One rig-level parameter compared across roller geometries, and whether the values agree."""
 
     term: str
     parameter: str
@@ -131,61 +131,66 @@ def _same_curve(data: Dataset, fit: Fit, noise: NoiseFloor, term: str, at_bound:
     marginal σ: the depth trades off with one direction of them, so a single level is loosely known and the test
     is the ratio. A rig that drifts over the campaign differs by roller type when the types were measured one
     after another, and fails: the data cannot tell it from a property of each roller's seat."""
-    k = np.exp(fit.predict(data))
+    k = np.exp(fit.residuals + data.ln_stiffness)  # the joint fit's stiffness at every point
     x = np.log(data.load_n)
     u = (x - x.mean()) / max(float(x.std()), 1e-12)
-    geometry = np.empty(data.n_points, dtype=int)
-    slices = data.case_slices()
-    groups = data.roller_groups()
-    for g, cases in enumerate(groups):
-        for c in cases:
-            geometry[slices[c]] = g
-    levels = np.column_stack([k * (geometry == g) for g in range(len(groups))])
-    curve = np.column_stack([k * u**d for d in range(1, RIG_CURVE_DEGREE + 1)])
     depth = depth_column(fit, data)
-    nuisance = curve if depth is None else np.column_stack([curve, depth])  # the baseline's depth refitted too
+    nuisance = [k * u**d for d in range(1, RIG_CURVE_DEGREE + 1)] + ([] if depth is None else [depth])
     sigma = noise.sigma_at(data)
     z = noise.whiten(data, fit.residuals, sigma)
-    shared = noise.whiten(data, np.column_stack([k, nuisance]), sigma)
-    both = noise.whiten(data, np.column_stack([levels, nuisance]), sigma)
-    g = len(groups)
 
-    def solve(a: np.ndarray) -> tuple[np.ndarray, float, int, np.ndarray]:
-        """Least squares on unit columns (a compliance column is ~1e9 × the depth's): coefficients, χ², rank and
+    def solve(labels: np.ndarray | None) -> tuple[np.ndarray, float, int, np.ndarray]:
+        """Least squares of the whitened residuals on a compliance level per label (one level: None) and the
+        nuisance columns, on unit columns (a compliance column is ~1e9 × the depth's): coefficients, χ², rank and
         covariance."""
+        levels = [k] if labels is None else [k * (labels == g) for g in np.unique(labels)]
+        a = noise.whiten(data, np.column_stack(levels + nuisance), sigma)
         norms = np.linalg.norm(a, axis=0)
         unit = a / norms
         coef, _, rank, _ = np.linalg.lstsq(unit, z, rcond=None)
         e = z - unit @ coef
         return coef / norms, float(e @ e), int(rank), np.linalg.pinv(unit.T @ unit) / np.outer(norms, norms)
 
-    runs = data.run_ids()
-    seatings = noise.whiten(data, np.column_stack([k * (runs == r) for r in np.unique(runs)] + [nuisance]), sigma)
-    _, rss0, rank0, _ = solve(shared)
-    coef, rss1, rank1, cov = solve(both)
-    _, rss2, rank2, _ = solve(seatings)
+    _, rss0, rank0, _ = solve(None)
+    coef, rss1, rank1, cov = solve(data.roller_index())
+    _, rss2, rank2, _ = solve(data.run_ids())
+    g = len(data.roller_keys())
     w = 1.0 / np.diag(cov)[:g]
     about_mean = np.eye(g) - np.outer(np.ones(g), w / w.sum())
     v = about_mean @ coef[:g]
     sd = np.sqrt(np.maximum(np.diag(about_mean @ cov[:g, :g] @ about_mean.T), 0.0))
     between, df = max(0.0, rss0 - rss1), max(0, rank1 - rank0)
     within, df_within = max(0.0, rss1 - rss2), max(0, rank2 - rank1)
-    values, sigmas = tuple(float(t) for t in v), tuple(float(t) for t in sd)
     if df_within == 0 or within <= 0:  # one seating per roller type: the noise model is all there is to judge by
-        return InstrumentCheck(term, "compliance_m_per_n", values, sigmas, between, df,
-                               float(chdtrc(df, between)) if df else 1.0, at_bound)
-    f = (between / max(df, 1)) / (within / df_within)
-    return InstrumentCheck(term, "compliance_m_per_n", values, sigmas, f, df,
-                           float(fdtrc(df, df_within, f)) if df else 1.0, at_bound, df_within)
+        q, df_within, p = between, 0, float(chdtrc(df, between)) if df else 1.0
+    else:
+        q = (between / max(df, 1)) / (within / df_within)
+        p = float(fdtrc(df, df_within, q)) if df else 1.0
+    return InstrumentCheck(term, "compliance_m_per_n", tuple(float(t) for t in v), tuple(float(t) for t in sd), q,
+                           df, p, at_bound, df_within)
+
+
+def _per_geometry(data: Dataset, fit: Fit, noise: NoiseFloor, term: str, parameter: str, j: int, lo: float,
+                  hi: float, at_bound: bool) -> InstrumentCheck:
+    """A measurement-side parameter refitted on each roller geometry alone (``_refit``), compared by Cochran's Q."""
+    refits = [_refit(data.subset(idx), fit, j, noise) for idx in data.roller_groups()]
+    v = np.array([lo + u * (hi - lo) for u, _ in refits])
+    w = np.array([info / (hi - lo) ** 2 for _, info in refits])
+    informative = int(np.count_nonzero(w))
+    mean = float(np.sum(w * v) / np.sum(w)) if informative else 0.0
+    q = float(np.sum(w * (v - mean) ** 2))
+    p = float(chdtrc(informative - 1, q)) if informative >= 2 else 1.0
+    sigmas = tuple(float(1.0 / np.sqrt(x)) if x > 0 else float("inf") for x in w)
+    return InstrumentCheck(term, parameter, tuple(float(x) for x in v), sigmas, q, max(0, informative - 1), p,
+                           at_bound)
 
 
 def check_instrument(data: Dataset, fit: Fit, noise: NoiseFloor) -> list[InstrumentCheck]:
     """Every rig-level parameter (``rig_level``) of ``fit`` compared across roller geometries: a measurement-side
-    one refitted per geometry, the rig's own compliance by ``_same_curve``; empty with fewer than
+    one refitted per geometry (``_per_geometry``), the rig's own compliance by ``_same_curve``; empty with fewer than
     ``MIN_GEOMETRIES`` geometries or no rig-level term."""
     spec = fit.spec
-    groups = [data.subset(idx) for idx in data.roller_groups()]
-    if len(groups) < MIN_GEOMETRIES or not any(rig_level(t) for t in spec.terms):
+    if len(data.roller_keys()) < MIN_GEOMETRIES:
         return []
     out = []
     for slot, (term, parameter, lo, hi) in enumerate(spec.slots()):
@@ -193,17 +198,6 @@ def check_instrument(data: Dataset, fit: Fit, noise: NoiseFloor) -> list[Instrum
             continue
         j = int(spec.fits_depth) + slot
         at_bound = bool(min(fit.x[j], 1.0 - fit.x[j]) < BOUND_TOLERANCE)
-        if term not in MEASUREMENT:
-            out.append(_same_curve(data, fit, noise, term, at_bound))
-            continue
-        refits = [_refit(sub, fit, j, noise) for sub in groups]
-        v = np.array([lo + u * (hi - lo) for u, _ in refits])
-        w = np.array([info / (hi - lo) ** 2 for _, info in refits])
-        informative = int(np.count_nonzero(w))
-        mean = float(np.sum(w * v) / np.sum(w)) if informative else 0.0
-        q = float(np.sum(w * (v - mean) ** 2))
-        p = float(chdtrc(informative - 1, q)) if informative >= 2 else 1.0
-        sigmas = tuple(float(1.0 / np.sqrt(x)) if x > 0 else float("inf") for x in w)
-        out.append(InstrumentCheck(term, parameter, tuple(float(x) for x in v), sigmas, q, max(0, informative - 1), p,
-                                   at_bound))
+        out.append(_per_geometry(data, fit, noise, term, parameter, j, lo, hi, at_bound) if term in MEASUREMENT
+                   else _same_curve(data, fit, noise, term, at_bound))
     return out
