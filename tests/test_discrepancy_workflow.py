@@ -74,6 +74,17 @@ def test_twin_formulation_names_the_hidden_effect_and_recovers_its_parameter(eff
         assert result.verdict == "likely"
 
 
+def test_a_softening_onset_is_found_although_the_hardness_starts_stiffen():
+    """Yield softening above an onset (a negative hardness gain, inside the fitted range): a fit started only from
+    stiffening gains stalls at a later onset and the world was called an effect outside the library at 1.0."""
+    result = run_discrepancy(synthesize(world(MaterialHardness(gain=-0.3, threshold=0.2)), noise=NOISE, seed=2))
+    top = result.scored[0]
+    assert top.explanation.name == "material_hardness" and top.fit is not None
+    fitted = top.fit.spec.decode(top.fit.x)["material_hardness"]
+    assert fitted["gain"] == pytest.approx(-0.3, rel=0.15)
+    assert fitted["threshold"] == pytest.approx(0.2, rel=0.1)
+
+
 @pytest.mark.parametrize("effect", [EndEffects(edge_length_m=0.2e-3), MaterialHardness(gain=0.6, threshold=0.3),
                                     Misalignment(tilt_rad=4e-4), SetupCompliance(stiffness_factor=1.25)],
                          ids=lambda e: e.name)

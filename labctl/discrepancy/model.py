@@ -44,14 +44,16 @@ SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3}
 STARTS: dict[str, tuple[dict[str, float], ...]] = {
     "surface_roughness": ({"asperity_scale": 1.0},),
     "end_effects": ({"edge_length_m": 0.1e-3},),
-    "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5}),
+    "material_hardness": ({"gain": 0.2, "threshold": 0.2}, {"gain": 0.2, "threshold": 0.5},
+                          {"gain": -0.2, "threshold": 0.2}, {"gain": -0.2, "threshold": 0.5}),
     "misalignment": ({"tilt_rad": 2e-4, "transition": 0.0}, {"tilt_rad": 1e-3, **SHAPE_STARTS["misalignment"]}),
     "setup_compliance": ({"stiffness_factor": 0.8}, {"stiffness_factor": 1.3}),
     "load_gain": ({"gain": 1.0},),
     "load_offset": ({"offset_n": 0.0},),
     "modulus_scale": ({"scale": 1.0},),
 }
-"""Physically plausible starting points per effect; several where the term has a kink to cross."""
+"""Physically plausible starting points per effect; several where the term has a kink to cross (the hardness
+term's on both sides of zero gain: from a stiffening start the fit does not reach a softening onset)."""
 
 
 SIGNED_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
