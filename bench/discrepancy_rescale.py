@@ -1,0 +1,145 @@
+"""Other decision rules on the evidence a blind run stored: does a different Occam factor, noise inflation or
+confidence scale rank the truth first more often, or state probabilities that mean what they say?
+
+Reads the files ``bench/discrepancy_eval.py --out F`` wrote (each candidate's log evidence at every noise
+inflation T of the grid) and decides every dataset again under each rule, without running the workflow:
+
+- ``occam``: ``bic`` (the workflow's −½·k·ln n) or ``hyper-g`` (Zellner's g prior on the term's parameters with
+  the hyper-g mixture over g, a = 3: the Occam factor then follows the fit's gain instead of the sample size);
+  ``presence`` applies it to the question "is there any effect?" alone, ``all`` to both questions;
+- ``T``: the noise inflation of the question "which effect?";
+- ``λ``: a confidence scale — the log posterior of that question divided by λ (order-preserving: the ranking within
+  it is unchanged, its probabilities spread).
+
+The first file is the one a rule would be chosen on (calibration seeds); the others show what it does elsewhere.
+Per file: top explanation = truth, log loss of the truth's probability, expected calibration error over the
+reliability bins, whether every bin with ≥ 30 cases is within 0.05, names that are exactly the truth (both terms
+of a pair; library or measurement-side truths of size ≥ 3σ: stricter than the evaluation's top-1, which counts
+the first term named), wrong names (an effect outside the library named counts), top probabilities ≥ 0.5, and how
+often an effect (named or unlisted) stated at ≥ 0.9 is the truth.
+
+    python bench/discrepancy_rescale.py CAL.json EVAL.json [BLIND2.json …]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from discrepancy_scores import BINS
+from scipy.special import logsumexp
+
+from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, PRESENCE_TEMPERATURE, rejected_explanations
+
+HYPER_A = 3.0
+"""The hyper-g prior's a: π(g) = (a − 2)/2·(1 + g)^(−a/2)."""
+_LN_G = np.linspace(-12.0, 14.0, 600)
+
+
+def hyper_g_log_bf(chi2_gain: float, k: int) -> float:
+    """log Bayes factor of k added parameters with fit gain Δχ² under the hyper-g prior (numerical over ln g)."""
+    g = np.exp(_LN_G)
+    terms = (math.log((HYPER_A - 2) / 2) - HYPER_A / 2 * np.log1p(g) - 0.5 * k * np.log1p(g)
+             + g / (1 + g) * chi2_gain / 2 + _LN_G)
+    return float(logsumexp(terms) + math.log(_LN_G[1] - _LN_G[0]))
+
+
+def log_evidence(r: dict[str, Any], t: float, occam: str) -> np.ndarray:
+    """Each candidate's stored log evidence at T, its −½·k·ln n replaced by the hyper-g factor if asked."""
+    c, key = r["candidates"], f"{t:g}"
+    stored = np.array([x["log_evidence_by_temperature"][key] for x in c])
+    if occam == "bic":
+        return stored
+    n = r["n_points"]
+    none = next(x for x in c if x["explanation"] == "none")
+    fit = stored + 0.5 * np.array([x["n_params"] for x in c]) * math.log(n)
+    fit_none = none["log_evidence_by_temperature"][key] + 0.5 * none["n_params"] * math.log(n)
+    out = stored.copy()
+    for i, x in enumerate(c):
+        k = x["n_params"] - none["n_params"]
+        if x["explanation"] != "none" and k > 0:
+            out[i] = none["log_evidence_by_temperature"][key] + hyper_g_log_bf(2 * (fit[i] - fit_none), k)
+    return out
+
+
+Rule = Callable[[dict[str, Any]], list[tuple[str, float]]]
+
+
+def rule(occam: str, scope: str, t: float, lam: float) -> Rule:
+    """The decision's two questions (``labctl.discrepancy.posterior.probabilities``) under another rule."""
+    def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
+        c = r["candidates"]
+        names = np.array([x["explanation"] for x in c])
+        ruled = np.isin(names, list(rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))))
+        prior = np.array([x["log_prior"] for x in c])
+        none, out, p_none = names == "none", np.zeros(len(c)), 0.0
+        others = ~none & ~ruled
+        if not ruled[none].any():
+            s0 = np.where(ruled, -np.inf, prior + log_evidence(r, PRESENCE_TEMPERATURE, occam))
+            p_none = float(np.exp(s0[none][0] - logsumexp(s0)))
+            out[none] = p_none
+        which = log_evidence(r, t, occam if scope == "all" else "bic")
+        s = np.where(others, (prior + which) / lam, -np.inf)
+        out[others] = (1 - p_none) * np.exp(s[others] - logsumexp(s[others]))
+        return sorted(((str(n), float(p)) for n, p, x in zip(names, out, ruled, strict=True) if not x),
+                      key=lambda v: -v[1])
+    return decide
+
+
+def score(results: list[dict[str, Any]], decide: Rule) -> str:
+    stated, loss, named_right, big, wrong, effects, sure = [], 0.0, 0, 0, 0, 0, []
+    for r in results:
+        probs = decide(r)
+        top, p = probs[0]
+        stated.append((p, top == r["truth_name"]))
+        if p >= NAME_AT and top != "none":
+            sure.append(top == r["truth_name"])
+        loss -= math.log(max(dict(probs).get(r["truth_name"], 0.0), 1e-12))
+        terms = [] if top in ("none", "unlisted") else top.split(" + ")
+        named = terms if p >= NAME_AT else []
+        truth = set() if r["truth_name"] in ("none", "unlisted") else set(r["truth_name"].split(" + "))
+        if r["truth_name"] != "none":
+            effects += 1
+            wrong += bool(named) and not set(named) <= truth
+        if r["truth_name"] not in ("none", "unlisted") and r["size_sigma"] >= 3:
+            big += 1
+            named_right += bool(named) and top == r["truth_name"]
+    ece, ok = 0.0, True
+    for lo, hi in BINS:
+        inside = [(p, right) for p, right in stated if lo <= p < hi]
+        if inside:
+            gap = abs(np.mean([p for p, _ in inside]) - np.mean([k for _, k in inside]))
+            ece += gap * len(inside) / len(stated)
+            ok = ok and (gap <= 0.05 or len(inside) < 30)
+    top_right = sum(k for _, k in stated)
+    likely = sum(p >= LIKELY_AT for p, _ in stated)
+    return (f"{top_right}/{len(results)} | {loss / len(results):.2f} | {ece:.3f} | {'yes' if ok else 'no'} | "
+            f"{named_right}/{big} | {wrong}/{effects} | {likely} | {sum(sure)}/{len(sure)}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("files", nargs="+", help="results saved by discrepancy_eval.py --out (calibration first)")
+    args = parser.parse_args()
+    runs = []
+    for path in args.files:
+        with open(path, encoding="utf-8") as fh:
+            runs.append((path, json.load(fh)))
+    rules = [("bic", "-", 16.0, 1.0), ("bic", "-", 2.0, 1.0), ("bic", "-", 16.0, 2.0), ("bic", "-", 2.0, 4.0),
+             ("hyper-g", "presence", 16.0, 1.0), ("hyper-g", "presence", 16.0, 3.0), ("hyper-g", "presence", 2.0, 4.0),
+             ("hyper-g", "all", 4.0, 1.0), ("hyper-g", "all", 8.0, 1.0), ("hyper-g", "all", 16.0, 1.0)]
+    print("| occam | scope | T | λ | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | named = truth "
+          "(≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for occam, scope, t, lam in rules:
+        decide = rule(occam, scope, t, lam)
+        for path, results in runs:
+            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {path.rsplit('/', 1)[-1]} | {score(results, decide)} |")
+
+
+if __name__ == "__main__":
+    main()
