@@ -81,8 +81,7 @@ def test_a_softening_onset_is_found_although_the_hardness_starts_stiffen():
     top = result.scored[0]
     assert top.explanation.name == "material_hardness" and top.fit is not None
     fitted = top.fit.spec.decode(top.fit.x)["material_hardness"]
-    assert fitted["gain"] == pytest.approx(-0.3, rel=0.15)
-    assert fitted["threshold"] == pytest.approx(0.2, rel=0.1)
+    assert (fitted["gain"], fitted["threshold"]) == (pytest.approx(-0.3, rel=0.15), pytest.approx(0.2, rel=0.1))
 
 
 @pytest.mark.parametrize("effect", [EndEffects(edge_length_m=0.2e-3), MaterialHardness(gain=0.6, threshold=0.3),
