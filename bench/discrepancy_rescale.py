@@ -9,7 +9,9 @@ inflation T of the grid) and decides every dataset again under each rule, withou
   ``presence`` applies it to the question "is there any effect?" alone, ``all`` to both questions;
 - ``T``: the noise inflation of the question "which effect?";
 - ``λ``: a confidence scale — the log posterior of that question divided by λ (order-preserving: the ranking within
-  it is unchanged, its probabilities spread).
+  it is unchanged, its probabilities spread);
+- ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``) or ``equal-single`` (every single-term explanation,
+  physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members).
 
 The first file is the one a rule would be chosen on (calibration seeds); the others show what it does elsewhere.
 Per file: top explanation = truth, log loss of the truth's probability, expected calibration error over the
@@ -33,7 +35,14 @@ import numpy as np
 from discrepancy_scores import BINS
 from scipy.special import logsumexp
 
-from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, PRESENCE_TEMPERATURE, rejected_explanations
+from labctl.discrepancy.posterior import (
+    LIKELY_AT,
+    NAME_AT,
+    PRESENCE_TEMPERATURE,
+    PRIOR_MASS,
+    explanations,
+    rejected_explanations,
+)
 
 HYPER_A = 3.0
 """The hyper-g prior's a: π(g) = (a − 2)/2·(1 + g)^(−a/2)."""
@@ -67,23 +76,35 @@ def log_evidence(r: dict[str, Any], t: float, occam: str) -> np.ndarray:
 
 
 Rule = Callable[[dict[str, Any]], list[tuple[str, float]]]
+_KIND = {e.name: e.kind for e in explanations()}
 
 
-def rule(occam: str, scope: str, t: float, lam: float) -> Rule:
+def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
+    """The stored priors, or every single-term explanation's prior made equal (``equal-single``)."""
+    stored = np.array([x["log_prior"] for x in r["candidates"]])
+    if prior == "classes":
+        return stored
+    single = ("physical", "measurement")
+    kinds = [_KIND[x["explanation"]] for x in r["candidates"]]
+    share = sum(PRIOR_MASS[k] for k in single) / sum(k in single for k in kinds)
+    return np.array([math.log(share) if k in single else v for k, v in zip(kinds, stored, strict=True)])
+
+
+def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes") -> Rule:
     """The decision's two questions (``labctl.discrepancy.posterior.probabilities``) under another rule."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         c = r["candidates"]
         names = np.array([x["explanation"] for x in c])
         ruled = np.isin(names, list(rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))))
-        prior = np.array([x["log_prior"] for x in c])
+        log_prior = log_priors(r, prior)
         none, out, p_none = names == "none", np.zeros(len(c)), 0.0
         others = ~none & ~ruled
         if not ruled[none].any():
-            s0 = np.where(ruled, -np.inf, prior + log_evidence(r, PRESENCE_TEMPERATURE, occam))
+            s0 = np.where(ruled, -np.inf, log_prior + log_evidence(r, PRESENCE_TEMPERATURE, occam))
             p_none = float(np.exp(s0[none][0] - logsumexp(s0)))
             out[none] = p_none
         which = log_evidence(r, t, occam if scope == "all" else "bic")
-        s = np.where(others, (prior + which) / lam, -np.inf)
+        s = np.where(others, (log_prior + which) / lam, -np.inf)
         out[others] = (1 - p_none) * np.exp(s[others] - logsumexp(s[others]))
         return sorted(((str(n), float(p)) for n, p, x in zip(names, out, ruled, strict=True) if not x),
                       key=lambda v: -v[1])
@@ -132,14 +153,15 @@ def main() -> None:
     rules = [("bic", "-", 16.0, 1.0), ("bic", "-", 2.0, 1.0), ("bic", "-", 16.0, 2.0), ("bic", "-", 2.0, 4.0),
              ("hyper-g", "presence", 16.0, 1.0), ("hyper-g", "presence", 16.0, 3.0), ("hyper-g", "presence", 2.0, 4.0),
              ("hyper-g", "all", 4.0, 1.0), ("hyper-g", "all", 8.0, 1.0), ("hyper-g", "all", 16.0, 1.0)]
-    print("| occam | scope | T | λ | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | named = truth "
-          "(≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occam, scope, t, lam in rules:
-        decide = rule(occam, scope, t, lam)
+    rules = [(*r, "classes") for r in rules] + [("bic", "-", 16.0, 1.0, "equal-single")]
+    print("| occam | scope | T | λ | prior | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | named = "
+          "truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for occam, scope, t, lam, prior in rules:
+        decide = rule(occam, scope, t, lam, prior)
         for path, results in runs:
-            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {path.rsplit('/', 1)[-1]} | {score(results, decide)} |")
-
+            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {prior} | {path.rsplit('/', 1)[-1]} | "
+                  f"{score(results, decide)} |")
 
 if __name__ == "__main__":
     main()
