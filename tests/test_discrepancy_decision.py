@@ -115,6 +115,17 @@ def test_a_consistent_verdict_on_one_roller_type_still_says_what_its_design_cann
     assert "1 roller geometry" in text and "end_effects, misalignment" in text and "one rail roughness" in text
 
 
+def test_a_load_gain_error_is_said_to_be_untestable_not_ruled_out():
+    # Tripp's law sees the load only through ln of the contact half-width, as it sees the depth: a gain of 1.08
+    # is taken up by the fitted depth, and "consistent" must not read as if the load cell had been checked
+    truth = world()
+    doc = run_discrepancy(synthesize(lambda case, f: truth(case, f / 1.08), noise=GENERATOR_NOISE, seed=5)).to_dict()
+    assert doc["verdict"] == "consistent" and doc["measurement_effects"] == []
+    assert any(r.startswith("load_gain: ") and "cannot test it" in r for r in doc["decision"]["identifiability"])
+    assert "load_gain: it changes every stiffness as the baseline's evaluation depth does" in doc["verdict_text"]
+    assert not any(r.startswith(("load_offset", "modulus_scale")) for r in doc["decision"]["identifiability"])
+
+
 def test_ball_rows_are_refused_with_one_line(tmp_path, null_points):
     p = null_points[0]
     ball = dataclasses.replace(p, diameter_m=8e-3, contact_length_m=8e-3, roller_length_m=8e-3, roller_type=None)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, build_dataset, campaign_setup_stiffness, load_points
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
@@ -353,7 +354,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
-        scored=tuple(scored), likely=likely, reasons=tuple(unidentifiable_reasons(data)),
+        scored=tuple(scored), likely=likely,
+        reasons=tuple(unidentifiable_reasons(data) + absorbed_reasons(data, base)),
     )
 
 
