@@ -31,9 +31,10 @@ def absorbed_share(data: Dataset, base: Fit, name: str) -> float:
     cls = MEASUREMENT[name]
     (parameter, (lo, hi)), = cls.BOUNDS.items()
     probe = replace(cls(), **{parameter: getattr(cls(), parameter) + PROBE_SHARE * (hi - lo)})
-    column = predict_ln(data, base.law, (*base.chain, probe)) - base.predict(data)
-    if not np.any(column):
-        return 0.0
+    with np.errstate(all="ignore"):
+        column = predict_ln(data, base.law, (*base.chain, probe)) - base.predict(data)
+    if not np.all(np.isfinite(column)) or not np.any(column):
+        return 0.0  # the probe leaves the law's domain somewhere (a load near zero): nothing shown absorbed
     slope = float(column @ depth) / float(depth @ depth)
     return float(1.0 - np.sum((column - slope * depth) ** 2) / np.sum(column**2))
 
