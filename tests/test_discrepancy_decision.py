@@ -126,6 +126,16 @@ def test_a_load_gain_error_is_said_to_be_untestable_not_ruled_out():
     assert not any(r.startswith(("load_offset", "modulus_scale")) for r in doc["decision"]["identifiability"])
 
 
+def test_a_load_gain_the_depth_takes_up_is_no_design_limit_for_two_candidates_alike():
+    # seven roller types on two rails: nothing in the design keeps end effects from an unnamed term, so why the
+    # data cannot separate them is their likeness, not "the design's limits" (the untestable gain is no such limit)
+    truth, noise = world(EndEffects(0.05e-3)), NoiseModel(low=0.06, high=0.02)
+    points = synthesize(truth, noise=noise, seed=0) + synthesize(truth, rail_ra_m=0.03e-6, noise=noise, seed=100)
+    text = run_discrepancy(points).verdict_text()
+    assert "the data cannot separate end_effects from unlisted: their signatures are alike" in text
+    assert "load_gain: it changes every stiffness as the baseline's evaluation depth does" in text
+
+
 def test_ball_rows_are_refused_with_one_line(tmp_path, null_points):
     p = null_points[0]
     ball = dataclasses.replace(p, diameter_m=8e-3, contact_length_m=8e-3, roller_length_m=8e-3, roller_type=None)

@@ -23,11 +23,8 @@ PROBE_SHARE = 0.01
 """The step from no error each term is probed at, as a share of its fitted range."""
 
 
-def absorbed_share(data: Dataset, base: Fit, name: str) -> float:
-    """R² of measurement-side term ``name``'s column against the baseline's depth column (0 without a depth)."""
-    depth = depth_column(base, data)
-    if depth is None or not np.any(depth):
-        return 0.0
+def absorbed_share(data: Dataset, base: Fit, name: str, depth: np.ndarray) -> float:
+    """R² of measurement-side term ``name``'s column against the baseline's depth column ``depth``."""
     cls = MEASUREMENT[name]
     (parameter, (lo, hi)), = cls.BOUNDS.items()
     probe = replace(cls(), **{parameter: getattr(cls(), parameter) + PROBE_SHARE * (hi - lo)})
@@ -41,9 +38,12 @@ def absorbed_share(data: Dataset, base: Fit, name: str) -> float:
 
 def absorbed_reasons(data: Dataset, base: Fit) -> list[str]:
     """Why a measurement-side term cannot be tested on these data: the baseline's depth takes it up."""
+    depth = depth_column(base, data)
+    if depth is None or not np.any(depth):
+        return []
     out = []
     for name in MEASUREMENT:
-        share = absorbed_share(data, base, name)
+        share = absorbed_share(data, base, name, depth)
         if share >= ABSORBED_R2:
             out.append(f"{name}: it changes every stiffness as the baseline's evaluation depth does (R² {share:.4f} "
                        "over these points), so the fitted depth takes it up and the data cannot test it")

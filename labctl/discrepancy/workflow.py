@@ -65,6 +65,8 @@ class DiscrepancyResult:
     """The most probable explanation when its probability is 0.5-0.9 (not named)."""
     reasons: tuple[str, ...] = ()
     """What in the data's design limits which candidates can be told apart."""
+    absorbed: tuple[str, ...] = ()
+    """Measurement-side terms the baseline's fitted depth takes up (``labctl.discrepancy.absorbed``): untested."""
 
     @property
     def consistent(self) -> bool:
@@ -143,9 +145,9 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
-        if self.reasons:
+        if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
-                         + "; ".join(self.reasons))
+                         + "; ".join(self.reasons + self.absorbed))
         stretched = self.not_instrument()
         if stretched:
             parts.append("ruled out as instrument or rig errors (a term that mends a law's form is no load cell, "
@@ -203,7 +205,7 @@ class DiscrepancyResult:
             "decision": {"named_at": NAME_AT, "likely_at": LIKELY_AT, "temperature": TEMPERATURE,
                          "top": self.scored[0].to_dict() if self.scored else None,
                          "likely": None if self.likely is None else self.likely.to_dict(),
-                         "identifiability": list(self.reasons)},
+                         "identifiability": [*self.reasons, *self.absorbed]},
             "closest_library_term": None if self.closest is None else
             {"name": self.closest.name, "explained_share": self.closest.share, "delta_bic": self.closest.delta_bic},
             "empirical_term": None if self.empirical is None else self.empirical.to_dict(),
@@ -354,8 +356,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
-        scored=tuple(scored), likely=likely,
-        reasons=tuple(unidentifiable_reasons(data) + absorbed_reasons(data, base)),
+        scored=tuple(scored), likely=likely, reasons=tuple(unidentifiable_reasons(data)),
+        absorbed=tuple(absorbed_reasons(data, base)),
     )
 
 
