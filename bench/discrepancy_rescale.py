@@ -41,6 +41,7 @@ from labctl.discrepancy.posterior import (
     PRESENCE_TEMPERATURE,
     PRIOR_MASS,
     explanations,
+    probabilities,
     rejected_explanations,
 )
 
@@ -93,21 +94,14 @@ def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
 def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes") -> Rule:
     """The decision's two questions (``labctl.discrepancy.posterior.probabilities``) under another rule."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
-        c = r["candidates"]
-        names = np.array([x["explanation"] for x in c])
-        ruled = np.isin(names, list(rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))))
-        log_prior = log_priors(r, prior)
-        none, out, p_none = names == "none", np.zeros(len(c)), 0.0
-        others = ~none & ~ruled
-        if not ruled[none].any():
-            s0 = np.where(ruled, -np.inf, log_prior + log_evidence(r, PRESENCE_TEMPERATURE, occam))
-            p_none = float(np.exp(s0[none][0] - logsumexp(s0)))
-            out[none] = p_none
-        which = log_evidence(r, t, occam if scope == "all" else "bic")
-        s = np.where(others, (log_prior + which) / lam, -np.inf)
-        out[others] = (1 - p_none) * np.exp(s[others] - logsumexp(s[others]))
-        return sorted(((str(n), float(p)) for n, p, x in zip(names, out, ruled, strict=True) if not x),
-                      key=lambda v: -v[1])
+        names = [x["explanation"] for x in r["candidates"]]
+        rejected = rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
+
+        def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
+            return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "bic")
+
+        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam)
+        return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in rejected), key=lambda v: -v[1])
     return decide
 
 

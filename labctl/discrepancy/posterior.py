@@ -149,12 +149,15 @@ def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence
 
 
 def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
-                  temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> np.ndarray:
+                  temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset(),
+                  scale: float = 1.0) -> np.ndarray:
     """Every candidate's posterior probability, in two questions. Is there any effect? "none" against all the
     others at the noise model's own scale (``PRESENCE_TEMPERATURE``): the noise comes from the repetitions, and
     a misfit beyond it is evidence of some effect whatever its law. Which one? The others against each other at
     the inflated ``temperature``, where every law is only approximate. ``log_evidence(T)``: each candidate's
-    log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability."""
+    log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability.
+    ``scale`` divides the second question's log posterior (1 in the workflow; a bench's confidence scale, which
+    keeps the ranking and spreads the probabilities)."""
     names_a = np.array(names)
     none = names_a == "none"
     ruled_out = np.isin(names_a, list(rejected))
@@ -166,7 +169,7 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
         p_none = float(np.exp(s0[none][0] - logsumexp(s0))) if others.any() else 1.0
         out[none] = p_none
     if others.any():
-        s = np.where(others, log_prior + log_evidence(temperature), -np.inf)
+        s = np.where(others, (log_prior + log_evidence(temperature)) / scale, -np.inf)
         out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
     return out
 
