@@ -243,9 +243,9 @@ class Evidence:
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
     def rounded(self, kinked: Scored, candidates: list[Explanation]) -> Scored:
-        """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing) has its form in doubt
-        too: the evidence averaged over the kinked law and the law with its rounding fitted (½ each), the fit kept
-        the one with more evidence."""
+        """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
+        roughness exponent) has its form in doubt too: the evidence averaged over the library's law and the law with
+        its shape fitted (½ each), the fit kept the one with more evidence."""
         fit = kinked.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:

@@ -126,12 +126,16 @@ class MaterialHardness(BoundedParams):
     """Plastic conformity: once p_max exceeds a fraction of the softer body's hardness, its asperities yield
     and conform to the rail's roughness, adding contact area and stiffness.
 
-    k = k_in·(1 + gain·(Ra/0.2 µm)·max(0, p_max/(threshold·H) - 1)): rises with load, larger for softer
-    rollers and rougher rails.
+    k = k_in·(1 + gain·(Ra/0.2 µm)^α·max(0, p_max/(threshold·H) - 1)): rises with load, larger for softer
+    rollers and rougher rails. ``roughness_exponent`` α = 1 is asperity conformity (the added area scales with
+    the roughness it fills); α = 0 is yield of the softer body's bulk, which depends on its hardness, not on
+    the surface. It is not a world parameter (not in ``BOUNDS``); the discrepancy fit frees it, so a yield
+    that does not follow the rail's roughness is not mistaken for an effect outside the library.
     """
 
     gain: float = 0.15
     threshold: float = 0.3
+    roughness_exponent: float = 1.0
     name: ClassVar[str] = "material_hardness"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"gain": (0.0, 2.0), "threshold": (0.05, 1.0)}
     KINK: ClassVar[str] = "threshold"
@@ -140,7 +144,8 @@ class MaterialHardness(BoundedParams):
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
         yield_pa = self.threshold * case.softer_hardness_pa
         excess = np.maximum(0.0, case.peak_pressure_pa(load_n) / yield_pa - 1.0)
-        return stiffness_n_per_m * (1.0 + self.gain * case.combined_ra_m / REFERENCE_RA_M * excess)
+        roughness = (case.combined_ra_m / REFERENCE_RA_M) ** self.roughness_exponent
+        return stiffness_n_per_m * (1.0 + self.gain * roughness * excess)
 
 
 @dataclass(frozen=True)
