@@ -36,13 +36,15 @@ BAD_RESIDUAL = 10.0
 FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
     "misalignment": {"transition": (0.0, 0.6)},
     "material_hardness": {"roughness_exponent": (0.0, 1.0)},
+    "end_effects": {"half_width_share": (-3.0, 3.0)},
 }
 """Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
 rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
 spread over about a decade of load), and how the yield term follows the surface roughness
 (``MaterialHardness.roughness_exponent``; 1 is asperity conformity, 0 a bulk yield blind to the surface)."""
 SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3},
-                                             "material_hardness": {"roughness_exponent": 0.0}}
+                                             "material_hardness": {"roughness_exponent": 0.0},
+                                             "end_effects": {"half_width_share": 1.0}}
 """Where a freed shape parameter is fitted from: the other end of the doubt from the law's own form."""
 
 

@@ -56,6 +56,9 @@ INSTRUMENT_CHECK_FROM = 1e-3
 without those that fail, until none is due."""
 PRESENCE_TEMPERATURE = 1.0
 """The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
+SHAPE_DOUBT = 1.0 / 3.0
+"""Prior probability that a term's shape (``FIT_ONLY_BOUNDS``) is not the library's: the library's law is taken as
+twice as likely as the departure, so where it fits exactly a candidate loses ln 1.5 to the doubt."""
 NAME_AT = 0.9
 LIKELY_AT = 0.5
 
@@ -244,8 +247,9 @@ class Evidence:
 
     def rounded(self, kinked: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
-        roughness exponent) has its form in doubt too: the evidence averaged over the library's law and the law with
-        its shape fitted (½ each), the fit kept the one with more evidence."""
+        roughness exponent, the end term's half-width share) has its form in doubt too: the evidence averaged over
+        the library's law and the law with its shape fitted (``SHAPE_DOUBT``), the fit kept the one with more
+        evidence."""
         fit = kinked.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:
@@ -257,8 +261,8 @@ class Evidence:
         rounded = self.fit(spec, warm=fit, guess={n: {**values[n], **SHAPE_STARTS[n]} for n in shaped})
         soft = self.score(kinked.explanation, rounded, candidates)
         best = soft if soft.log_evidence > kinked.log_evidence else kinked
-        by_t = {t: float(np.logaddexp(kinked.log_evidence_by_t[t], soft.log_evidence_by_t[t]) - math.log(2.0))
-                for t in self.temperatures}
+        by_t = {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + kinked.log_evidence_by_t[t],
+                                      math.log(SHAPE_DOUBT) + soft.log_evidence_by_t[t])) for t in self.temperatures}
         return replace(best, log_evidence_by_t=by_t)
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:

@@ -17,6 +17,7 @@ from labctl.physics.catalogue import Roller
 from labctl.physics.contact import FloatArray
 from labctl.physics.materials import Material, effective_modulus, hardness_pa
 from labctl.physics.rig import apparent_roller_stiffness
+from labctl.physics.tripp import TrippContact
 
 REFERENCE_RA_M = 0.2e-6
 
@@ -43,6 +44,10 @@ class ContactCase:
     def softer_hardness_pa(self) -> float:
         """Indentation hardness of the softer of roller and rail (the body whose asperities yield first)."""
         return hardness_pa(np.minimum(self.roller.material.hardness_hrc, self.rail.hardness_hrc))
+
+    def half_width_m(self, load_n: FloatArray) -> FloatArray:
+        """Hertz line-contact half-width a at each load (Tripp's, which does not depend on the depth)."""
+        return TrippContact(self.roller, self.rail).half_width_m(load_n)
 
     def peak_pressure_pa(self, load_n: FloatArray) -> FloatArray:
         """Hertz line-contact peak pressure p_max = sqrt(P·E*/(π·R))."""
@@ -110,15 +115,22 @@ class SurfaceRoughness(BoundedParams):
 class EndEffects(BoundedParams):
     """The rail material beyond each roller end carries load too: an extra effective length at each end.
 
-    k = k_line·(1 + 2·edge_length/L_we): stiffness per length falls with roller length.
+    k = k_line·(1 + 2·edge/L_we): stiffness per length falls with roller length. The edge is ``edge_length_m``
+    plus ``half_width_share`` κ times the contact half-width a: an end's stress field reaches about a half-width
+    beyond it, so the zone the ends add (or lose) may grow with load. κ is not a world parameter (not in
+    ``BOUNDS``); the discrepancy fit frees it, so ends that engage with load are not taken for another effect.
     """
 
     edge_length_m: float = 0.1e-3
+    half_width_share: float = 0.0
     name: ClassVar[str] = "end_effects"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"edge_length_m": (0.0, 2e-3)}
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
-        return stiffness_n_per_m * (1.0 + 2.0 * self.edge_length_m / case.roller.contact_length_m)
+        edge = self.edge_length_m
+        if self.half_width_share:
+            edge = edge + self.half_width_share * case.half_width_m(load_n)
+        return stiffness_n_per_m * (1.0 + 2.0 * edge / case.roller.contact_length_m)
 
 
 @dataclass(frozen=True)
