@@ -20,6 +20,7 @@ from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.lsq import bounded_least_squares
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.noise import NoiseFloor, whiten
+from labctl.errors import ModelDomainError
 from labctl.physics.effects import EFFECTS, Effect
 from labctl.physics.law import ContactLaw
 from labctl.physics.tripp import DEFAULT_DEPTH_M
@@ -37,6 +38,7 @@ FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
     "misalignment": {"transition": (0.0, 0.6)},
     "material_hardness": {"roughness_exponent": (0.0, 1.0)},
     "end_effects": {"half_width_share": (-3.0, 3.0)},
+    "surface_roughness": {"load_exponent": (0.25, 1.0)},
 }
 """Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
 rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
@@ -44,7 +46,8 @@ spread over about a decade of load), and how the yield term follows the surface 
 (``MaterialHardness.roughness_exponent``; 1 is asperity conformity, 0 a bulk yield blind to the surface)."""
 SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3},
                                              "material_hardness": {"roughness_exponent": 0.0},
-                                             "end_effects": {"half_width_share": 1.0}}
+                                             "end_effects": {"half_width_share": 1.0},
+                                             "surface_roughness": {"load_exponent": 0.5}}
 """Where a freed shape parameter is fitted from: the other end of the doubt from the law's own form."""
 
 
@@ -270,10 +273,14 @@ def depth_column(fit: Fit, data: Dataset) -> np.ndarray | None:
 
 def residuals_at(data: Dataset, spec: ModelSpec, x: np.ndarray, measured: np.ndarray,
                  baselines: dict[tuple[str, float], np.ndarray] | None = None) -> np.ndarray:
-    """ln k_model − ``measured`` at parameter vector ``x``; ``BAD_RESIDUAL`` where the model is not physical."""
+    """ln k_model − ``measured`` at parameter vector ``x``; ``BAD_RESIDUAL`` where the model is not physical, and
+    everywhere when a trial load offset takes the loads out of an empirical baseline's domain."""
     with np.errstate(all="ignore"):
         values = spec.decode(x)
-        r = predict_ln(data, spec.law(x, values), spec.chain(x, values), baselines) - measured
+        try:
+            r = predict_ln(data, spec.law(x, values), spec.chain(x, values), baselines) - measured
+        except ModelDomainError:
+            return np.full(measured.shape, BAD_RESIDUAL)
     return np.where(np.isfinite(r), r, BAD_RESIDUAL)
 
 
