@@ -187,6 +187,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "truth_effects": list(truth.get("effects", [])),
             "truth_measurement": list(truth.get("measurement_effects", [])),
             "outside_library": bool(truth.get("outside_library")), "size_sigma": float(truth.get("size_sigma", 0.0)),
+            "size_sigma_by_effect": {k: float(v) for k, v in (truth.get("size_sigma_by_effect") or {}).items()},
             "visible_sigma": visible,
             "family": truth.get("family"), "faults": truth.get("faults"), "cpu_seconds": cpu,
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),

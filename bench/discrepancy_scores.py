@@ -222,8 +222,9 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
 
 def reliability_by_kind(results: list[dict[str, Any]]) -> str:
     """The reliability table split by what the top explanation is: "none" (no effect), a library or
-    measurement-side explanation, or "unlisted" (outside the library); each row also counts its worlds whose effect
-    is under 3σ (too small for the acceptance's top-1 to count it)."""
+    measurement-side explanation, or "unlisted" (outside the library); each row also counts its wrong cases whose
+    effect is under 3σ (too small for the acceptance's top-1 to count it), or has a term under 3σ (a pair or a
+    calibration error whose second term is that small: the data can show one term at most)."""
     rows = []
     kinds = (("none", lambda r: r["top"] == "none"), ("named", lambda r: r["top"] not in ("none", "unlisted")),
              ("unlisted", lambda r: r["top"] == "unlisted"))
@@ -234,12 +235,19 @@ def reliability_by_kind(results: list[dict[str, Any]]) -> str:
             if not inside:
                 continue
             k = sum(r["top"] == r["truth_name"] for r in inside)
-            small = sum(r["truth_name"] != "none" and r["size_sigma"] < 3.0 for r in inside)
+            small = sum(r["top"] != r["truth_name"] and _small(r) for r in inside)
             rows.append([kind, f"{lo:.3g}-{min(hi, 1):.3g}", str(len(inside)),
                          f"{np.mean([r['top_probability'] for r in inside]):.3f}",
                          _frac(k, len(inside)), str(small)])
     return _table(rows, ["top explanation", "stated probability", "n", "mean stated", "share right",
-                         "of them: a world with an effect under 3σ"])
+                         "wrong, the effect or a term of it under 3σ"])
+
+
+def _small(r: dict[str, Any]) -> bool:
+    """The world's effect, or one of its terms (``size_sigma_by_effect``, where the run stored it), is under 3σ."""
+    if r["truth_name"] == "none":
+        return False
+    return r["size_sigma"] < 3.0 or min((r.get("size_sigma_by_effect") or {}).values(), default=3.0) < 3.0
 
 
 def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float]:
