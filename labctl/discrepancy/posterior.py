@@ -246,9 +246,9 @@ class Evidence:
 
     def rounded(self, kinked: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
-        roughness exponent, the end term's half-width share) has its form in doubt too: the evidence averaged over
-        the library's law and the law with its shape fitted (``SHAPE_DOUBT``), the fit kept the one with more
-        evidence."""
+        roughness exponent, the end term's half-width share, the asperities' load exponent) has its form in doubt
+        too: the evidence averaged over the library's law and the law with its shape fitted (``SHAPE_DOUBT``), the
+        fit kept the one with more evidence."""
         fit = kinked.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:
