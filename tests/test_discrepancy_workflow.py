@@ -370,7 +370,7 @@ def test_a_rounded_tilt_law_gets_no_wrong_name(truth):
     # The library's kinked min(1, x) law is not this closing. Whatever the posterior prefers, no other effect is
     # named (probability >= 0.9) for it; a tilt spread over a decade can look like roughness, at most "likely"
     # (a limit stated in docs/discrepancy.md). The square law was named setup_compliance + load_offset until the
-    # tilt law's rounding became part of its form's doubt (``Evidence.rounded``).
+    # tilt law's rounding became part of its form's doubt (``Evidence.shape_doubt``).
     result = run_discrepancy(synthesize(truth, noise=NOISE, seed=2, seating_rel=0.002))
     assert set(names(result)) <= {"misalignment"}
     assert any("misalignment" in x.explanation.name for x in result.scored[:3])

@@ -244,24 +244,24 @@ class Evidence:
         return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
-    def rounded(self, kinked: Scored, candidates: list[Explanation]) -> Scored:
+    def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
         roughness exponent, the end term's half-width share, the asperities' load exponent) has its form in doubt
         too: the evidence averaged over the library's law and the law with its shape fitted (``SHAPE_DOUBT``), the
         fit kept the one with more evidence."""
-        fit = kinked.fit
+        fit = library.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:
-            return kinked
+            return library
         spec = fit.spec
         for name in shaped:
             spec = spec.with_free_shape(name)
         values = fit.spec.decode(fit.x)
-        rounded = self.fit(spec, warm=fit, guess={n: {**values[n], **SHAPE_STARTS[n]} for n in shaped})
-        soft = self.score(kinked.explanation, rounded, candidates)
-        best = soft if soft.log_evidence > kinked.log_evidence else kinked
-        by_t = {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + kinked.log_evidence_by_t[t],
-                                      math.log(SHAPE_DOUBT) + soft.log_evidence_by_t[t])) for t in self.temperatures}
+        freed = self.score(library.explanation, self.fit(spec, warm=fit, guess={
+            n: {**values[n], **SHAPE_STARTS[n]} for n in shaped}), candidates)
+        best = freed if freed.log_evidence > library.log_evidence else library
+        by_t = {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + library.log_evidence_by_t[t],
+                                      math.log(SHAPE_DOUBT) + freed.log_evidence_by_t[t])) for t in self.temperatures}
         return replace(best, log_evidence_by_t=by_t)
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
@@ -326,7 +326,7 @@ class Evidence:
                 two = self.fit(base_spec.with_effects(a, b), warm=fits[(b,)], guess=fits[(a,)].spec.decode(
                     fits[(a,)].x))
                 fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
-            scored.append(self.rounded(self.score(expl, fits[key], candidates), candidates))
+            scored.append(self.shape_doubt(self.score(expl, fits[key], candidates), candidates))
         lof_p = base.lack_of_fit_p(self.data, self.noise)
         not_instrument: list[str] = []
         while True:
