@@ -198,7 +198,8 @@ def run_blind(task: Task) -> dict[str, Any]:
             "n_points": result.data.n_points,
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
                             "form_chi2": c.form_chi2, "n_params": c.n_params,
-                            "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()}}
+                            "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()},
+                            "log_fit_by_temperature": {f"{t:g}": v for t, v in c.log_fit_by_t.items()}}
                            for c in result.scored]}
 
 

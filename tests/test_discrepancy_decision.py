@@ -8,10 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 from scipy.special import logsumexp
 
 from labctl.discrepancy import load_points, run_discrepancy
 from labctl.discrepancy.form import TAU_GRID, FormPrior
+from labctl.discrepancy.occam import HYPER_A, log_bayes_factor
 from labctl.discrepancy.posterior import PRIOR_MASS, explanations, log_prior
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
@@ -36,6 +38,36 @@ def test_form_discrepancy_marginal_is_the_dense_gaussian_integral():
     tau = TAU_GRID[7]
     t = form.transform(tau)(e)
     assert t @ t == pytest.approx(e @ np.linalg.solve(np.eye(40) + tau**2 * a @ a.T, e), rel=1e-10)
+
+
+@pytest.mark.parametrize(("k", "scale"), [(1, 0.0), (1, 0.3), (2, 1.0), (3, 6.0)])
+def test_the_occam_factor_is_the_hyper_g_integral_of_the_dense_gaussian_marginal(k, scale):
+    # y ~ N(Xβ, I), β | g ~ N(0, g·(X'X)⁻¹), g ~ (a − 2)/2·(1 + g)^(−a/2): the Bayes factor against β = 0,
+    # integrated over g by quadrature of the dense Gaussian densities, is the closed form at the fit's gain.
+    rng = np.random.default_rng(k)
+    x = rng.normal(size=(30, k))
+    y = rng.normal(size=30) + scale * x @ np.ones(k)
+    hat = x @ np.linalg.solve(x.T @ x, x.T)
+    gain = float(y @ hat @ y)
+
+    def log_ratio(g: float) -> float:
+        cov = np.eye(30) + g * hat
+        return -0.5 * (y @ np.linalg.solve(cov, y) - y @ y) - 0.5 * np.linalg.slogdet(cov)[1]
+    peak = max(log_ratio(g) for g in np.logspace(-3, 5, 60))
+    dense, _ = quad(lambda g: (HYPER_A - 2) / 2 * (1 + g) ** (-HYPER_A / 2) * math.exp(log_ratio(g) - peak),
+                    0, np.inf, limit=400)
+    assert log_bayes_factor(gain, k) == pytest.approx(math.log(dense) + peak, abs=1e-6)
+
+
+@pytest.mark.parametrize("gain", [-400.0, -3.0, 0.0, 99.0, 101.0, 4000.0])
+def test_the_occam_factor_is_continuous_and_charges_a_gain_within_the_noise_little(gain):
+    # the closed form's two branches (series, incomplete gamma) agree across the switch and with the integral over
+    # s = g/(1 + g); at no gain two parameters cost ln((a + k − 2)/(a − 2)) = ln 3, not BIC's ln n.
+    def integrand(s: float) -> float:
+        return (1 - s) ** ((HYPER_A + 2) / 2 - 2) * math.exp(s * gain / 2 - max(gain / 2, 0.0))
+    direct = math.log((HYPER_A - 2) / 2 * quad(integrand, 0, 1, limit=400, points=[0.99, 0.9999])[0])
+    assert log_bayes_factor(gain, 2) == pytest.approx(direct + max(gain / 2, 0.0), rel=1e-6, abs=1e-6)
+    assert log_bayes_factor(0.0, 2) == pytest.approx(-math.log(3.0))
 
 
 def test_the_prior_is_a_distribution_split_evenly_within_each_class():

@@ -12,8 +12,10 @@ term's parameters are refitted with it. A term whose law differs from the truth 
 structure across roller types then needs only a small δ; a term that absorbs another effect in some cases and
 not in others needs a large one and loses to the others.
 
-Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA') (averaged over τ) − ½·k·ln n (Laplace/BIC for
-the k fitted parameters, Tripp's depth included), plus for *unlisted* −ln C(F, m) for choosing m of F features.
+Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA') (averaged over τ), the parameters a candidate
+adds to the baseline charged the hyper-g Occam factor at their fit's gain (``labctl.discrepancy.occam``: a gain
+within the noise costs little, so an effect too small to see is not ruled out), plus for *unlisted* −ln C(F, m) for
+choosing m of F features.
 Posterior (``probabilities``): "none" against every effect at the noise model's own scale, then the effects against
 each other at p(M|D, effect) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance
 of the whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
@@ -40,6 +42,7 @@ from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
+from labctl.discrepancy.occam import log_bayes_factor
 from labctl.physics.effects import EFFECTS
 
 PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10, "mixed": 0.10, "unlisted": 0.10}
@@ -47,8 +50,8 @@ PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10,
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
 """The noise-variance inflations a bench stores every candidate's evidence at (``--rescore`` decides again)."""
 TEMPERATURE = 16.0
-"""The inflation the decision uses, chosen on the blind worlds; the calibration seeds' log loss is lowest there
-(docs/discrepancy.md)."""
+"""The inflation the decision uses, chosen on the blind worlds; the calibration seeds' log loss there is within
+0.02 of its lowest (at 24; docs/discrepancy.md)."""
 INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a rig-level term (a measurement-side one, or the rig's own compliance) has its instrument check
 (``labctl.discrepancy.instrument``) once its probability reaches this; the probabilities are then worked out again
@@ -115,6 +118,8 @@ class Scored:
     fit: Fit | None
     log_evidence_by_t: dict[float, float]
     """log p(D | M) at the decision's noise inflation and each other one asked for (``TEMPERATURES`` in the bench)."""
+    log_fit_by_t: dict[float, float]
+    """… before the Occam factor of its parameters (a bench can charge another one)."""
     log_prior: float
     n_params: int
     tau: float
@@ -139,6 +144,7 @@ class Scored:
         return {"explanation": self.explanation.name, "probability": self.probability,
                 "log_evidence": self.log_evidence, "log_prior": self.log_prior,
                 "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
+                "log_fit_by_temperature": {f"{t:g}": v for t, v in self.log_fit_by_t.items()},
                 "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
 
 
@@ -196,6 +202,9 @@ class Evidence:
         self.n = data.n_points
         self.fits: dict[tuple[str, ...], Fit] = {}
         """Fitted models by their terms (each with the plain whitened least squares)."""
+        self.reference: tuple[dict[float, float], int] | None = None
+        """The baseline's log evidence before its Occam factor, by inflation, and its parameter count: what every
+        candidate's added parameters are charged against (``occam``)."""
 
     def fit(self, spec: ModelSpec, warm: Fit | None = None, guess: dict[str, dict[str, float]] | None = None,
             tau: float | None = None) -> Fit:
@@ -238,11 +247,21 @@ class Evidence:
         bend = self.bend(fit)
         k = fit.spec.n_params()
         evidence = self.form_evidence(fit.z, bend)
-        by_t = {t: v - 0.5 * k * math.log(self.n) for t, (v, _) in evidence.items()}
+        fit_by_t = {t: v for t, (v, _) in evidence.items()}
         tau = evidence[TEMPERATURE][1]
         smooth = self.form.smooth(fit.z, tau)
-        return Scored(expl, fit, by_t, log_prior(expl, candidates), k, tau,
+        return Scored(expl, fit, self.occam(fit_by_t, k), fit_by_t, log_prior(expl, candidates), k, tau,
                       float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
+
+    def occam(self, fit_by_t: dict[float, float], k: int) -> dict[float, float]:
+        """The log evidence of a candidate with ``k`` parameters: the baseline's, times the hyper-g Bayes factor of
+        the parameters it adds (``labctl.discrepancy.occam``) at each inflation T (the gain counted 1/T). The
+        baseline's own parameters, common to every candidate, are charged ½·k·ln n (BIC)."""
+        if self.reference is None:
+            return {t: v - 0.5 * k * math.log(self.n) for t, v in fit_by_t.items()}
+        base, k0 = self.reference
+        own = {t: v - 0.5 * k0 * math.log(self.n) for t, v in base.items()}
+        return {t: own[t] + log_bayes_factor(2.0 * (v - base[t]), k - k0) for t, v in fit_by_t.items()}
 
     def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
@@ -260,9 +279,11 @@ class Evidence:
         freed = self.score(library.explanation, self.fit(spec, warm=fit, guess={
             n: {**values[n], **SHAPE_STARTS[n]} for n in shaped}), candidates)
         best = freed if freed.log_evidence > library.log_evidence else library
-        by_t = {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + library.log_evidence_by_t[t],
-                                      math.log(SHAPE_DOUBT) + freed.log_evidence_by_t[t])) for t in self.temperatures}
-        return replace(best, log_evidence_by_t=by_t)
+
+        def doubted(by_t: str) -> dict[float, float]:
+            return {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + getattr(library, by_t)[t],
+                                          math.log(SHAPE_DOUBT) + getattr(freed, by_t)[t])) for t in self.temperatures}
+        return replace(best, log_evidence_by_t=doubted("log_evidence_by_t"), log_fit_by_t=doubted("log_fit_by_t"))
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
         """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
@@ -281,9 +302,8 @@ class Evidence:
             coef, *_ = np.linalg.lstsq(a, y, rcond=None)
             e = y - a @ coef
             log_m, tau = self.form.log_marginal(e, inflation=t)
-            m = len(chosen)
-            penalty = 0.5 * (k0 + m) * math.log(self.n) + math.log(math.comb(len(names), m))
-            return log_m - penalty, tau, e
+            log_fit = log_m - math.log(math.comb(len(names), len(chosen)))
+            return log_fit, tau, e
 
         def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
             # at least one feature: with none, "unlisted" is the baseline itself — "none" under another name, which
@@ -292,17 +312,21 @@ class Evidence:
             best = (-math.inf, 0.0, y)
             while len(chosen) < min(MAX_FEATURES, len(names)):
                 trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
-                top = max(trial, key=lambda r: r[0][0])
-                if top[0][0] <= best[0]:
+                top = max(trial, key=lambda r: evidence(r[0][0], len(chosen) + 1, t))
+                if evidence(top[0][0], len(chosen) + 1, t) <= evidence(best[0], len(chosen), t):
                     break
                 best, chosen = top[0], [*chosen, top[1]]
             return chosen, best
 
+        def evidence(log_fit: float, m: int, t: float) -> float:
+            return self.occam({t: log_fit}, k0 + m)[t] if m else -math.inf
+
         selected = {t: select(t) for t in self.temperatures}
-        by_t = {t: best[0] for t, (_, best) in selected.items()}
+        fit_by_t = {t: best[0] for t, (_, best) in selected.items()}
+        by_t = {t: evidence(best[0], len(chosen), t) for t, (chosen, best) in selected.items()}
         chosen, (_, tau, e) = selected[TEMPERATURE]
         smooth = self.form.smooth(e, tau)
-        return Scored(expl, None, by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
+        return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
@@ -311,6 +335,8 @@ class Evidence:
         base = self.fit(base_spec)
         fits = self.fits
         fits[()] = base
+        baseline = self.score(Explanation(), base, candidates)
+        self.reference = baseline.log_fit_by_t, baseline.n_params
         for name in [c.terms[0] for c in candidates if len(c.terms) == 1]:
             fits[(name,)] = self.fit(base_spec.with_effects(name), warm=base)
         scored = []
@@ -319,6 +345,9 @@ class Evidence:
                 scored.append(self.unlisted(base, expl, candidates))
                 continue
             key = expl.terms
+            if not key:
+                scored.append(baseline)
+                continue
             if key not in fits:
                 a, b = key
                 one = self.fit(base_spec.with_effects(a, b), warm=fits[(a,)], guess=fits[(b,)].spec.decode(
