@@ -92,11 +92,10 @@ def test_asperities_that_stiffen_more_slowly_are_the_roughness_term_not_an_effec
     assert top.fit.spec.decode(top.fit.x)["surface_roughness"]["load_exponent"] == pytest.approx(0.5, abs=0.1)
 
 
-@pytest.mark.xfail(strict=True, reason="known limit: the neighbour screen does not set exactly the 7 scattered "
-                                       "outliers aside; reported to the lead")
 def test_three_percent_outliers_leave_the_verdict_unchanged():
     # 7 of 231 points off by a factor e^±(0.2-0.5): all are set aside and reported, and setting them aside must
-    # not let two measurement-side terms absorb what the imperfect setup term leaves.
+    # not let two measurement-side terms absorb what the imperfect setup term leaves. Before an end point was judged
+    # against its step's other repetitions, type 7's lowest point (29 % off, 2.5 % noise) was kept.
     points = campaign(1.2e-3, 6.8e8, 0.091, 0.025, 401008)
     clean = run_discrepancy(points).to_dict()
     rng = np.random.default_rng(7)

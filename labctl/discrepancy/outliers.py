@@ -74,8 +74,8 @@ def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, n
     return nearest, least
 
 
-def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], band_dof: int, max_bands: int
-                   ) -> list[int]:
+def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], band_dof: int, max_bands: int,
+                   across: np.ndarray | None = None) -> list[int]:
     """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
     band's, from the residuals against the nearest neighbours) off every line through its own seating's
     neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
@@ -83,29 +83,50 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     outlier; two bad points of one step never outvote the clean repetition; a bad point's neighbours, off the
     lines through it but not off the others, are not taken for it (at the end of a seating above all, where the
     end point extrapolated from two neighbours moves with its neighbour's error as much as the neighbour does).
-    The price: a bad end point is judged against extrapolations only and is set aside only when far off."""
+    So a seating's end point, which its lines only extrapolate to (with √6 times the noise), is also set aside
+    when it is off its lines by more than ``SMOOTH_Z`` and far off its step's other repetitions (``across``: its
+    residual from step means plus seating offsets, standardised for its leverage; ``outlier_z`` with the level
+    shared by the two tests), the worst of its step so judged. A clean repetition that two bad ones outvote at its
+    step is smooth on its own lines, and is kept."""
     eps, least = _neighbour_residuals(data, keep)
     ok = np.flatnonzero(np.isfinite(eps))
     if ok.size < 2 * band_dof:
         return []
     x = np.log(data.load_per_length_n_per_m)
-    scale = np.full(eps.size, np.inf)
-    for part in np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // (2 * band_dof)))):
-        s = MAD_TO_SIGMA * float(np.median(np.abs(eps[part])))
-        scale[part] = s if s > 0 else np.inf
-    ratio = np.where(np.isfinite(eps), np.abs(np.nan_to_num(eps)) / scale, 0.0)
-    firm = np.where(np.isfinite(least), np.abs(np.nan_to_num(least)) / scale, 0.0)
+    bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // (2 * band_dof))))
+    scale = _band_scale(eps, bands)
+    ratio, firm = _ratio(eps, scale), _ratio(least, scale)
+    across = np.full(eps.size, np.nan) if across is None else across
+    off = _ratio(across, _band_scale(across, bands))
     runs, ln_f = data.run_ids(), np.log(data.load_n)
-    z = outlier_z(int(ok.size))
+    z, z_end = outlier_z(int(ok.size)), outlier_z(2 * int(ok.size))
+    end = np.zeros(eps.size, dtype=bool)
+    for run in np.unique(runs[keep]):
+        idx = np.flatnonzero((runs == run) & keep)
+        end[idx[[np.argmin(ln_f[idx]), np.argmax(ln_f[idx])]]] = True
     out = []
     for g in groups:
         g = g[keep[g]]
         smooth = g[ratio[g] <= SMOOTH_Z]
-        for i in g[firm[g] > z]:
+        for i in g[(firm[g] > z) | (end[g] & (off[g] > z_end) & (firm[g] > SMOOTH_Z))]:
             if g.size > 1 and smooth.size == 0:
                 continue  # every repetition shares it: the contact's own shape
             same = np.flatnonzero((runs == runs[i]) & keep)
             near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
-            if firm[i] >= firm[near].max():
+            if firm[i] > z and firm[i] >= firm[near].max() or firm[i] <= z and off[i] >= off[g].max():
                 out.append(int(i))
     return out
+
+
+def _band_scale(e: np.ndarray, bands: list[np.ndarray]) -> np.ndarray:
+    """Each point's robust σ of e (MAD) over its load band; inf where the band has none."""
+    scale = np.full(e.size, np.inf)
+    for part in bands:
+        finite = part[np.isfinite(e[part])]
+        s = MAD_TO_SIGMA * float(np.median(np.abs(e[finite]))) if finite.size else 0.0
+        scale[part] = s if s > 0 else np.inf
+    return scale
+
+
+def _ratio(e: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    return np.where(np.isfinite(e), np.abs(np.nan_to_num(e)) / scale, 0.0)
