@@ -20,7 +20,8 @@ Per file: top explanation = truth, log loss of the truth's probability, expected
 reliability bins, whether every bin with ≥ 30 cases is within 0.05, names that are exactly the truth (both terms
 of a pair; library or measurement-side truths of size ≥ 3σ: stricter than the evaluation's top-1, which counts
 the first term named), wrong names (an effect outside the library named counts), top probabilities ≥ 0.5, and how
-often an effect (named or unlisted) stated at ≥ 0.9 is the truth.
+often an effect (named or unlisted) stated at ≥ 0.9 is the truth. Last, the reliability table of the workflow's own
+rule (the stated probabilities the files hold) pooled over all the files.
 
     python bench/discrepancy_rescale.py CAL.json EVAL.json [BLIND2.json …]
 """
@@ -34,7 +35,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import BINS
+from discrepancy_scores import BINS, reliability
 
 from labctl.discrepancy.posterior import (
     LIKELY_AT,
@@ -137,6 +138,9 @@ def main() -> None:
         for path, results in runs:
             print(f"| {occam} | {scope} | {t:g} | {lam:g} | {prior} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
+    pooled = [r for _, results in runs for r in results]
+    print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
+    print(reliability(pooled)[0])
 
 if __name__ == "__main__":
     main()
