@@ -335,6 +335,7 @@ class Evidence:
         base = self.fit(base_spec)
         fits = self.fits
         fits[()] = base
+        self.reference = None  # the baseline itself is charged BIC for its own parameters
         baseline = self.score(Explanation(), base, candidates)
         self.reference = baseline.log_fit_by_t, baseline.n_params
         for name in [c.terms[0] for c in candidates if len(c.terms) == 1]:
