@@ -43,6 +43,17 @@ class Screening:
     def any(self) -> bool:
         return bool(self.duplicates or self.conflicting_rows or self.outliers or self.drifted)
 
+    def set_aside(self, data: Dataset, indices: Sequence[int]) -> Dataset:
+        """Report the points at ``indices`` as outliers and return the dataset without them."""
+        mask = np.zeros(data.n_points, dtype=bool)
+        mask[list(indices)] = True
+        labels = [(c, i) for c in data.cases for i in range(c.load_n.size)]
+        for k in indices:
+            c, i = labels[k]
+            self.outliers.append({"case": c.label, "repetition": int(c.repetition[i]), "load_n": float(c.load_n[i]),
+                                  "stiffness_n_per_m": float(np.exp(c.ln_stiffness[i]))})
+        return data.drop_points(mask)
+
 
 def _key(p: StiffnessPoint) -> tuple[Any, ...]:
     return (p.diameter_m, p.contact_length_m, p.rail_ra_m, p.roller_type, p.roller_length_m, p.material,

@@ -246,15 +246,7 @@ def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, No
     for _ in range(3):
         if not noise.outliers:
             break
-        mask = np.zeros(data.n_points, dtype=bool)
-        mask[list(noise.outliers)] = True
-        labels = [(c, i) for c in data.cases for i in range(c.load_n.size)]
-        for k in noise.outliers:
-            c, i = labels[k]
-            screening.outliers.append({"case": c.label, "repetition": int(c.repetition[i]),
-                                       "load_n": float(c.load_n[i]),
-                                       "stiffness_n_per_m": float(np.exp(c.ln_stiffness[i]))})
-        data = data.drop_points(mask)
+        data = screening.set_aside(data, noise.outliers)
         noise = estimate_noise(data)
     return data, noise
 
