@@ -239,7 +239,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
             resid[sl], lev[sl] = tw.residual, tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
-        across = np.where(keep & (lev < 1.0 - 1e-6), resid / np.sqrt(np.clip(1.0 - lev, 1e-12, None)), np.nan)
+        across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
         new = gross_outliers(data, keep, groups, BAND_DOF, MAX_BANDS, across)
         if not new:
             break

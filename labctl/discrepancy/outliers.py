@@ -75,7 +75,7 @@ def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, n
 
 
 def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], band_dof: int, max_bands: int,
-                   across: np.ndarray | None = None) -> list[int]:
+                   across: np.ndarray) -> list[int]:
     """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
     band's, from the residuals against the nearest neighbours) off every line through its own seating's
     neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
@@ -96,7 +96,6 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // (2 * band_dof))))
     scale = _band_scale(eps, bands)
     ratio, firm = _ratio(eps, scale), _ratio(least, scale)
-    across = np.full(eps.size, np.nan) if across is None else across
     off = _ratio(across, _band_scale(across, bands))
     runs, ln_f = data.run_ids(), np.log(data.load_n)
     z, z_end = outlier_z(int(ok.size)), outlier_z(2 * int(ok.size))
@@ -113,7 +112,7 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
                 continue  # every repetition shares it: the contact's own shape
             same = np.flatnonzero((runs == runs[i]) & keep)
             near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
-            if firm[i] > z and firm[i] >= firm[near].max() or firm[i] <= z and off[i] >= off[g].max():
+            if (firm[i] >= firm[near].max()) if firm[i] > z else (off[i] >= off[g].max()):
                 out.append(int(i))
     return out
 

@@ -203,8 +203,9 @@ class Evidence:
         self.fits: dict[tuple[str, ...], Fit] = {}
         """Fitted models by their terms (each with the plain whitened least squares)."""
         self.reference: tuple[dict[float, float], int] | None = None
-        """The baseline's log evidence before its Occam factor, by inflation, and its parameter count: what every
-        candidate's added parameters are charged against (``occam``)."""
+        """The baseline's log evidence before its Occam factor, by inflation, and its parameter count, set when the
+        baseline (the explanation "none") is scored: what every candidate's added parameters are charged against
+        (``charged``)."""
 
     def fit(self, spec: ModelSpec, warm: Fit | None = None, guess: dict[str, dict[str, float]] | None = None,
             tau: float | None = None) -> Fit:
@@ -248,20 +249,21 @@ class Evidence:
         k = fit.spec.n_params()
         evidence = self.form_evidence(fit.z, bend)
         fit_by_t = {t: v for t, (v, _) in evidence.items()}
+        if expl == Explanation():
+            self.reference = fit_by_t, k
         tau = evidence[TEMPERATURE][1]
         smooth = self.form.smooth(fit.z, tau)
-        return Scored(expl, fit, self.occam(fit_by_t, k), fit_by_t, log_prior(expl, candidates), k, tau,
-                      float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
+        return Scored(expl, fit, {t: self.charged(v, k, t) for t, v in fit_by_t.items()}, fit_by_t,
+                      log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
-    def occam(self, fit_by_t: dict[float, float], k: int) -> dict[float, float]:
-        """The log evidence of a candidate with ``k`` parameters: the baseline's, times the hyper-g Bayes factor of
-        the parameters it adds (``labctl.discrepancy.occam``) at each inflation T (the gain counted 1/T). The
-        baseline's own parameters, common to every candidate, are charged ½·k·ln n (BIC)."""
-        if self.reference is None:
-            return {t: v - 0.5 * k * math.log(self.n) for t, v in fit_by_t.items()}
+    def charged(self, log_fit: float, k: int, t: float) -> float:
+        """The log evidence at inflation T of a candidate with ``k`` parameters whose evidence before its Occam
+        factor is ``log_fit``: the baseline's, times the hyper-g Bayes factor of the parameters it adds
+        (``labctl.discrepancy.occam``; the gain counted 1/T). The baseline's own parameters, common to every
+        candidate, are charged ½·k·ln n (BIC)."""
+        assert self.reference is not None, "the baseline is scored first"
         base, k0 = self.reference
-        own = {t: v - 0.5 * k0 * math.log(self.n) for t, v in base.items()}
-        return {t: own[t] + log_bayes_factor(2.0 * (v - base[t]), k - k0) for t, v in fit_by_t.items()}
+        return base[t] - 0.5 * k0 * math.log(self.n) + log_bayes_factor(2.0 * (log_fit - base[t]), k - k0)
 
     def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
@@ -280,10 +282,11 @@ class Evidence:
             n: {**values[n], **SHAPE_STARTS[n]} for n in shaped}), candidates)
         best = freed if freed.log_evidence > library.log_evidence else library
 
-        def doubted(by_t: str) -> dict[float, float]:
-            return {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + getattr(library, by_t)[t],
-                                          math.log(SHAPE_DOUBT) + getattr(freed, by_t)[t])) for t in self.temperatures}
-        return replace(best, log_evidence_by_t=doubted("log_evidence_by_t"), log_fit_by_t=doubted("log_fit_by_t"))
+        def doubted(law: dict[float, float], shaped: dict[float, float]) -> dict[float, float]:
+            return {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + law[t], math.log(SHAPE_DOUBT) + shaped[t]))
+                    for t in self.temperatures}
+        return replace(best, log_evidence_by_t=doubted(library.log_evidence_by_t, freed.log_evidence_by_t),
+                       log_fit_by_t=doubted(library.log_fit_by_t, freed.log_fit_by_t))
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
         """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
@@ -319,7 +322,7 @@ class Evidence:
             return chosen, best
 
         def evidence(log_fit: float, m: int, t: float) -> float:
-            return self.occam({t: log_fit}, k0 + m)[t] if m else -math.inf
+            return self.charged(log_fit, k0 + m, t) if m else -math.inf
 
         selected = {t: select(t) for t in self.temperatures}
         fit_by_t = {t: best[0] for t, (_, best) in selected.items()}
@@ -335,9 +338,7 @@ class Evidence:
         base = self.fit(base_spec)
         fits = self.fits
         fits[()] = base
-        self.reference = None  # the baseline itself is charged BIC for its own parameters
         baseline = self.score(Explanation(), base, candidates)
-        self.reference = baseline.log_fit_by_t, baseline.n_params
         for name in [c.terms[0] for c in candidates if len(c.terms) == 1]:
             fits[(name,)] = self.fit(base_spec.with_effects(name), warm=base)
         scored = []
