@@ -27,7 +27,8 @@ def absorbed_share(data: Dataset, base: Fit, name: str, depth: np.ndarray) -> fl
     """R² of measurement-side term ``name``'s column against the baseline's depth column ``depth``."""
     cls = MEASUREMENT[name]
     (parameter, (lo, hi)), = cls.BOUNDS.items()
-    probe = replace(cls(), **{parameter: getattr(cls(), parameter) + PROBE_SHARE * (hi - lo)})
+    none = cls()
+    probe = replace(none, **{parameter: getattr(none, parameter) + PROBE_SHARE * (hi - lo)})
     with np.errstate(all="ignore"):
         column = predict_ln(data, base.law, (*base.chain, probe)) - base.predict(data)
     if not np.all(np.isfinite(column)) or not np.any(column):
