@@ -80,7 +80,7 @@ def test_two_outliers_next_to_the_end_of_a_seating_are_set_aside_not_their_clean
     # lines that avoid one neighbour, it set those clean end points (or more) aside and kept a bad one.
     from labctl.discrepancy.data import build_dataset
     from labctl.discrepancy.screen import screen_points
-    from labctl.discrepancy.workflow import set_aside_outliers
+    from labctl.discrepancy.set_aside import set_aside_outliers
     from labctl.physics import SurfaceRoughness
 
     points = synthesize(world(SurfaceRoughness(asperity_scale=1.2)), noise=GENERATOR_NOISE, seed=seed)

@@ -97,18 +97,26 @@ class NoiseFloor:
             f = s_model / df
             return LackOfFit(f, df, self.dof, float(fdtrc(df, self.dof, f)))
         m = len(self.groups)
-        cells = np.zeros((n, m))
-        for j, g in enumerate(self.groups):
-            cells[g, j] = 1.0
-        lx = self.whiten(data, cells, sigma)
-        ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
-        coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
-        s_pure = float(np.sum((ly - lx @ coef) ** 2))
+        s_pure = self.pure_error(data, residuals, sigma)
         df_lack, df_pure = m - n_params, n - m
         if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
             return None
         f = max(0.0, s_model - s_pure) / df_lack / (s_pure / df_pure)
         return LackOfFit(f, df_lack, df_pure, float(fdtrc(df_lack, df_pure, f)))
+
+    def cells(self, data: Dataset, sigma: np.ndarray) -> np.ndarray:
+        """The saturated model's columns (one per replicate set: a load step of a case), whitened (n × m)."""
+        cells = np.zeros((data.n_points, len(self.groups)))
+        for j, g in enumerate(self.groups):
+            cells[g, j] = 1.0
+        return self.whiten(data, cells, sigma)
+
+    def pure_error(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> float:
+        """The whitened residual sum of squares of the saturated model (one mean per load step and case)."""
+        lx = self.cells(data, sigma)
+        ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
+        coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
+        return float(np.sum((ly - lx @ coef) ** 2))
 
     def lack_of_fit_p(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
                       ) -> float | None:

@@ -18,15 +18,16 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
-from labctl.discrepancy.data import Dataset, build_dataset, campaign_setup_stiffness, load_points
+from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
-from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor, estimate_noise, lack_of_fit_rejects
+from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, TEMPERATURE, Evidence, Scored
-from labctl.discrepancy.screen import Screening, check_units, screen_points
+from labctl.discrepancy.screen import Screening
 from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, kind, share
+from labctl.discrepancy.set_aside import consistent_with_noise, screened, set_aside_step
 from labctl.errors import InputError
 from labctl.physics.effects import EFFECTS
 from labctl.physics.law import BASELINES
@@ -234,23 +235,6 @@ def _residual_words(found: list[dict[str, Any]]) -> str:
     return "; ".join(words) if words else "shows structure within the load range of each roller case"
 
 
-def consistent_with_noise(fit: Fit, noise: NoiseFloor, data: Dataset) -> bool:
-    """The lack-of-fit test at level CONSISTENT_P finds no structure beyond the noise."""
-    p = fit.lack_of_fit_p(data, noise)
-    return p is not None and not lack_of_fit_rejects(p)
-
-
-def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, NoiseFloor]:
-    """Estimate the noise, setting gross outliers aside (reported) until none is left."""
-    noise = estimate_noise(data)
-    for _ in range(3):
-        if not noise.outliers:
-            break
-        data = screening.set_aside(data, noise.outliers)
-        noise = estimate_noise(data)
-    return data, noise
-
-
 def _nuisance(search: Search, fits: list[Fit]) -> list[dict[str, Any]]:
     """A depth pinned at an end of its physical range: what depth a free fit would want, and what that means."""
     out = []
@@ -307,6 +291,22 @@ def unidentifiable_reasons(data: Dataset) -> list[str]:
     return out
 
 
+def baseline_spec(baseline: str, setup_stiffness_n_per_m: float | None = None) -> ModelSpec:
+    """The baseline with no term added; K_setup defaults to the shipped rig file's nominal value."""
+    k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
+    return ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
+
+
+def _scored(data: Dataset, noise: NoiseFloor, spec: ModelSpec, temperatures: Sequence[float], max_terms: int
+            ) -> tuple[Search, Evidence, Fit, list[Scored]]:
+    """Every candidate explanation scored on the screened data, the most probable first."""
+    search = Search(data, noise)
+    evidence = Evidence(data, noise, search.sigma, temperatures)
+    base, scored = evidence.all(spec, max_terms=max_terms)
+    scored.sort(key=lambda s: -s.probability)
+    return search, evidence, base, scored
+
+
 def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *,
                     setup_stiffness_n_per_m: float | None = None, max_effects: int = MAX_TERMS,
                     temperatures: Sequence[float] = ()) -> DiscrepancyResult:
@@ -316,17 +316,16 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     the decision's."""
     if baseline not in BASELINES:
         raise InputError(f"unknown baseline {baseline!r}; expected one of {', '.join(BASELINES)}")
-    kept, screening = screen_points(points)
-    data = build_dataset(kept)
-    check_units(data)
-    data, noise = set_aside_outliers(data, screening)
-    k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
-    spec = ModelSpec(baseline, (), {"setup_compliance": {"nominal_setup_n_per_m": k_setup}})
-    search = Search(data, noise)
-    evidence = Evidence(data, noise, search.sigma, temperatures)
-    base, scored = evidence.all(spec, max_terms=max_effects)
-    scored.sort(key=lambda s: -s.probability)
+    spec = baseline_spec(baseline, setup_stiffness_n_per_m)
+    data, noise, screening = screened(points, spec)
+    search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
     top = scored[0]
+    if top.fit is not None and top.explanation.terms and not top.explanation.unlisted:
+        fewer, less = set_aside_step(data, noise, top.fit.spec, screening)  # out of line with the best explanation
+        if fewer is not data:
+            data, noise = fewer, less
+            search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
+            top = scored[0]
     steps: list[Step] = []
     likely = None
     if top.explanation.terms and top.probability >= NAME_AT:
