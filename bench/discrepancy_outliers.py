@@ -2,22 +2,27 @@
 
 The blind judge (``bench/blind/``) puts two gross outliers (a factor 1 ± 8–15 %) into one load step of one roller
 type in 30 % of its worlds, in two of the three repetitions. Each world goes through the CSV contract and the
-workflow's own screen (``screen_points``, then ``set_aside_outliers``: the noise model's neighbour test) without
-any model fit. An injected point's size is |ln factor| over the point σ the judge states for it (its
+workflow's own screen (``screened``: the rows checked, the noise model's neighbour test, then the one load step out
+of line with the baseline). An injected point's size is |ln factor| over the point σ the judge states for it (its
 ``stiffness_std_n_per_m``, seating included): how far it sits outside the noise it came with.
 
 Printed: per size band, the injected points set aside (and beyond 8 σ, at an end load step or elsewhere); per
 world, clean points set aside (false alarms), with and without injected outliers; and worlds where a clean
-repetition of an injected step was set aside in place of a bad one.
+repetition of an injected step was set aside in place of a bad one. With ``--verdicts``, each world with outliers
+also goes through the whole workflow twice, as written and without the injected points: the acceptance that two bad
+points of one step never change the verdict, judged on worlds written blind to the workflow.
 
-    python bench/discrepancy_outliers.py [--seeds 8] [--calibration]
+    python bench/discrepancy_outliers.py [--seeds 8] [--calibration] [--verdicts]
+    python bench/discrepancy_outliers.py --own    # two outliers in null data of the project's own generator
 
-Run by hand (not a test); about 15 s for the default 384 worlds.
+Run by hand (not a test); about 20 s for the default 384 worlds, a few minutes more with ``--verdicts``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import itertools
 import math
 import sys
 from collections.abc import Iterable
@@ -31,13 +36,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points  # noqa: E402
 
-from labctl.discrepancy.data import build_dataset  # noqa: E402
-from labctl.discrepancy.screen import screen_points  # noqa: E402
-from labctl.discrepancy.workflow import set_aside_outliers  # noqa: E402
+from labctl.discrepancy import run_discrepancy  # noqa: E402
+from labctl.discrepancy.set_aside import screened  # noqa: E402
+from labctl.discrepancy.synthetic import NoiseModel, synthesize  # noqa: E402
+from labctl.discrepancy.workflow import baseline_spec  # noqa: E402
+from labctl.physics import ContactLaw  # noqa: E402
 
 SCALES = (0.5, 1.0, 2.0)
 SIZE_BANDS = ((0.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, math.inf))
 """Injected outliers by size, in the point σ the judge states for them."""
+
+FACTOR_PAIRS = ((0.9, 1.1), (0.88, 0.88), (1.12, 1.12), (0.92, 1.08))
+"""The own-generator probes' factors on two repetitions of one step (12 % is 6 σ at the lowest loads)."""
 
 Key = tuple[int, int, float]
 """A point as the screen reports it and the judge wrote it: roller type, repetition, load (N, 6 digits)."""
@@ -77,31 +87,69 @@ def injected(at: dict[Key, tuple[int, dict[str, Any]]], outliers: dict[str, Any]
 
 def set_aside(rows: list[dict[str, Any]]) -> set[Key]:
     """The points the workflow's screen sets aside as gross outliers."""
-    kept, screening = screen_points(csv_points(rows))
-    data = build_dataset(kept)
+    data, _, screening = screened(csv_points(rows), baseline_spec("tripp"))
     types = {c.label: c.case.roller.type_id for c in data.cases}
-    set_aside_outliers(data, screening)
     return {_key(types[o["case"]], o["repetition"], o["load_n"]) for o in screening.outliers}
 
 
-def worlds(judge: Any, seeds: Iterable[int]) -> Iterable[Any]:
+def verdict_pair(rows: list[dict[str, Any]], bad: set[Key]) -> tuple[tuple[str, str], tuple[str, str]]:
+    """The workflow's verdict and top explanation on the world as the judge wrote it, and without the injected
+    points: what two bad points of one step must not change."""
+    clean = [r for r in rows if _key(int(r["roller_type"]), int(r["repetition"]), r["load_n"]) not in bad]
+    out = []
+    for table in (rows, clean):
+        result = run_discrepancy(csv_points(table))
+        out.append((result.verdict, result.scored[0].explanation.name))
+    return out[0], out[1]
+
+
+def worlds(judge: Any, seeds: Iterable[int]) -> Iterable[tuple[str, Any]]:
+    """Each world of the judge with its name (scenario, seed, noise scale)."""
     for scenario in judge.SCENARIOS:
         for seed in seeds:
             for scale in SCALES:
-                yield judge.generate(scenario, seed, scale)
+                yield f"{scenario} seed {seed} {scale:g}×", judge.generate(scenario, seed, scale)
+
+
+def own_probes() -> None:
+    """Two outliers in one load step of null data from the project's own generator (2 % point noise at the
+    preload, a third of it at the top): roller types 1, 3, 5, the lowest and the highest step, four pairs of
+    factors on repetitions 1 and 2. Not a judge of the method (its generator is the method's); the case it found."""
+    law = ContactLaw("tripp", 2e-3).stiffness_n_per_m
+    null = synthesize(law, noise=NoiseModel(low=0.02, high=0.02 / 3), seating_rel=0.004, seed=11)
+    print("| roller type | step | factors | outliers reported | clean set aside | verdict |\n|---|---|---|---|---|---|")
+    for roller_type, step, factors in itertools.product((1, 3, 5), (0, -1), FACTOR_PAIRS):
+        points, bad = [], set()
+        for p in null:
+            own = sorted(q.load_n for q in null if q.roller_type == roller_type and q.repetition == p.repetition)
+            if p.roller_type == roller_type and p.repetition in (1, 2) and p.load_n == own[step]:
+                p = dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * factors[p.repetition - 1])
+                bad.add((p.repetition, p.load_n))
+            points.append(p)
+        result = run_discrepancy(points)
+        found = {(o["repetition"], o["load_n"]) for o in result.screening.outliers}
+        print(f"| {roller_type} | {'lowest' if step == 0 else 'highest'} | {factors[0]:g}, {factors[1]:g} | "
+              f"{len(found & bad)}/2 | {len(found - bad)} | {result.verdict} |")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=8, help="seeds per scenario and noise scale")
     ap.add_argument("--calibration", action="store_true", help="the calibration seeds instead of the evaluation ones")
+    ap.add_argument("--verdicts", action="store_true",
+                    help="also run the whole workflow on each world with outliers, with and without them")
+    ap.add_argument("--own", action="store_true", help="only the probes on the project's own generator")
     args = ap.parse_args()
+    if args.own:
+        own_probes()
+        return 0
     first = CALIBRATION_SEEDS if args.calibration else 0
     sizes: list[tuple[float, bool]] = []
     far_at: dict[str, list[bool]] = {"at an end step": [], "elsewhere": []}
     false_with, false_without, clean_rep_instead = [], [], 0
+    pairs: list[tuple[str, tuple[str, str], tuple[str, str]]] = []
     judge = blind_worlds("blind")
-    for world in worlds(judge, range(first, first + args.seeds)):
+    for name, world in worlds(judge, range(first, first + args.seeds)):
         outliers = world.truth["faults"]["outliers"]
         at = points(world.rows)
         bad = injected(at, outliers)
@@ -113,6 +161,8 @@ def main() -> int:
             if any(k[0] == outliers["roller_type"] and at[k][0] == outliers["step"] for k in found - set(bad)):
                 clean_rep_instead += 1
         (false_with if bad else false_without).append(len(found - set(bad)))
+        if bad and args.verdicts:
+            pairs.append((name, *verdict_pair(world.rows, set(bad))))
     print(f"blind judge, {'calibration' if args.calibration else 'evaluation'} seeds {first}-{first + args.seeds - 1}, "
           f"noise {', '.join(f'{s:g}×' for s in SCALES)}: {len(false_with) + len(false_without)} worlds, "
           f"{len(false_with)} with two injected outliers\n")
@@ -129,6 +179,14 @@ def main() -> int:
         if false:
             print(f"| {name} | {len(false)} | {np.mean(false):.3f} | {np.mean(np.array(false) > 0):.3f} |")
     print(f"\nworlds where a clean point of an injected step was set aside: {clean_rep_instead}")
+    if pairs:
+        same = [a[0] == b[0] for _, a, b in pairs]
+        top = [a[1] == b[1] for _, a, b in pairs]
+        print(f"\nthe whole workflow on the {len(pairs)} worlds with injected outliers, against the same world without "
+              f"them: verdict unchanged {sum(same)}/{len(pairs)}, top explanation unchanged {sum(top)}/{len(pairs)}")
+        for name, a, b in pairs:
+            if a != b:
+                print(f"- {name}: {a[0]} ({a[1]}) with them, {b[0]} ({b[1]}) without")
     return 0
 
 
