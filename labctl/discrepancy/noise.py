@@ -111,12 +111,16 @@ class NoiseFloor:
             cells[g, j] = 1.0
         return self.whiten(data, cells, sigma)
 
-    def pure_error(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> float:
-        """The whitened residual sum of squares of the saturated model (one mean per load step and case)."""
+    def pure_residuals(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """The saturated model's whitened residuals (one mean per load step and case): pure point noise."""
         lx = self.cells(data, sigma)
         ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
         coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
-        return float(np.sum((ly - lx @ coef) ** 2))
+        return ly - lx @ coef
+
+    def pure_error(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> float:
+        """The whitened residual sum of squares of the saturated model."""
+        return float(np.sum(self.pure_residuals(data, residuals, sigma) ** 2))
 
     def lack_of_fit_p(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
                       ) -> float | None:

@@ -13,7 +13,7 @@ from labctl.discrepancy.model import Fit, ModelSpec
 from labctl.discrepancy.noise import NoiseFloor, estimate_noise, lack_of_fit_rejects
 from labctl.discrepancy.screen import Screening, check_units, screen_points
 from labctl.discrepancy.search import Search
-from labctl.discrepancy.step_outliers import step_out_of_line
+from labctl.discrepancy.step_outliers import step_out_of_line, step_too_spread
 from labctl.stiffness_table import StiffnessPoint
 
 
@@ -36,15 +36,20 @@ def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, No
 
 def set_aside_step(data: Dataset, noise: NoiseFloor, spec: ModelSpec, screening: Screening
                    ) -> tuple[Dataset, NoiseFloor]:
-    """The repetitions of one load step out of line with the model ``spec`` (``step_out_of_line``) set aside
-    (reported) when the model then agrees with the rest within the noise; else the data as they were."""
+    """The repetitions of one load step out of line with the model ``spec`` set aside (reported): a step whose mean
+    alone fails it (``step_out_of_line``) when the model then agrees with the rest within the noise; else a step
+    whose spread is out of line (``step_too_spread``) unless the model agreed with the data before and not after
+    (then the spread decided the verdict, and the noise model cannot tell it from two bad points). Else the data
+    as they were."""
     fit = Search(data, noise).fit(spec)
     bad = step_out_of_line(data, noise, fit.residuals, fit.sigma, spec.n_params())
-    if not bad:
+    spread = [] if bad else step_too_spread(data, noise, fit.residuals, fit.sigma)
+    if not bad and not spread:
         return data, noise
     trial = Screening()
-    fewer, less = set_aside_outliers(trial.set_aside(data, bad), trial)
-    if not consistent_with_noise(Search(fewer, less).fit(spec, warm=fit), less, fewer):
+    fewer, less = set_aside_outliers(trial.set_aside(data, bad or spread), trial)
+    after = consistent_with_noise(Search(fewer, less).fit(spec, warm=fit), less, fewer)
+    if not after and (bad or consistent_with_noise(fit, noise, data)):
         return data, noise
     screening.outliers.extend(trial.outliers)
     return fewer, less

@@ -1,4 +1,4 @@
-"""One load step out of line: the outliers the point screen cannot see, judged by the baseline's lack of fit.
+"""One load step out of line: the outliers the point screen cannot see, judged by a model's lack of fit.
 
 Two bad repetitions of one load step agree with each other and outvote the clean one, and at a seating's end
 their lines only extrapolate to them; the point screen (``labctl.discrepancy.outliers``) keeps them. What marks
@@ -8,13 +8,17 @@ when the baseline fails the lack-of-fit test, each step (a replicate set of one 
 significant one is set aside only if, with it free, the lack of fit passes at ``CONSISTENT_P``: the misfit is that
 step's alone, not an effect's, which shows at many steps and roller cases. Of that step only the repetitions far
 off the baseline (beyond ``SMOOTH_Z``, on the side of the shift) go, and only when one repetition stays close to
-it: a shift every repetition shares is the contact's, and a clean repetition is never the one set aside.
+it and they differ from it beyond the noise (their contrast at ``OUTLIER_ALPHA``, shared among the ways to part
+the step in two): a shift every repetition shares is the contact's, and a clean repetition is never set aside.
+
+Two bad repetitions in opposite directions leave the step's mean where it was and swell the pure error instead,
+which can hide an effect's lack of fit; they show as the step's spread (``step_too_spread``, Cochran's test).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import fdtrc, ndtri  # the F survival function (scipy.stats.f.sf), the normal quantile
+from scipy.special import betaincc, fdtrc, ndtri  # Beta and F survival functions, the normal quantile
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
@@ -51,5 +55,30 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     contrast = (z[bad].mean() - z[kept].mean()) / np.sqrt(pure * (1 / bad.sum() + 1 / kept.sum()))
     splits = 2 ** (step.size - 1) - 1  # the ways to part the step's repetitions in two
     if contrast <= ndtri(1.0 - OUTLIER_ALPHA / (2.0 * splits)):
+        return []
+    return [int(i) for i in step[bad]]
+
+
+def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray) -> list[int]:
+    """Indices of the repetitions of the one load step whose spread is out of line with every other step's
+    (Cochran's test: its share of the pure error against Beta(ν_j/2, (ν − ν_j)/2), Bonferroni over the steps at
+    ``OUTLIER_ALPHA``) and that lie beyond ``SMOOTH_Z`` of this fit on either side, where the step's median
+    repetition stays within it: two bad points in opposite directions, which leave the step's mean and swell the
+    pure error. A fit that misses the step shows as its median off it, and then nothing is set aside."""
+    pure = noise.pure_residuals(data, residuals, sigma)
+    sizes = np.array([g.size for g in noise.groups])
+    ss = np.array([float(pure[g] @ pure[g]) for g in noise.groups])
+    dof, total = np.maximum(sizes - 1, 0), float(ss.sum())
+    if total <= 0 or dof.sum() <= 2:
+        return []
+    p = np.where(dof > 0, betaincc(np.maximum(dof, 1) / 2, (dof.sum() - dof) / 2, ss / total), 1.0)
+    j = int(np.argmin(p))
+    if len(noise.groups) * p[j] >= OUTLIER_ALPHA:
+        return []
+    step = noise.groups[j]
+    z = noise.whiten(data, residuals, sigma)[step]
+    bad = np.abs(z) > SMOOTH_Z
+    middle = np.argsort(z)[(z.size - 1) // 2 : z.size // 2 + 1]  # the step's median repetition(s)
+    if not np.any(bad) or np.any(bad[middle]):
         return []
     return [int(i) for i in step[bad]]
