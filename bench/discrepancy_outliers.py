@@ -2,9 +2,10 @@
 
 The blind judge (``bench/blind/``) puts two gross outliers (a factor 1 ± 8–15 %) into one load step of one roller
 type in 30 % of its worlds, in two of the three repetitions. Each world goes through the CSV contract and the
-workflow's own screen (``screened``: the rows checked, the noise model's neighbour test, then the one load step out
-of line with the baseline). An injected point's size is |ln factor| over the point σ the judge states for it (its
-``stiffness_std_n_per_m``, seating included): how far it sits outside the noise it came with.
+workflow's own screen (``screened``: the rows checked, the noise model's neighbour test, then the step tests
+against the baseline: one load step's mean or spread out of line). An injected point's size is |ln factor| over
+the point σ the judge states for it (its ``stiffness_std_n_per_m``, seating included): how far it sits outside the
+noise it came with.
 
 Printed: per size band, the injected points set aside (and beyond 8 σ, at an end load step or elsewhere); per
 world, clean points set aside (false alarms), with and without injected outliers; and worlds where a clean
