@@ -93,7 +93,7 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     if ok.size < 2 * band_dof:
         return []
     x = np.log(data.load_per_length_n_per_m)
-    bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // (2 * band_dof))))
+    bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // band_dof)))
     scale = _band_scale(eps, bands)
     ratio, firm = _ratio(eps, scale), _ratio(least, scale)
     off = _ratio(across, _band_scale(across, bands))

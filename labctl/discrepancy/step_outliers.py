@@ -62,13 +62,16 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
 def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray) -> list[int]:
     """Indices of the repetitions of the one load step whose spread is out of line with every other step's
     (Cochran's test: its share of the pure error against Beta(ν_j/2, (ν − ν_j)/2), Bonferroni over the steps at
-    ``OUTLIER_ALPHA``) and that lie beyond ``SMOOTH_Z`` of this fit on either side, where the step's median
-    repetition stays within it: two bad points in opposite directions, which leave the step's mean and swell the
-    pure error. A fit that misses the step shows as its median off it, and then nothing is set aside."""
+    ``OUTLIER_ALPHA``; not made when the noise model has one load band, whose σ cannot follow the noise's rise at
+    low loads), beyond ``SMOOTH_Z`` of this fit on either side, where the step's median repetition stays within it:
+    two bad points in opposite directions, which leave the step's mean and swell the pure error. A fit that misses
+    the step shows as its median off it, and then nothing is set aside."""
+    if len(noise.band_ln_p) < 2:
+        return []  # one load band: a step's spread cannot be told from the noise's own rise at low loads
     pure = noise.pure_residuals(data, residuals, sigma)
-    sizes = np.array([g.size for g in noise.groups])
     ss = np.array([float(pure[g] @ pure[g]) for g in noise.groups])
-    dof, total = np.maximum(sizes - 1, 0), float(ss.sum())
+    dof = np.maximum(np.array([g.size for g in noise.groups]) - 1, 0)
+    total = float(ss.sum())
     if total <= 0 or dof.sum() <= 2:
         return []
     p = np.where(dof > 0, betaincc(np.maximum(dof, 1) / 2, (dof.sum() - dof) / 2, ss / total), 1.0)
