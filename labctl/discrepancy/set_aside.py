@@ -37,7 +37,7 @@ def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, No
 def set_aside_step(data: Dataset, noise: NoiseFloor, spec: ModelSpec, screening: Screening
                    ) -> tuple[Dataset, NoiseFloor]:
     """The repetitions of one load step out of line with the model ``spec`` set aside (reported): a step whose mean
-    alone fails it (``step_out_of_line``) when the model then agrees with the rest within the noise; else a step
+    is out of line (``step_out_of_line``) when the model then agrees with the rest within the noise; else a step
     whose spread is out of line (``step_too_spread``) unless the model agreed with the data before and not after
     (then the spread decided the verdict, and the noise model cannot tell it from two bad points). Else the data
     as they were."""

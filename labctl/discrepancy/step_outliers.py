@@ -2,14 +2,15 @@
 
 Two bad repetitions of one load step agree with each other and outvote the clean one, and at a seating's end
 their lines only extrapolate to them; the point screen (``labctl.discrepancy.outliers``) keeps them. What marks
-them is the model: every other step of every roller case follows the baseline and that one step does not. So,
-when the baseline fails the lack-of-fit test, each step (a replicate set of one case) is given a free mean in turn
-— the mean-shift outlier test, F(1, pure-error dof), Bonferroni over the steps at ``OUTLIER_ALPHA`` — and the most
-significant one is set aside only if, with it free, the lack of fit passes at ``CONSISTENT_P``: the misfit is that
-step's alone, not an effect's, which shows at many steps and roller cases. Of that step only the repetitions far
-off the baseline (beyond ``SMOOTH_Z``, on the side of the shift) go, and only when one repetition stays close to
-it and they differ from it beyond the noise (their contrast at ``OUTLIER_ALPHA``, shared among the ways to part
-the step in two): a shift every repetition shares is the contact's, and a clean repetition is never set aside.
+them is the model: every other step of every roller case follows the baseline and that one step does not. So
+each step (a replicate set of one case) is given a free mean in turn — the mean-shift outlier test, F(1,
+pure-error dof), Bonferroni over the steps at ``OUTLIER_ALPHA``, made whether or not the lack-of-fit test, pooled
+over every step, rejects — and the most significant one is set aside only if, with it free, the lack of fit passes
+at ``CONSISTENT_P``: the misfit is that step's alone, not an effect's, which shows at many steps and roller cases.
+Of that step only the repetitions far off the baseline (beyond ``SMOOTH_Z``, on the side of the shift) go, and
+only when one repetition stays close to it and they differ from it beyond the noise (their contrast at
+``OUTLIER_ALPHA``, shared among the ways to part the step in two): a shift every repetition shares is the
+contact's, and a clean repetition is never set aside.
 
 Two bad repetitions in opposite directions leave the step's mean where it was and swell the pure error instead,
 which can hide an effect's lack of fit; they show as the step's spread (``step_too_spread``, Cochran's test).
@@ -27,12 +28,12 @@ from labctl.discrepancy.outliers import OUTLIER_ALPHA, SMOOTH_Z
 
 def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray,
                      n_params: int) -> list[int]:
-    """Indices of the repetitions of the one load step whose mean alone makes this fit (``residuals`` =
-    ln(k_model/k_measured), σ, ``n_params``) fail the lack-of-fit test (see the module doc); [] when there is
-    none, or when the misfit is not one step's."""
+    """Indices of the repetitions of the one load step whose mean is out of line with this fit (``residuals`` =
+    ln(k_model/k_measured), σ, ``n_params``) and without which the fit passes the lack-of-fit test (see the module
+    doc); [] when there is none, or when the misfit is not one step's."""
     test = noise.lack_of_fit(data, residuals, sigma, n_params)
-    if test is None or not lack_of_fit_rejects(test.p) or test.df_lack < 2:
-        return []
+    if noise.method != "repetitions" or test is None or test.df_lack < 2:
+        return []  # without repetitions there are no steps to judge
     e = noise.whiten(data, residuals, sigma)
     lx = noise.cells(data, sigma)
     s_pure = noise.pure_error(data, residuals, sigma)
@@ -66,7 +67,7 @@ def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sig
     low loads), beyond ``SMOOTH_Z`` of this fit on either side, where the step's median repetition stays within it:
     two bad points in opposite directions, which leave the step's mean and swell the pure error. A fit that misses
     the step shows as its median off it, and then nothing is set aside."""
-    if len(noise.band_ln_p) < 2:
+    if noise.method != "repetitions" or len(noise.band_ln_p) < 2:
         return []  # one load band: a step's spread cannot be told from the noise's own rise at low loads
     pure = noise.pure_residuals(data, residuals, sigma)
     ss = np.array([float(pure[g] @ pure[g]) for g in noise.groups])
