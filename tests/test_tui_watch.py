@@ -97,6 +97,14 @@ async def test_watch_follows_a_running_labctl_run_to_complete(tmp_path: Path):
     assert snap.accepted == sum(st.accepted_count for st in stored) and snap.finished
 
 
+def test_a_read_that_ends_after_the_watch_screen_closed_is_dropped(tmp_path: Path):
+    # the poll reads in a worker thread; under load a read finished after the app had torn the screen's widgets
+    # down, and handing it over raised NoMatches('#w-steps') out of the worker (a fresh clone's CI run failed so).
+    screen = WatchScreen(tmp_path / "gone.h5", 0.1)
+    screen.update_from(None, "the file is being written")
+    assert screen.problem == "the file is being written"
+
+
 def test_a_missing_or_foreign_file_is_said_and_a_foreign_file_is_not_retried(tmp_path: Path):
     with pytest.raises(InputError, match="not found"):
         read_snapshot(tmp_path / "nope.h5", attempts=2, wait_s=0.0)

@@ -15,6 +15,7 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import DataTable, RichLog, Static
 
@@ -90,9 +91,12 @@ class WatchScreen(Screen):
     def update_from(self, snap: Snapshot | None, problem: str) -> None:
         self.read_at = time.monotonic()
         self.problem = problem
-        if snap is not None:
-            self._apply(snap)
-        self.show()
+        try:
+            if snap is not None:
+                self._apply(snap)
+            self.show()
+        except NoMatches:
+            return  # the screen's widgets are gone (it is closing): a read that ended after them is dropped
 
     def _apply(self, snap: Snapshot) -> None:
         log = self.query_one("#w-log", RichLog)
