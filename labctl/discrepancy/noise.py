@@ -44,6 +44,8 @@ class LackOfFit:
     df_lack: int
     df_pure: int
     p: float
+    pure_mean_square: float = 1.0
+    """The whitened noise variance the misfit is divided by (the pure error's; 1 without repetitions)."""
 
     def to_dict(self) -> dict[str, float]:
         return {"f": self.f, "df_lack": self.df_lack, "df_pure": self.df_pure, "p": self.p}
@@ -97,12 +99,12 @@ class NoiseFloor:
             f = s_model / df
             return LackOfFit(f, df, self.dof, float(fdtrc(df, self.dof, f)))
         m = len(self.groups)
-        s_pure = self.pure_error(data, residuals, sigma)
+        s_pure = float(np.sum(self.pure_residuals(data, residuals, sigma) ** 2))
         df_lack, df_pure = m - n_params, n - m
         if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
             return None
         f = max(0.0, s_model - s_pure) / df_lack / (s_pure / df_pure)
-        return LackOfFit(f, df_lack, df_pure, float(fdtrc(df_lack, df_pure, f)))
+        return LackOfFit(f, df_lack, df_pure, float(fdtrc(df_lack, df_pure, f)), s_pure / df_pure)
 
     def cells(self, data: Dataset, sigma: np.ndarray) -> np.ndarray:
         """The saturated model's columns (one per replicate set: a load step of a case), whitened (n × m)."""
@@ -117,10 +119,6 @@ class NoiseFloor:
         ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
         coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
         return ly - lx @ coef
-
-    def pure_error(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> float:
-        """The whitened residual sum of squares of the saturated model."""
-        return float(np.sum(self.pure_residuals(data, residuals, sigma) ** 2))
 
     def lack_of_fit_p(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
                       ) -> float | None:

@@ -36,16 +36,15 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
         return []  # without repetitions there are no steps to judge
     e = noise.whiten(data, residuals, sigma)
     lx = noise.cells(data, sigma)
-    s_pure = noise.pure_error(data, residuals, sigma)
     along = lx.T @ e
     gain = along**2 / np.maximum(np.einsum("ij,ij->j", lx, lx), 1e-300)
     sizes = np.array([g.size for g in noise.groups])
     gain[sizes < 2] = 0.0
     j = int(np.argmax(gain))
-    pure = s_pure / test.df_pure
+    pure = test.pure_mean_square
     if len(noise.groups) * fdtrc(1, test.df_pure, gain[j] / pure) >= OUTLIER_ALPHA:
         return []
-    rest = max(0.0, float(e @ e) - gain[j] - s_pure) / (test.df_lack - 1) / pure
+    rest = max(0.0, float(e @ e) - gain[j] - pure * test.df_pure) / (test.df_lack - 1) / pure
     if lack_of_fit_rejects(float(fdtrc(test.df_lack - 1, test.df_pure, rest))):
         return []
     step = noise.groups[j]

@@ -321,7 +321,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
     top = scored[0]
     if top.fit is not None and top.explanation.terms and not top.explanation.unlisted:
-        fewer, less = set_aside_step(data, noise, top.fit.spec, screening)  # out of line with the best explanation
+        fewer, less = set_aside_step(data, noise, top.fit.spec, screening, warm=top.fit)  # against the best one
         if fewer is not data:
             data, noise = fewer, less
             search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
