@@ -20,11 +20,7 @@ from labctl.discrepancy.model import Fit, predict_ln
 from labctl.discrepancy.noise import NoiseFloor
 
 TAU_GRID = np.geomspace(3e-4, 0.3, 16)
-"""σ of the form discrepancy's level coefficients (in ln k): log-uniform prior over these values."""
-SHAPE_RATIOS = (1.0, 0.3, 0.1, 0.03)
-"""σ of the slope and bend coefficients over the level's (uniform prior over these values): a discrepancy may be
-mostly a level per roller case (a catalogue geometry or a law's scaling with it slightly off) without paying for a
-slope and a bend in every case."""
+"""σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
 FORM_DEGREE = 2
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
 BEND_SIGMA = 0.5
@@ -45,11 +41,10 @@ def contribution(fit: Fit, data: Dataset, name: str) -> np.ndarray:
     return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
 
-def form_basis(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
-    """Legendre P_0..P_FORM_DEGREE of ln(load per length) per roller case (columns zero outside the case), and
-    each column's degree."""
+def form_basis(data: Dataset) -> np.ndarray:
+    """Legendre P_0..P_FORM_DEGREE of ln(load per length) per roller case (columns zero outside the case)."""
     x = np.log(data.load_per_length_n_per_m)
-    cols, degrees = [], []
+    cols = []
     for sl in data.case_slices():
         u = x[sl]
         span = float(np.ptp(u))
@@ -59,97 +54,68 @@ def form_basis(data: Dataset) -> tuple[np.ndarray, np.ndarray]:
             col = np.zeros(x.size)
             col[sl] = np.polynomial.legendre.legval(u, [0] * j + [1])
             cols.append(col)
-            degrees.append(j)
-    return np.stack(cols, axis=1), np.array(degrees)
-
-
-Scale = tuple[float, float]
-"""A discrepancy's scale: the level coefficients' σ τ, and the slope and bend coefficients' ratio to it."""
-
-
-@dataclass(frozen=True)
-class WhitenedBasis:
-    """The whitened form basis at one shape ratio (its slope and bend columns scaled by it) and its SVD."""
-
-    ratio: float
-    u: np.ndarray
-    s2: np.ndarray
-    a: np.ndarray
-    """The whitened, scaled basis itself (for the joint marginal with a term's bend columns)."""
-
-    @classmethod
-    def of(cls, a: np.ndarray, ratio: float = 1.0) -> WhitenedBasis:
-        u, s, _ = np.linalg.svd(a, full_matrices=False)
-        keep = s > 1e-9 * s.max()
-        return cls(ratio, u[:, keep], s[keep] ** 2, a)
-
-    def log_marginals(self, e: np.ndarray, bend: np.ndarray | None, t: np.ndarray) -> np.ndarray:
-        """log N(e; 0, T·I + τ²AA' + BΣB') at each inflation T (rows) and each τ of ``TAU_GRID`` (columns)."""
-        tau2 = np.asarray(TAU_GRID, dtype=float) ** 2
-        ee = float(e @ e) / t
-        if bend is None or bend.shape[1] == 0:
-            proj2 = (self.u.T @ e) ** 2
-            g = tau2[None, :, None] * self.s2 / t[:, :, None]  # T × τ × singular value
-            return -0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=2) / t) - 0.5 * np.sum(np.log1p(g), axis=2)
-        a = np.column_stack([self.a, bend])
-        ata, ate = a.T @ a, a.T @ e
-        m1, n = self.a.shape[1], a.shape[1]
-        # every (T, τ) in one batched factorisation
-        d = np.empty((len(TAU_GRID), n))
-        d[:, :m1] = tau2[:, None]
-        d[:, m1:] = BEND_SIGMA**2
-        m = np.repeat(ata[None, None] / t[:, :, None, None], len(TAU_GRID), axis=1)
-        m[..., np.arange(n), np.arange(n)] += 1.0 / d[None]
-        chol = np.linalg.cholesky(m)
-        rhs = np.broadcast_to((ate[None, None, :] / t[:, :, None])[..., None], (*m.shape[:3], 1))
-        z = np.linalg.solve(chol, rhs)[..., 0]
-        logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=2, axis2=3)), axis=2) + np.sum(np.log(d), axis=1)
-        return -0.5 * (ee - np.sum(z**2, axis=2)) - 0.5 * logdet
+    return np.stack(cols, axis=1)
 
 
 @dataclass(frozen=True)
 class FormPrior:
-    """The discrepancy's prior: one whitened basis per shape ratio (``SHAPE_RATIOS``), τ on ``TAU_GRID``."""
+    """The whitened form basis's SVD: what integrating the discrepancy out needs."""
 
-    bases: tuple[WhitenedBasis, ...]
+    u: np.ndarray
+    s2: np.ndarray
+    a: np.ndarray | None = None
+    """The whitened basis itself (for the joint marginal with a term's bend columns)."""
 
     @classmethod
-    def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray,
-           ratios: Sequence[float] = SHAPE_RATIOS) -> FormPrior:
-        basis, degree = form_basis(data)
-        a = noise.whiten(data, basis, sigma)
-        return cls(tuple(WhitenedBasis.of(a * np.where(degree > 0, r, 1.0), r) for r in ratios))
+    def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
+        a = noise.whiten(data, form_basis(data), sigma)
+        u, s, _ = np.linalg.svd(a, full_matrices=False)
+        keep = s > 1e-9 * s.max()
+        return cls(u[:, keep], s[keep] ** 2, a)
 
     def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
-                     ) -> tuple[float, Scale]:
-        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²·diag(1, r², r²)) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over τ on
-        TAU_GRID and r on SHAPE_RATIOS (constants the same for every candidate dropped), and the (τ, r) it favours.
-        ``bend``: whitened bend columns B of the candidate's terms (or none); ``inflation``: T."""
+                     ) -> tuple[float, float]:
+        """log ∫ N(e; Aβ + Bγ, T·I) N(β; 0, τ²) N(γ; 0, BEND_SIGMA²) dβ dγ averaged over TAU_GRID (constants the
+        same for every candidate dropped), and the τ it favours. ``bend``: whitened bend columns B of the
+        candidate's terms (or none); ``inflation``: T."""
         return self.log_marginals(e, bend, (inflation,))[0]
 
     def log_marginals(self, e: np.ndarray, bend: np.ndarray | None, inflations: Sequence[float]
-                      ) -> list[tuple[float, Scale]]:
+                      ) -> list[tuple[float, float]]:
         """``log_marginal`` at each inflation T, the products with the data formed once."""
-        t = np.asarray(inflations, dtype=float)[:, None]
-        v = np.stack([b.log_marginals(e, bend, t) for b in self.bases], axis=1)  # T × ratio × τ
-        flat = v.reshape(v.shape[0], -1)
-        top = np.max(flat, axis=1)
-        mean = top + np.log(np.mean(np.exp(flat - top[:, None]), axis=1))  # log of the mean, without overflow
-        at = [np.unravel_index(int(i), v.shape[1:]) for i in np.argmax(flat, axis=1)]
-        return [(float(x), (float(TAU_GRID[j]), self.bases[i].ratio)) for x, (i, j) in zip(mean, at, strict=True)]
+        t = np.asarray(inflations, dtype=float)[:, None]  # one row per T, one column per τ
+        tau2 = np.asarray(TAU_GRID, dtype=float) ** 2
+        ee = float(e @ e) / t
+        if bend is None or bend.shape[1] == 0 or self.a is None:
+            proj2 = (self.u.T @ e) ** 2
+            g = tau2[None, :, None] * self.s2 / t[:, :, None]  # T × τ × singular value
+            v = -0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=2) / t) - 0.5 * np.sum(np.log1p(g), axis=2)
+        else:
+            a = np.column_stack([self.a, bend])
+            ata, ate = a.T @ a, a.T @ e
+            m1, n = self.a.shape[1], a.shape[1]
+            # every (T, τ) in one batched factorisation
+            d = np.empty((len(TAU_GRID), n))
+            d[:, :m1] = tau2[:, None]
+            d[:, m1:] = BEND_SIGMA**2
+            m = np.repeat(ata[None, None] / t[:, :, None, None], len(TAU_GRID), axis=1)
+            m[..., np.arange(n), np.arange(n)] += 1.0 / d[None]
+            chol = np.linalg.cholesky(m)
+            rhs = np.broadcast_to((ate[None, None, :] / t[:, :, None])[..., None], (*m.shape[:3], 1))
+            z = np.linalg.solve(chol, rhs)[..., 0]
+            logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=2, axis2=3)), axis=2) + np.sum(np.log(d), axis=1)
+            v = -0.5 * (ee - np.sum(z**2, axis=2)) - 0.5 * logdet
+        top = np.max(v, axis=1)
+        mean = top + np.log(np.mean(np.exp(v - top[:, None]), axis=1))  # log of the mean over τ, without overflow
+        return [(float(x), float(TAU_GRID[int(i)])) for x, i in zip(mean, np.argmax(v, axis=1), strict=True)]
 
-    def _basis(self, scale: Scale) -> WhitenedBasis:
-        return next(b for b in self.bases if b.ratio == scale[1])
-
-    def transform(self, scale: Scale):  # noqa: ANN201
-        """e → (I + AΣA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""
-        b = self._basis(scale)
-        d = 1.0 - 1.0 / np.sqrt(1.0 + scale[0] ** 2 * b.s2)
-        u = b.u
+    def transform(self, tau: float):  # noqa: ANN201
+        """e → (I + τ²AA')^(-1/2)·e: least squares on it is the fit at that discrepancy scale."""
+        d = 1.0 - 1.0 / np.sqrt(1.0 + tau**2 * self.s2)
+        u = self.u
         return lambda e: e - u @ (d * (u.T @ e))
 
-    def smooth(self, e: np.ndarray, scale: Scale) -> np.ndarray:
-        """The posterior mean of the discrepancy (whitened units) at that scale."""
-        b = self._basis(scale)
-        g = scale[0] ** 2 * b.s2
-        return b.u @ (g / (1 + g) * (b.u.T @ e))
+    def smooth(self, e: np.ndarray, tau: float) -> np.ndarray:
+        """The posterior mean of the discrepancy (whitened units) at scale τ."""
+        g = tau**2 * self.s2
+        return self.u @ (g / (1 + g) * (self.u.T @ e))

@@ -37,7 +37,7 @@ from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
-from labctl.discrepancy.form import FormPrior, Scale, contribution
+from labctl.discrepancy.form import FormPrior, contribution
 from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
@@ -122,8 +122,7 @@ class Scored:
     """… before the Occam factor of its parameters (a bench can charge another one)."""
     log_prior: float
     n_params: int
-    form_scale: Scale
-    """The discrepancy scale (τ, shape ratio) the candidate's evidence favours."""
+    tau: float
     chi2: float
     """Whitened sum of squares of the parametric fit alone."""
     form_chi2: float
@@ -146,8 +145,7 @@ class Scored:
                 "log_evidence": self.log_evidence, "log_prior": self.log_prior,
                 "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
                 "log_fit_by_temperature": {f"{t:g}": v for t, v in self.log_fit_by_t.items()},
-                "n_params": self.n_params, "form_sigma": self.form_scale[0],
-                "form_shape_ratio": self.form_scale[1], **self.extra}
+                "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
 
 
 def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
@@ -210,8 +208,8 @@ class Evidence:
         (``charged``)."""
 
     def fit(self, spec: ModelSpec, warm: Fit | None = None, guess: dict[str, dict[str, float]] | None = None,
-            scale: Scale | None = None) -> Fit:
-        post = None if scale is None else self.form.transform(scale)
+            tau: float | None = None) -> Fit:
+        post = None if tau is None else self.form.transform(tau)
         return fit_model(self.data, spec, warm=warm, sigma=self.sigma, guess=guess,
                          seating_sigma=self.noise.seating_sigma, post=post)
 
@@ -227,10 +225,10 @@ class Evidence:
             return np.zeros((self.n, 0))
         return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
 
-    def form_evidence(self, e: np.ndarray, bend: np.ndarray) -> dict[float, tuple[float, Scale]]:
+    def form_evidence(self, e: np.ndarray, bend: np.ndarray) -> dict[float, tuple[float, float]]:
         """At each of the evidence's temperatures: the term's form is the library's (probability ½) or bent (½),
         the evidence averaged over both, so an exact law pays at most ln 2 for the doubt and an approximate one is
-        not judged by its exponent; and the discrepancy scale the bent form (the exact one, without bend columns)
+        not judged by its exponent; and the discrepancy scale τ the bent form (the exact one, without bend columns)
         favours."""
         exact = self.form.log_marginals(e, None, self.temperatures)
         if bend.shape[1] == 0:
@@ -242,9 +240,9 @@ class Evidence:
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
         """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
         bend integrated out with the per-case discrepancy)."""
-        first, scale = self.form.log_marginal(fit.z)
+        first, tau = self.form.log_marginal(fit.z)
         if fit.spec.n_params() > 0:
-            refit = self.fit(fit.spec, warm=fit, scale=scale)
+            refit = self.fit(fit.spec, warm=fit, tau=tau)
             if self.form.log_marginal(refit.z)[0] > first:
                 fit = refit
         bend = self.bend(fit)
@@ -253,10 +251,10 @@ class Evidence:
         fit_by_t = {t: v for t, (v, _) in evidence.items()}
         if expl == Explanation():
             self.reference = fit_by_t, k
-        scale = evidence[TEMPERATURE][1]
-        smooth = self.form.smooth(fit.z, scale)
+        tau = evidence[TEMPERATURE][1]
+        smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, {t: self.charged(v, k, t) for t, v in fit_by_t.items()}, fit_by_t,
-                      log_prior(expl, candidates), k, scale, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
+                      log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
 
     def charged(self, log_fit: float, k: int, t: float) -> float:
         """The log evidence at inflation T of a candidate with ``k`` parameters whose evidence before its Occam
@@ -306,15 +304,15 @@ class Evidence:
             a = np.column_stack([head, xw[:, chosen]])
             coef, *_ = np.linalg.lstsq(a, y, rcond=None)
             e = y - a @ coef
-            log_m, scale = self.form.log_marginal(e, inflation=t)
+            log_m, tau = self.form.log_marginal(e, inflation=t)
             log_fit = log_m - math.log(math.comb(len(names), len(chosen)))
-            return log_fit, scale, e
+            return log_fit, tau, e
 
         def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
             # at least one feature: with none, "unlisted" is the baseline itself — "none" under another name, which
             # would take "none"'s place (at no Occam cost) where the lack-of-fit test has rejected it
             chosen: list[int] = []
-            best: tuple[float, Scale, np.ndarray] = (-math.inf, (0.0, 1.0), y)
+            best = (-math.inf, 0.0, y)
             while len(chosen) < min(MAX_FEATURES, len(names)):
                 trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
                 top = max(trial, key=lambda r: evidence(r[0][0], len(chosen) + 1, t))
@@ -329,9 +327,9 @@ class Evidence:
         selected = {t: select(t) for t in self.temperatures}
         fit_by_t = {t: best[0] for t, (_, best) in selected.items()}
         by_t = {t: evidence(best[0], len(chosen), t) for t, (chosen, best) in selected.items()}
-        chosen, (_, scale, e) = selected[TEMPERATURE]
-        smooth = self.form.smooth(e, scale)
-        return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), scale, float(e @ e),
+        chosen, (_, tau, e) = selected[TEMPERATURE]
+        smooth = self.form.smooth(e, tau)
+        return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:

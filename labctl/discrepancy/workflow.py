@@ -265,7 +265,7 @@ def _steps(scored: list[Scored], top: Scored, base: Fit, fits: dict[tuple[str, .
         evidence = {
             "kind": kind(name), "explanation": top.explanation.name, "probability": top.probability,
             "delta_bic": before.bic - fit.bic, "explained_share": share(before, fit),
-            "explained_share_of_baseline": share(base, fit), "form_sigma": top.form_scale[0],
+            "explained_share_of_baseline": share(base, fit), "form_sigma": top.tau,
             "candidates": {s.explanation.name: s.probability for s in scored[:6]},
         }
         if len(terms) > 1:
