@@ -64,7 +64,8 @@ from discrepancy_worlds import (
 
 from labctl.discrepancy import build_dataset, run_discrepancy
 from labctl.discrepancy.model import ModelSpec, fit_model
-from labctl.discrepancy.posterior import TEMPERATURE, TEMPERATURES
+from labctl.discrepancy.posterior import TEMPERATURES
+from labctl.discrepancy.questions import TEMPERATURE
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import EFFECTS, ContactLaw
@@ -198,6 +199,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "n_points": result.data.n_points,
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
                             "form_chi2": c.form_chi2, "n_params": c.n_params,
+                            "case_log_lik_by_temperature": c.to_dict()["case_log_lik_by_temperature"],
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()},
                             "log_fit_by_temperature": {f"{t:g}": v for t, v in c.log_fit_by_t.items()}}
                            for c in result.scored]}
@@ -331,8 +333,9 @@ def main() -> None:
                      f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
         parts.append("The same, by the kind of top explanation\n\n" + reliability_by_kind(blind))
         if calibrating:
-            table, best = calibrate(blind, TEMPERATURES)
-            parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}")
+            table, best, cautious = calibrate(blind, TEMPERATURES)
+            parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}; the largest T "
+                         f"within one standard error of it: {cautious:g}")
     refused = [r for r in results if "refused" in r]
     if refused:
         parts.append("Refused blind datasets: " + "; ".join(f"{r['scenario']} seed {r['seed']}: {r['refused']}"

@@ -13,7 +13,9 @@ inflation T of the grid) and decides every dataset again under each rule, withou
 - ``λ``: a confidence scale — the log posterior of that question divided by λ (order-preserving: the ranking within
   it is unchanged, its probabilities spread);
 - ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``) or ``equal-single`` (every single-term explanation,
-  physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members).
+  physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members);
+- ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
+  three cases or more: ``labctl.discrepancy.questions``) or ``pooled`` (the evidence alone, as before).
 
 The first file is the one a rule would be chosen on (calibration seeds); the others show what it does elsewhere.
 Per file: top explanation = truth, log loss of the truth's probability, expected calibration error over the
@@ -35,17 +37,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import BINS, reliability
+from discrepancy_scores import BINS, case_log_lik, reliability
 
-from labctl.discrepancy.posterior import (
-    LIKELY_AT,
-    NAME_AT,
-    PRESENCE_TEMPERATURE,
-    PRIOR_MASS,
-    explanations,
-    probabilities,
-    rejected_explanations,
-)
+from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, PRIOR_MASS, explanations, rejected_explanations
+from labctl.discrepancy.questions import PRESENCE_TEMPERATURE, TEMPERATURE, probabilities
 
 
 def log_evidence(r: dict[str, Any], t: float, occam: str) -> np.ndarray:
@@ -73,16 +68,17 @@ def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
     return np.array([math.log(share) if k in single else v for k, v in zip(kinds, stored, strict=True)])
 
 
-def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes") -> Rule:
-    """The decision's two questions (``labctl.discrepancy.posterior.probabilities``) under another rule."""
+def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes", cases: str = "resampled") -> Rule:
+    """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         names = [x["explanation"] for x in r["candidates"]]
+        parts = case_log_lik(r) if cases == "resampled" else None
         rejected = rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
 
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
-        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam)
+        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam, case_log_lik=parts)
         return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in rejected), key=lambda v: -v[1])
     return decide
 
@@ -126,17 +122,19 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    rules = [("hyper-g", "all", 16.0, 1.0), ("hyper-g", "all", 4.0, 1.0), ("hyper-g", "all", 8.0, 1.0),
-             ("hyper-g", "all", 24.0, 1.0), ("hyper-g", "all", 32.0, 1.0), ("hyper-g", "all", 16.0, 2.0),
-             ("bic", "all", 16.0, 1.0), ("bic", "all", 2.0, 1.0), ("bic", "presence", 16.0, 1.0)]
-    rules = [(*r, "classes") for r in rules] + [("hyper-g", "all", 16.0, 1.0, "equal-single")]
-    print("| occam | scope | T | λ | prior | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | named = "
-          "truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occam, scope, t, lam, prior in rules:
-        decide = rule(occam, scope, t, lam, prior)
+    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled")
+    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (2.0, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
+              "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
+              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled")]
+    print("| occam | scope | T | λ | prior | cases | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
+          "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for occam, scope, t, lam, prior, cases in rules:
+        decide = rule(occam, scope, t, lam, prior, cases)
         for path, results in runs:
-            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {prior} | {path.rsplit('/', 1)[-1]} | "
+            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {prior} | {cases} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")

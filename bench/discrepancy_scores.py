@@ -4,13 +4,15 @@ positives, honest verdicts and gap shrink per suite, as Markdown tables; per-dat
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from discrepancy_worlds import CALIBRATION
 
 from labctl.discrepancy.noise import lack_of_fit_rejects
-from labctl.discrepancy.posterior import probabilities, rejected_explanations
+from labctl.discrepancy.posterior import rejected_explanations
+from labctl.discrepancy.questions import probabilities
 from labctl.physics import EFFECTS
 
 
@@ -166,14 +168,27 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
+def n_cases(r: dict[str, Any]) -> int:
+    """The roller cases of a stored result (0 if it stored no per-case parts)."""
+    parts = r["candidates"][0].get("case_log_lik_by_temperature") or {}
+    return len(next(iter(parts.values()), []))
+
+
+def case_log_lik(r: dict[str, Any]) -> Callable[[float], np.ndarray] | None:
+    """Each candidate's stored per-case log likelihood at T (None if the result stored none)."""
+    if not n_cases(r):
+        return None
+    return lambda t: np.array([c["case_log_lik_by_temperature"][f"{t:g}"] for c in r["candidates"]])
+
+
 def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
-    workflow's grid), most probable first; without the explanations the workflow rules out
-    (``rejected_explanations``)."""
+    workflow's grid), most probable first, resampled over roller cases as the workflow does; without the
+    explanations the workflow rules out (``rejected_explanations``)."""
     cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
     p = probabilities([c["explanation"] for c in cands], np.array([c["log_prior"] for c in cands]),
-                      lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]), temperature,
-                      ruled_out)
+                      lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]),
+                      temperature, ruled_out, case_log_lik=case_log_lik(r))
     return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)
                    if c["explanation"] not in ruled_out), key=lambda t: -t[1])
 
@@ -250,20 +265,29 @@ def _small(r: dict[str, Any]) -> bool:
     return r["size_sigma"] < 3.0 or min((r.get("size_sigma_by_effect") or {}).values(), default=3.0) < 3.0
 
 
-def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float]:
-    """The temperature minimising the log loss of the true explanation's probability (and each T's score)."""
-    rows, best = [], (math.inf, grid[0])
+def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float, float]:
+    """Each T's score; the temperature minimising the mean log loss of the true explanation's probability; and the
+    largest T whose log loss is within one standard error of that lowest (of the per-dataset difference: the
+    one-standard-error rule, the most cautious inflation these datasets cannot tell from the best)."""
+    losses, rows = {}, []
     for t in grid:
-        loss, brier = 0.0, 0.0
+        loss, brier = [], 0.0
         for r in results:
             probs = dict(tempered(r, t))
-            pt = probs.get(r["truth_name"], 0.0)
-            loss -= math.log(max(pt, 1e-12))
+            loss.append(-math.log(max(probs.get(r["truth_name"], 0.0), 1e-12)))
             brier += sum((p - (name == r["truth_name"])) ** 2 for name, p in probs.items())
+        losses[t] = np.array(loss)
         _, ok = reliability(results, t)
-        rows.append([f"{t:g}", f"{loss / len(results):.3f}", f"{brier / len(results):.3f}", "yes" if ok else "no"])
-        best = min(best, (loss / len(results), t))
-    return _table(rows, ["temperature", "log loss (truth)", "Brier", "reliability holds"]), best[1]
+        rows.append([f"{t:g}", f"{np.mean(loss):.3f}", f"{brier / len(results):.3f}", "yes" if ok else "no"])
+    best = min(grid, key=lambda t: float(losses[t].mean()))
+    for row, t in zip(rows, grid, strict=True):
+        d = losses[t] - losses[best]
+        se = float(d.std(ddof=1) / math.sqrt(d.size)) if d.size > 1 else 0.0
+        row.insert(2, f"{d.mean():+.3f} ± {se:.3f}")
+    within = [t for t in grid if (losses[t] - losses[best]).mean() <= (losses[t] - losses[best]).std(ddof=1) /
+              math.sqrt(len(results))]
+    return (_table(rows, ["temperature", "log loss (truth)", "− lowest (± s.e.)", "Brier", "reliability holds"]),
+            best, max(within))
 
 
 def summarize_blind(results: list[dict[str, Any]]) -> str:

@@ -65,13 +65,40 @@ class FormPrior:
     s2: np.ndarray
     a: np.ndarray | None = None
     """The whitened basis itself (for the joint marginal with a term's bend columns)."""
+    cases: tuple[tuple[slice, np.ndarray, np.ndarray], ...] = ()
+    """Per roller case: its rows, and the SVD (u, s²) of its block of the whitened basis (``case_log_marginals``)."""
 
     @classmethod
     def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
         a = noise.whiten(data, form_basis(data), sigma)
         u, s, _ = np.linalg.svd(a, full_matrices=False)
         keep = s > 1e-9 * s.max()
-        return cls(u[:, keep], s[keep] ** 2, a)
+        cases = []
+        for sl in data.case_slices():
+            block = a[sl][:, np.any(a[sl] != 0.0, axis=0)]
+            uc, sc, _ = np.linalg.svd(block, full_matrices=False)
+            kc = sc > 1e-9 * s.max()
+            cases.append((sl, uc[:, kc], sc[kc] ** 2))
+        return cls(u[:, keep], s[keep] ** 2, a, tuple(cases))
+
+    def bend_mean(self, e: np.ndarray, bend: np.ndarray, inflation: float, tau: float) -> np.ndarray:
+        """The posterior mean of the bend part Bγ at one T and τ, the discrepancy integrated out with it."""
+        assert self.a is not None
+        a = np.column_stack([self.a, bend])
+        d = np.r_[np.full(self.a.shape[1], tau**2), np.full(bend.shape[1], BEND_SIGMA**2)]
+        coef = np.linalg.solve(a.T @ a / inflation + np.diag(1.0 / d), a.T @ e / inflation)
+        return bend @ coef[self.a.shape[1]:]
+
+    def case_log_marginals(self, e: np.ndarray, inflation: float, tau: float) -> list[float]:
+        """Each roller case's part of log N(e; 0, T·I + τ²AA') at one T and τ (the basis is block-diagonal by case,
+        so the parts sum to the whole; a term's bend columns, shared by the cases, are left out)."""
+        out = []
+        for sl, u, s2 in self.cases:
+            ec = e[sl]
+            g = tau**2 * s2 / inflation
+            quad = (float(ec @ ec) - float(np.sum(g / (1 + g) * (u.T @ ec) ** 2))) / inflation
+            out.append(-0.5 * quad - 0.5 * float(np.sum(np.log1p(g))))
+        return out
 
     def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
                      ) -> tuple[float, float]:

@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy.special import logsumexp
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
@@ -43,21 +42,17 @@ from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
 from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
 from labctl.discrepancy.occam import log_bayes_factor
+from labctl.discrepancy.questions import PRESENCE_TEMPERATURE, TEMPERATURE, probabilities
 from labctl.physics.effects import EFFECTS
 
 PRIOR_MASS = {"none": 0.25, "physical": 0.35, "pair": 0.10, "measurement": 0.10, "mixed": 0.10, "unlisted": 0.10}
 """Prior probability of each class of explanation, split evenly among its members."""
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0)
 """The noise-variance inflations a bench stores every candidate's evidence at (``--rescore`` decides again)."""
-TEMPERATURE = 16.0
-"""The inflation the decision uses, chosen on the blind worlds; the calibration seeds' log loss there is within
-0.02 of its lowest (at 24; docs/discrepancy.md)."""
 INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a rig-level term (a measurement-side one, or the rig's own compliance) has its instrument check
 (``labctl.discrepancy.instrument``) once its probability reaches this; the probabilities are then worked out again
 without those that fail, until none is due."""
-PRESENCE_TEMPERATURE = 1.0
-"""The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
 SHAPE_DOUBT = 1.0 / 3.0
 """Prior probability that a term's shape (``FIT_ONLY_BOUNDS``) is not the library's: the library's law is taken as
 twice as likely as the departure, so where it fits exactly a candidate loses ln 1.5 to the doubt."""
@@ -145,7 +140,9 @@ class Scored:
                 "log_evidence": self.log_evidence, "log_prior": self.log_prior,
                 "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
                 "log_fit_by_temperature": {f"{t:g}": v for t, v in self.log_fit_by_t.items()},
-                "n_params": self.n_params, "form_sigma": self.tau, **self.extra}
+                "n_params": self.n_params, "form_sigma": self.tau,
+                **{k: v for k, v in self.extra.items() if k != "case_log_lik"},
+                "case_log_lik_by_temperature": {f"{t:g}": v for t, v in self.extra.get("case_log_lik", {}).items()}}
 
 
 def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
@@ -156,36 +153,12 @@ def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence
     return frozenset(not_instrument) | (frozenset({"none"}) if lack_of_fit_rejects(baseline_lof_p) else frozenset())
 
 
-def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
-                  temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset(),
-                  scale: float = 1.0) -> np.ndarray:
-    """Every candidate's posterior probability, in two questions. Is there any effect? "none" against all the
-    others at the noise model's own scale (``PRESENCE_TEMPERATURE``): the noise comes from the repetitions, and
-    a misfit beyond it is evidence of some effect whatever its law. Which one? The others against each other at
-    the inflated ``temperature``, where every law is only approximate. ``log_evidence(T)``: each candidate's
-    log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability.
-    ``scale`` divides the second question's log posterior (1 in the workflow; a bench's confidence scale, which
-    keeps the ranking and spreads the probabilities)."""
-    names_a = np.array(names)
-    none = names_a == "none"
-    ruled_out = np.isin(names_a, list(rejected))
-    others = ~none & ~ruled_out
-    out = np.zeros(len(names))
-    p_none = 0.0
-    if none.any() and not ruled_out[none].any():
-        s0 = np.where(ruled_out, -np.inf, log_prior + log_evidence(PRESENCE_TEMPERATURE))
-        p_none = float(np.exp(s0[none][0] - logsumexp(s0))) if others.any() else 1.0
-        out[none] = p_none
-    if others.any():
-        s = np.where(others, (log_prior + log_evidence(temperature)) / scale, -np.inf)
-        out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
-    return out
-
-
-def posterior(scored: list[Scored], temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset()) -> None:
-    """Fill in every candidate's probability (``probabilities``)."""
+def posterior(scored: list[Scored], rejected: frozenset[str] = frozenset()) -> None:
+    """Fill in every candidate's probability (``probabilities``, resampled over roller cases when there are
+    enough)."""
     p = probabilities([s.explanation.name for s in scored], np.array([s.log_prior for s in scored]),
-                      lambda t: np.array([s.log_evidence_by_t[t] for s in scored]), temperature, rejected)
+                      lambda t: np.array([s.log_evidence_by_t[t] for s in scored]), TEMPERATURE, rejected,
+                      case_log_lik=lambda t: np.array([s.extra["case_log_lik"][t] for s in scored]))
     for s, v in zip(scored, p, strict=True):
         s.probability = float(v)
 
@@ -197,7 +170,7 @@ class Evidence:
                  temperatures: Sequence[float] = (TEMPERATURE,)) -> None:
         self.data, self.noise, self.sigma = data, noise, sigma
         self.temperatures = tuple(dict.fromkeys((TEMPERATURE, PRESENCE_TEMPERATURE, *temperatures)))
-        """Noise inflations the evidence is computed at: the decision's two, and any a bench rescores at."""
+        """Noise inflations the evidence is computed at: the decision's, and any a bench rescores at."""
         self.form = FormPrior.of(data, noise, sigma)
         self.n = data.n_points
         self.fits: dict[tuple[str, ...], Fit] = {}
@@ -225,17 +198,27 @@ class Evidence:
             return np.zeros((self.n, 0))
         return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
 
-    def form_evidence(self, e: np.ndarray, bend: np.ndarray) -> dict[float, tuple[float, float]]:
+    def form_evidence(self, e: np.ndarray, bend: np.ndarray) -> dict[float, tuple[float, float, float]]:
         """At each of the evidence's temperatures: the term's form is the library's (probability ½) or bent (½),
         the evidence averaged over both, so an exact law pays at most ln 2 for the doubt and an approximate one is
-        not judged by its exponent; and the discrepancy scale τ the bent form (the exact one, without bend columns)
-        favours."""
+        not judged by its exponent; the discrepancy scale τ the bent form (the exact one, without bend columns)
+        favours; and the bent form's posterior share."""
         exact = self.form.log_marginals(e, None, self.temperatures)
         if bend.shape[1] == 0:
-            return dict(zip(self.temperatures, exact, strict=True))
+            return {t: (v, tau, 0.0) for t, (v, tau) in zip(self.temperatures, exact, strict=True)}
         bent = self.form.log_marginals(e, bend, self.temperatures)
-        return {t: (float(np.logaddexp(x[0], b[0]) - math.log(2.0)), b[1])
+        return {t: (float(np.logaddexp(x[0], b[0]) - math.log(2.0)), b[1], float(1.0 / (1.0 + np.exp(x[0] - b[0]))))
                 for t, x, b in zip(self.temperatures, exact, bent, strict=True)}
+
+    def case_parts(self, e: np.ndarray, bend: np.ndarray, evidence: dict[float, tuple[float, float, float]]
+                   ) -> dict[float, list[float]]:
+        """At each temperature, each roller case's part of the log likelihood: the residuals less the bend's
+        posterior mean (weighted by the bent form's share), under the discrepancy at the favoured τ."""
+        out = {}
+        for t, (_, tau, bent) in evidence.items():
+            z = e - bent * self.form.bend_mean(e, bend, t, tau) if bent > 0 else e
+            out[t] = self.form.case_log_marginals(z, t, tau)
+        return out
 
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
         """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
@@ -248,13 +231,14 @@ class Evidence:
         bend = self.bend(fit)
         k = fit.spec.n_params()
         evidence = self.form_evidence(fit.z, bend)
-        fit_by_t = {t: v for t, (v, _) in evidence.items()}
+        fit_by_t = {t: v for t, (v, _, _) in evidence.items()}
         if expl == Explanation():
             self.reference = fit_by_t, k
         tau = evidence[TEMPERATURE][1]
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, {t: self.charged(v, k, t) for t, v in fit_by_t.items()}, fit_by_t,
-                      log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)))
+                      log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)),
+                      extra={"case_log_lik": self.case_parts(fit.z, bend, evidence)})
 
     def charged(self, log_fit: float, k: int, t: float) -> float:
         """The log evidence at inflation T of a candidate with ``k`` parameters whose evidence before its Occam
@@ -330,7 +314,9 @@ class Evidence:
         chosen, (_, tau, e) = selected[TEMPERATURE]
         smooth = self.form.smooth(e, tau)
         return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
-                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]})
+                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen],
+                                                      "case_log_lik": {
+                    t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}})
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
         """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""
