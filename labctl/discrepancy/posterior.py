@@ -16,11 +16,12 @@ Evidence: log p(D|M) ≈ −½·e'(I + τ²AA')⁻¹e − ½·log det(I + τ²AA
 adds to the baseline charged the hyper-g Occam factor at their fit's gain (``labctl.discrepancy.occam``: a gain
 within the noise costs little, so an effect too small to see is not ruled out), plus for *unlisted* −ln C(F, m) for
 choosing m of F features.
-Posterior (``probabilities``): "none" against every effect at the noise model's own scale, then the effects against
-each other at p(M|D, effect) ∝ prior(M)·p(D|M, T). The temperature T (``TEMPERATURE``) inflates the noise variance
-of the whitened residuals (e ~ N(Aβ + Bγ, T·I)): what no finite candidate list removes — every real law differs from
-every library term — is treated as extra scatter, so a fit's gain counts 1/T as much while every Occam factor
-(the −½·k·ln n and the discrepancy's log det) keeps its strength. T is chosen on the blind worlds; no T makes the
+Posterior (``labctl.discrepancy.questions.probabilities``): "none" against every effect at the noise model's own
+scale, then the effects against each other at p(M|D, effect) ∝ prior(M)·p(D|M, T), resampled over roller cases.
+The temperature T (``TEMPERATURE``) inflates the noise variance of the whitened residuals (e ~ N(Aβ + Bγ, T·I)):
+what no finite candidate list removes — every real law differs from every library term — is treated as extra
+scatter, so a fit's gain counts 1/T as much while every Occam factor (the −½·k·ln n and the discrepancy's log det)
+keeps its strength. T is chosen on the blind worlds; no T makes the
 probabilities reliable there (docs/discrepancy.md). Priors (``PRIOR_MASS``) are split evenly within each class.
 """
 
@@ -313,10 +314,10 @@ class Evidence:
         by_t = {t: evidence(best[0], len(chosen), t) for t, (chosen, best) in selected.items()}
         chosen, (_, tau, e) = selected[TEMPERATURE]
         smooth = self.form.smooth(e, tau)
+        parts = {t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}
         return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen],
-                                                      "case_log_lik": {
-                    t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}})
+                                                               "case_log_lik": parts})
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
         """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""
