@@ -118,12 +118,16 @@ def own_probes() -> None:
     factors on repetitions 1 and 2. Not a judge of the method (its generator is the method's); the case it found."""
     law = ContactLaw("tripp", 2e-3).stiffness_n_per_m
     null = synthesize(law, noise=NoiseModel(low=0.02, high=0.02 / 3), seating_rel=0.004, seed=11)
+    loads: dict[tuple[int | None, int | None], list[float]] = {}
+    for q in null:
+        loads.setdefault((q.roller_type, q.repetition), []).append(q.load_n)
+    loads = {k: sorted(v) for k, v in loads.items()}  # each seating's loads, once
     print("| roller type | step | factors | outliers reported | clean set aside | verdict |\n|---|---|---|---|---|---|")
     for roller_type, step, factors in itertools.product((1, 3, 5), (0, -1), FACTOR_PAIRS):
         points, bad = [], set()
         for p in null:
-            own = sorted(q.load_n for q in null if q.roller_type == roller_type and q.repetition == p.repetition)
-            if p.roller_type == roller_type and p.repetition in (1, 2) and p.load_n == own[step]:
+            if p.roller_type == roller_type and p.repetition in (1, 2) and \
+                    p.load_n == loads[(p.roller_type, p.repetition)][step]:
                 p = dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * factors[p.repetition - 1])
                 bad.add((p.repetition, p.load_n))
             points.append(p)

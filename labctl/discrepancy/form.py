@@ -71,15 +71,17 @@ class FormPrior:
     @classmethod
     def of(cls, data: Dataset, noise: NoiseFloor, sigma: np.ndarray) -> FormPrior:
         a = noise.whiten(data, form_basis(data), sigma)
-        u, s, _ = np.linalg.svd(a, full_matrices=False)
-        keep = s > 1e-9 * s.max()
-        cases = []
-        for sl in data.case_slices():
-            block = a[sl][:, np.any(a[sl] != 0.0, axis=0)]
-            uc, sc, _ = np.linalg.svd(block, full_matrices=False)
-            kc = sc > 1e-9 * s.max()
-            cases.append((sl, uc[:, kc], sc[kc] ** 2))
-        return cls(u[:, keep], s[keep] ** 2, a, tuple(cases))
+        # whitening stays within a seating, so the basis is block-diagonal by case: its SVD is the cases' SVDs
+        blocks = [(sl, *np.linalg.svd(a[sl][:, np.any(a[sl] != 0.0, axis=0)], full_matrices=False)[:2])
+                  for sl in data.case_slices()]
+        floor = 1e-9 * max(float(s.max()) for _, _, s in blocks)
+        cases = tuple((sl, u[:, s > floor], s[s > floor] ** 2) for sl, u, s in blocks)
+        u = np.zeros((a.shape[0], sum(uc.shape[1] for _, uc, _ in cases)))
+        col = 0
+        for sl, uc, _ in cases:
+            u[sl, col:col + uc.shape[1]] = uc
+            col += uc.shape[1]
+        return cls(u, np.concatenate([s2 for _, _, s2 in cases]), a, cases)
 
     def bend_mean(self, e: np.ndarray, bend: np.ndarray, inflation: float, tau: float) -> np.ndarray:
         """The posterior mean of the bend part Bγ at one T and τ, the discrepancy integrated out with it."""

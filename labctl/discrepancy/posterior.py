@@ -125,6 +125,8 @@ class Scored:
     """… after the posterior-mean form discrepancy is taken off: what neither explains."""
     probability: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    case_log_lik_by_t: dict[float, list[float]] = field(default_factory=dict)
+    """At each inflation T, each roller case's part of the log likelihood (the resampling's units)."""
 
     @property
     def failed_instrument(self) -> list[dict[str, Any]]:
@@ -141,9 +143,8 @@ class Scored:
                 "log_evidence": self.log_evidence, "log_prior": self.log_prior,
                 "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
                 "log_fit_by_temperature": {f"{t:g}": v for t, v in self.log_fit_by_t.items()},
-                "n_params": self.n_params, "form_sigma": self.tau,
-                **{k: v for k, v in self.extra.items() if k != "case_log_lik"},
-                "case_log_lik_by_temperature": {f"{t:g}": v for t, v in self.extra.get("case_log_lik", {}).items()}}
+                "n_params": self.n_params, "form_sigma": self.tau, **self.extra,
+                "case_log_lik_by_temperature": {f"{t:g}": v for t, v in self.case_log_lik_by_t.items()}}
 
 
 def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
@@ -159,7 +160,7 @@ def posterior(scored: list[Scored], rejected: frozenset[str] = frozenset()) -> N
     enough)."""
     p = probabilities([s.explanation.name for s in scored], np.array([s.log_prior for s in scored]),
                       lambda t: np.array([s.log_evidence_by_t[t] for s in scored]), TEMPERATURE, rejected,
-                      case_log_lik=lambda t: np.array([s.extra["case_log_lik"][t] for s in scored]))
+                      case_log_lik=lambda t: np.array([s.case_log_lik_by_t[t] for s in scored]))
     for s, v in zip(scored, p, strict=True):
         s.probability = float(v)
 
@@ -239,7 +240,7 @@ class Evidence:
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, {t: self.charged(v, k, t) for t, v in fit_by_t.items()}, fit_by_t,
                       log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)),
-                      extra={"case_log_lik": self.case_parts(fit.z, bend, evidence)})
+                      case_log_lik_by_t=self.case_parts(fit.z, bend, evidence))
 
     def charged(self, log_fit: float, k: int, t: float) -> float:
         """The log evidence at inflation T of a candidate with ``k`` parameters whose evidence before its Occam
@@ -316,8 +317,8 @@ class Evidence:
         smooth = self.form.smooth(e, tau)
         parts = {t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}
         return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
-                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen],
-                                                               "case_log_lik": parts})
+                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]},
+                      case_log_lik_by_t=parts)
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
         """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""

@@ -79,8 +79,13 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
     if others.any():
         s = np.where(others, (log_prior + log_evidence(temperature)) / scale, -np.inf)
         ell = None if case_log_lik is None else np.asarray(case_log_lik(temperature))
-        if ell is not None and ell.shape[1] >= MIN_CASES:
+        if ell is not None and resampled_over(ell.shape[1]):
             out[others] = (1.0 - p_none) * resampled(s, ell / scale)[others]
         else:
             out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
     return out
+
+
+def resampled_over(n_cases: int) -> bool:
+    """Whether the question "which effect?" is resampled over ``n_cases`` roller cases (at least ``MIN_CASES``)."""
+    return n_cases >= MIN_CASES

@@ -25,7 +25,7 @@ from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
 from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
 from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, Evidence, Scored
-from labctl.discrepancy.questions import MIN_CASES, TEMPERATURE
+from labctl.discrepancy.questions import TEMPERATURE, resampled_over
 from labctl.discrepancy.screen import Screening
 from labctl.discrepancy.search import Candidate, Search, Step, discrepancy, kind, share
 from labctl.discrepancy.set_aside import consistent_with_noise, screened, set_aside_step
@@ -73,7 +73,6 @@ class DiscrepancyResult:
     @property
     def consistent(self) -> bool:
         return consistent_with_noise(self.final, self.noise, self.data)
-
 
     @property
     def baseline_lack_of_fit_p(self) -> float | None:
@@ -206,7 +205,7 @@ class DiscrepancyResult:
             "measurement_effects": [self._step_doc(s) for s in self.measurement_steps],
             "explanations": [x.to_dict() for x in self.scored],
             "decision": {"named_at": NAME_AT, "likely_at": LIKELY_AT, "temperature": TEMPERATURE,
-                         "resampled_over_cases": len(self.data.cases) >= MIN_CASES,
+                         "resampled_over_cases": resampled_over(len(self.data.cases)),
                          "top": self.scored[0].to_dict() if self.scored else None,
                          "likely": None if self.likely is None else self.likely.to_dict(),
                          "identifiability": [*self.reasons, *self.absorbed]},
