@@ -200,7 +200,6 @@ def run_blind(task: Task) -> dict[str, Any]:
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
                             "form_chi2": c.form_chi2, "n_params": c.n_params,
                             "case_log_lik_by_temperature": c.to_dict()["case_log_lik_by_temperature"],
-                            "case_held_out_by_temperature": c.to_dict()["case_held_out_by_temperature"],
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()},
                             "log_fit_by_temperature": {f"{t:g}": v for t, v in c.log_fit_by_t.items()}}
                            for c in result.scored]}

@@ -14,10 +14,8 @@ inflation T of the grid) and decides every dataset again under each rule, withou
   it is unchanged, its probabilities spread);
 - ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``) or ``equal-single`` (every single-term explanation,
   physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members);
-- ``cases``: ``held-out`` (the question "which effect?" weighed by each roller case's predictive density given the
-  others, resampled over the cases, as the workflow asks it with three cases or more: ``labctl.discrepancy.questions``),
-  ``resampled`` (the evidence resampled over its in-sample per-case parts, the workflow's rule before) or ``pooled``
-  (the evidence alone).
+- ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
+  three cases or more: ``labctl.discrepancy.questions``) or ``pooled`` (the evidence alone, as before).
 
 The first file is the one a rule would be chosen on (calibration seeds); the others show what it does elsewhere.
 Per file: top explanation = truth, log loss of the truth's probability, expected calibration error over the
@@ -74,14 +72,13 @@ def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes", c
     """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         names = [x["explanation"] for x in r["candidates"]]
-        parts = case_log_lik(r, "log_lik" if cases == "resampled" else "held_out") if cases != "pooled" else None
+        parts = case_log_lik(r) if cases == "resampled" else None
         rejected = rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
 
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
-        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam, case_log_lik=parts,
-                          held_out=cases == "held-out")
+        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam, case_log_lik=parts)
         return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in rejected), key=lambda v: -v[1])
     return decide
 
@@ -125,12 +122,12 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "held-out")
-    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "held-out") for t in (1.0, 2.0, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (TEMPERATURE, 4.0)]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0)]
-    rules += [("bic", "all", TEMPERATURE, 1.0, "classes", "pooled"),
-              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "held-out")]
+    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled")
+    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (2.0, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
+              "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
+              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled")]
     print("| occam | scope | T | λ | prior | cases | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
           "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")

@@ -174,13 +174,11 @@ def n_cases(r: dict[str, Any]) -> int:
     return len(next(iter(parts.values()), []))
 
 
-def case_log_lik(r: dict[str, Any], kind: str = "held_out") -> Callable[[float], np.ndarray] | None:
-    """Each candidate's stored per-case log predictive density given the other cases at T (``held_out``, what
-    the workflow resamples), or its in-sample part of the log likelihood (``log_lik``); None if not stored."""
-    key = f"case_{kind}_by_temperature"
-    if not n_cases(r) or key not in r["candidates"][0]:
+def case_log_lik(r: dict[str, Any]) -> Callable[[float], np.ndarray] | None:
+    """Each candidate's stored per-case log likelihood at T (None if the result stored none)."""
+    if not n_cases(r):
         return None
-    return lambda t: np.array([c[key][f"{t:g}"] for c in r["candidates"]])
+    return lambda t: np.array([c["case_log_lik_by_temperature"][f"{t:g}"] for c in r["candidates"]])
 
 
 def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
@@ -190,7 +188,7 @@ def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
     cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
     p = probabilities([c["explanation"] for c in cands], np.array([c["log_prior"] for c in cands]),
                       lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]),
-                      temperature, ruled_out, case_log_lik=case_log_lik(r), held_out=True)
+                      temperature, ruled_out, case_log_lik=case_log_lik(r))
     return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)
                    if c["explanation"] not in ruled_out), key=lambda t: -t[1])
 

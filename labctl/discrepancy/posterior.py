@@ -37,8 +37,7 @@ import numpy as np
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.empirical import MAX_FEATURES, features
-from labctl.discrepancy.form import BEND_SIGMA, FormPrior, contribution
-from labctl.discrepancy.held_out import PARAM_PRIOR_SIGMA, case_predictive, jacobian
+from labctl.discrepancy.form import FormPrior, contribution
 from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
@@ -127,10 +126,7 @@ class Scored:
     probability: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
     case_log_lik_by_t: dict[float, list[float]] = field(default_factory=dict)
-    """At each inflation T, each roller case's part of the log likelihood (in-sample)."""
-    case_held_out_by_t: dict[float, list[float]] = field(default_factory=dict)
-    """At each inflation T, each roller case's log predictive density given the other cases (the resampling's
-    units: ``labctl.discrepancy.held_out``)."""
+    """At each inflation T, each roller case's part of the log likelihood (the resampling's units)."""
 
     @property
     def failed_instrument(self) -> list[dict[str, Any]]:
@@ -148,8 +144,7 @@ class Scored:
                 "log_evidence_by_temperature": {f"{t:g}": v for t, v in self.log_evidence_by_t.items()},
                 "log_fit_by_temperature": {f"{t:g}": v for t, v in self.log_fit_by_t.items()},
                 "n_params": self.n_params, "form_sigma": self.tau, **self.extra,
-                "case_log_lik_by_temperature": {f"{t:g}": v for t, v in self.case_log_lik_by_t.items()},
-                "case_held_out_by_temperature": {f"{t:g}": v for t, v in self.case_held_out_by_t.items()}}
+                "case_log_lik_by_temperature": {f"{t:g}": v for t, v in self.case_log_lik_by_t.items()}}
 
 
 def rejected_explanations(baseline_lof_p: float | None, not_instrument: Sequence[str] = ()) -> frozenset[str]:
@@ -165,7 +160,7 @@ def posterior(scored: list[Scored], rejected: frozenset[str] = frozenset()) -> N
     enough)."""
     p = probabilities([s.explanation.name for s in scored], np.array([s.log_prior for s in scored]),
                       lambda t: np.array([s.log_evidence_by_t[t] for s in scored]), TEMPERATURE, rejected,
-                      case_log_lik=lambda t: np.array([s.case_held_out_by_t[t] for s in scored]), held_out=True)
+                      case_log_lik=lambda t: np.array([s.case_log_lik_by_t[t] for s in scored]))
     for s, v in zip(scored, p, strict=True):
         s.probability = float(v)
 
@@ -227,14 +222,6 @@ class Evidence:
             out[t] = self.form.case_log_marginals(z, t, tau)
         return out
 
-    def held_out(self, z: np.ndarray, design: np.ndarray, n_bend: int,
-                 evidence: dict[float, tuple[float, float, float]]) -> dict[float, list[float]]:
-        """At each temperature, each roller case's log predictive density given the others, the refit linearised
-        (``labctl.discrepancy.held_out``): ``design`` the columns it moves, the last ``n_bend`` of them bend columns
-        (prior BEND_SIGMA; the others the parameters' vague prior), at the τ each T favours."""
-        prior = np.r_[np.full(design.shape[1] - n_bend, PARAM_PRIOR_SIGMA), np.full(n_bend, BEND_SIGMA)]
-        return {t: case_predictive(z, design, prior, self.form.cases, t, tau) for t, (_, tau, _) in evidence.items()}
-
     def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
         """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
         bend integrated out with the per-case discrepancy)."""
@@ -253,9 +240,7 @@ class Evidence:
         smooth = self.form.smooth(fit.z, tau)
         return Scored(expl, fit, {t: self.charged(v, k, t) for t, v in fit_by_t.items()}, fit_by_t,
                       log_prior(expl, candidates), k, tau, float(fit.z @ fit.z), float(np.sum((fit.z - smooth) ** 2)),
-                      case_log_lik_by_t=self.case_parts(fit.z, bend, evidence),
-                      case_held_out_by_t=self.held_out(fit.z, np.column_stack([jacobian(
-                          self.data, fit, self.noise, self.sigma), bend]), bend.shape[1], evidence))
+                      case_log_lik_by_t=self.case_parts(fit.z, bend, evidence))
 
     def charged(self, log_fit: float, k: int, t: float) -> float:
         """The log evidence at inflation T of a candidate with ``k`` parameters whose evidence before its Occam
@@ -331,12 +316,9 @@ class Evidence:
         chosen, (_, tau, e) = selected[TEMPERATURE]
         smooth = self.form.smooth(e, tau)
         parts = {t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}
-        # choosing m of F features is C(F, m) models: its cost −ln C(F, m), as in the evidence, shared by the cases
-        held = {t: [v - math.log(math.comb(len(names), len(c))) / len(self.form.cases) for v in self.held_out(
-            y, np.column_stack([head, xw[:, c]]), 0, {t: (0.0, best[1], 0.0)})[t]] for t, (c, best) in selected.items()}
         return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
                       float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]},
-                      case_log_lik_by_t=parts, case_held_out_by_t=held)
+                      case_log_lik_by_t=parts)
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
         """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""

@@ -56,7 +56,7 @@ def resampled(log_post: np.ndarray, case_log_lik: np.ndarray) -> np.ndarray:
 
 def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
                   temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset(), scale: float = 1.0,
-                  case_log_lik: Callable[[float], np.ndarray] | None = None, held_out: bool = False) -> np.ndarray:
+                  case_log_lik: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
     """Every candidate's posterior probability, in two questions. Is there any effect? "none" against all the
     others at the noise model's own scale (``PRESENCE_TEMPERATURE``): the noise comes from the repetitions, and
     a misfit beyond it is evidence of some effect whatever its law. Which one? The others against each other at
@@ -65,10 +65,7 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
     likelihood at T) is given for at least ``MIN_CASES`` cases. ``log_evidence(T)``: each candidate's
     log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability.
     ``scale`` divides the second question's log posterior (1 in the workflow; a bench's confidence scale, which
-    keeps the ranking and spreads the probabilities). ``held_out``: the case parts are each case's log predictive
-    density given the others (``labctl.discrepancy.held_out``), which then stand in for the evidence: each
-    candidate's log posterior is its log prior plus their sum (pseudo-BMA+); else they are in-sample parts of the
-    evidence."""
+    keeps the ranking and spreads the probabilities)."""
     names_a = np.array(names)
     none = names_a == "none"
     ruled_out = np.isin(names_a, list(rejected))
@@ -83,8 +80,6 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
         s = np.where(others, (log_prior + log_evidence(temperature)) / scale, -np.inf)
         ell = None if case_log_lik is None else np.asarray(case_log_lik(temperature))
         if ell is not None and resampled_over(ell.shape[1]):
-            if held_out:
-                s = np.where(others, (log_prior + ell.sum(axis=1)) / scale, -np.inf)
             out[others] = (1.0 - p_none) * resampled(s, ell / scale)[others]
         else:
             out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
