@@ -11,10 +11,12 @@ Printed: per size band, the injected points set aside (and beyond 8 σ, at an en
 world, clean points set aside (false alarms), with and without injected outliers; and worlds where a clean
 repetition of an injected step was set aside in place of a bad one. With ``--verdicts``, each world with outliers
 also goes through the whole workflow twice, as written and without the injected points: the acceptance that two bad
-points of one step never change the verdict, judged on worlds written blind to the workflow.
+points of one step never change the verdict, judged on worlds written blind to the workflow. Null worlds with
+outliers are also run through the whole workflow: the acceptance "consistent, the outliers reported".
 
     python bench/discrepancy_outliers.py [--seeds 8] [--calibration] [--verdicts]
     python bench/discrepancy_outliers.py --own    # two outliers in null data of the project's own generator
+    python bench/discrepancy_outliers.py --scenarios none --seeds 100    # the null worlds alone, more of them
 
 Run by hand (not a test); about 20 s for the default 384 worlds, a few minutes more with ``--verdicts``.
 """
@@ -35,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points  # noqa: E402
+from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points, truth_name  # noqa: E402
 
 from labctl.discrepancy import run_discrepancy  # noqa: E402
 from labctl.discrepancy.set_aside import screened  # noqa: E402
@@ -89,8 +91,13 @@ def injected(at: dict[Key, tuple[int, dict[str, Any]]], outliers: dict[str, Any]
 def set_aside(rows: list[dict[str, Any]]) -> set[Key]:
     """The points the workflow's screen sets aside as gross outliers."""
     data, _, screening = screened(csv_points(rows), baseline_spec("tripp"))
+    return keys(data, screening.outliers)
+
+
+def keys(data: Any, outliers: list[dict[str, Any]]) -> set[Key]:
+    """The screen's outliers as the judge's points."""
     types = {c.label: c.case.roller.type_id for c in data.cases}
-    return {_key(types[o["case"]], o["repetition"], o["load_n"]) for o in screening.outliers}
+    return {_key(types[o["case"]], o["repetition"], o["load_n"]) for o in outliers}
 
 
 def verdict_pair(rows: list[dict[str, Any]], bad: set[Key]) -> tuple[tuple[str, str], tuple[str, str]]:
@@ -104,12 +111,29 @@ def verdict_pair(rows: list[dict[str, Any]], bad: set[Key]) -> tuple[tuple[str, 
     return out[0], out[1]
 
 
-def worlds(judge: Any, seeds: Iterable[int]) -> Iterable[tuple[str, Any]]:
-    """Each world of the judge with its name (scenario, seed, noise scale)."""
-    for scenario in judge.SCENARIOS:
+def worlds(judge: Any, seeds: Iterable[int], scenarios: Iterable[str] | None = None) -> Iterable[tuple[str, Any]]:
+    """Each world of the judge with its name (scenario, seed, noise scale); ``scenarios``: only these."""
+    for scenario in scenarios or judge.SCENARIOS:
         for seed in seeds:
             for scale in SCALES:
                 yield f"{scenario} seed {seed} {scale:g}×", judge.generate(scenario, seed, scale)
+
+
+def null_table(rows: list[tuple[float, int, str]]) -> None:
+    """Null worlds with two injected outliers, by the smaller one's size: the acceptance "consistent, the outliers
+    reported" (both injected points set aside and reported, one, or neither)."""
+    print(f"\nnull worlds with two injected outliers: {len(rows)}; verdict consistent "
+          f"{sum(v == 'consistent' for _, _, v in rows)}/{len(rows)}\n")
+    print("| smaller injected size [stated σ] | worlds | consistent | both reported | one | neither |")
+    print("|---|---|---|---|---|---|")
+    for lo, hi in SIZE_BANDS:
+        band = [(n, v) for size, n, v in rows if lo <= size < hi]
+        if band:
+            print(f"| {lo:g}–{hi:g} | {len(band)} | {sum(v == 'consistent' for _, v in band)} | "
+                  f"{sum(n == 2 for n, _ in band)} | {sum(n == 1 for n, _ in band)} | {sum(n == 0 for n, _ in band)} |")
+    for size, n, v in rows:
+        if v != "consistent":
+            print(f"- smaller outlier {size:.1f} σ, {n}/2 reported: {v}")
 
 
 def own_probes() -> None:
@@ -144,6 +168,7 @@ def main() -> int:
     ap.add_argument("--verdicts", action="store_true",
                     help="also run the whole workflow on each world with outliers, with and without them")
     ap.add_argument("--own", action="store_true", help="only the probes on the project's own generator")
+    ap.add_argument("--scenarios", nargs="+", help="only these of the judge's scenarios (e.g. none)")
     args = ap.parse_args()
     if args.own:
         own_probes()
@@ -154,7 +179,8 @@ def main() -> int:
     false_with, false_without, clean_rep_instead = [], [], 0
     pairs: list[tuple[str, tuple[str, str], tuple[str, str]]] = []
     judge = blind_worlds("blind")
-    for name, world in worlds(judge, range(first, first + args.seeds)):
+    null: list[tuple[float, int, str]] = []
+    for name, world in worlds(judge, range(first, first + args.seeds), args.scenarios):
         outliers = world.truth["faults"]["outliers"]
         at = points(world.rows)
         bad = injected(at, outliers)
@@ -168,6 +194,12 @@ def main() -> int:
         (false_with if bad else false_without).append(len(found - set(bad)))
         if bad and args.verdicts:
             pairs.append((name, *verdict_pair(world.rows, set(bad))))
+        if bad and truth_name(world.truth) == "none":  # the workflow's own report of them
+            result = run_discrepancy(csv_points(world.rows))
+            verdict = result.verdict
+            if verdict != "consistent":  # and without the injected points: is it the outliers or the world?
+                verdict += f" ({verdict_pair(world.rows, set(bad))[1][0]} without them; {name})"
+            null.append((min(bad.values()), len(keys(result.data, result.screening.outliers) & set(bad)), verdict))
     print(f"blind judge, {'calibration' if args.calibration else 'evaluation'} seeds {first}-{first + args.seeds - 1}, "
           f"noise {', '.join(f'{s:g}×' for s in SCALES)}: {len(false_with) + len(false_without)} worlds, "
           f"{len(false_with)} with two injected outliers\n")
@@ -184,6 +216,8 @@ def main() -> int:
         if false:
             print(f"| {name} | {len(false)} | {np.mean(false):.3f} | {np.mean(np.array(false) > 0):.3f} |")
     print(f"\nworlds where a clean point of an injected step was set aside: {clean_rep_instead}")
+    if null:
+        null_table(null)
     if pairs:
         same = [a[0] == b[0] for _, a, b in pairs]
         top = [a[1] == b[1] for _, a, b in pairs]
