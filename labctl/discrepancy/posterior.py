@@ -189,19 +189,13 @@ class Evidence:
                          seating_sigma=self.noise.seating_sigma, post=post)
 
     def bend(self, fit: Fit) -> np.ndarray:
-        """Whitened columns d_t·u, d_t·u², d_t·g_D, d_t·g_L of every term t of the fit (u = ln(p/p̄), g_D = ln(D/D̄),
-        g_L = ln(L/L̄), centred over all points): a term's law is uncertain in how it scales with the load and with
-        the roller's diameter and length alike (with one roller geometry the last two are zero and cost nothing)."""
+        """Whitened columns d_t·u, d_t·u² of every term t of the fit (u = ln(p/p̄), centred over all points)."""
         u = np.log(self.data.load_per_length_n_per_m)
         u = u - u.mean()
-        geometry = []
-        for size in (lambda c: c.case.roller.diameter_m, lambda c: c.case.roller.contact_length_m):
-            g = np.log(np.concatenate([np.full(c.load_n.size, size(c)) for c in self.data.cases]))
-            geometry.append(g - g.mean())
         cols = []
         for name in fit.spec.terms:
             d = contribution(fit, self.data, name)
-            cols += [d * u, d * u**2, *(d * g for g in geometry)]
+            cols += [d * u, d * u**2]
         if not cols:
             return np.zeros((self.n, 0))
         return self.noise.whiten(self.data, np.column_stack(cols), self.sigma)
