@@ -9,7 +9,9 @@ inflation T of the grid) and decides every dataset again under each rule, withou
   ``bic`` (−½·k·ln n charged on each candidate's stored fit, what the workflow charged before); ``presence``
   applies it to the question "is there any effect?" alone (the other question keeps the workflow's), ``all`` to
   both questions;
-- ``T``: the noise inflation of the question "which effect?";
+- ``T``: the noise inflation of the question "which effect?", or ``c-hat``: each dataset's own, QAIC's ĉ (the
+  whitened sum of squares per degree of freedom of the best-fitting candidate, at least 1: the lack of fit the most
+  flexible explanation still leaves, taken as the dispersion every comparison is scaled by);
 - ``λ``: a confidence scale — the log posterior of that question divided by λ (order-preserving: the ranking within
   it is unchanged, its probabilities spread);
 - ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``) or ``equal-single`` (every single-term explanation,
@@ -39,7 +41,14 @@ from typing import Any
 import numpy as np
 from discrepancy_scores import BINS, case_log_lik, reliability
 
-from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, PRIOR_MASS, explanations, rejected_explanations
+from labctl.discrepancy.posterior import (
+    LIKELY_AT,
+    NAME_AT,
+    PRIOR_MASS,
+    TEMPERATURES,
+    explanations,
+    rejected_explanations,
+)
 from labctl.discrepancy.questions import PRESENCE_TEMPERATURE, TEMPERATURE, probabilities
 
 
@@ -68,9 +77,20 @@ def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
     return np.array([math.log(share) if k in single else v for k, v in zip(kinds, stored, strict=True)])
 
 
-def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes", cases: str = "resampled") -> Rule:
-    """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule."""
+def c_hat_temperature(r: dict[str, Any]) -> float:
+    """The dataset's own inflation, QAIC's ĉ: the whitened sum of squares per degree of freedom of the candidate that
+    fits best (at least 1), rounded to the nearest T of the stored grid (in log)."""
+    n = r["n_points"]
+    c_hat = max(1.0, min(x["chi2"] / max(n - x["n_params"], 1) for x in r["candidates"] if x["explanation"] != "none"))
+    return min(TEMPERATURES, key=lambda t: abs(math.log(t / c_hat)))
+
+
+def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled"
+         ) -> Rule:
+    """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule; ``t``:
+    a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``)."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
+        temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
         names = [x["explanation"] for x in r["candidates"]]
         parts = case_log_lik(r) if cases == "resampled" else None
         rejected = rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
@@ -78,7 +98,7 @@ def rule(occam: str, scope: str, t: float, lam: float, prior: str = "classes", c
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
-        p = probabilities(names, log_priors(r, prior), evidence, t, rejected, scale=lam, case_log_lik=parts)
+        p = probabilities(names, log_priors(r, prior), evidence, temperature, rejected, scale=lam, case_log_lik=parts)
         return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in rejected), key=lambda v: -v[1])
     return decide
 
@@ -127,14 +147,16 @@ def main() -> None:
     rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
     rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
               "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
-              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled")]
+              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled"),
+              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled")]
     print("| occam | scope | T | λ | prior | cases | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
           "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for occam, scope, t, lam, prior, cases in rules:
         decide = rule(occam, scope, t, lam, prior, cases)
+        shown = t if isinstance(t, str) else f"{t:g}"
         for path, results in runs:
-            print(f"| {occam} | {scope} | {t:g} | {lam:g} | {prior} | {cases} | {path.rsplit('/', 1)[-1]} | "
+            print(f"| {occam} | {scope} | {shown} | {lam:g} | {prior} | {cases} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
