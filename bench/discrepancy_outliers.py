@@ -103,12 +103,18 @@ def keys(data: Any, outliers: list[dict[str, Any]]) -> set[Key]:
 def verdict_pair(rows: list[dict[str, Any]], bad: set[Key]) -> tuple[tuple[str, str], tuple[str, str]]:
     """The workflow's verdict and top explanation on the world as the judge wrote it, and without the injected
     points: what two bad points of one step must not change."""
-    clean = [r for r in rows if _key(int(r["roller_type"]), int(r["repetition"]), r["load_n"]) not in bad]
-    out = []
-    for table in (rows, clean):
-        result = run_discrepancy(csv_points(table))
-        out.append((result.verdict, result.scored[0].explanation.name))
-    return out[0], out[1]
+    return outcome(rows), outcome(without(rows, bad))
+
+
+def without(rows: list[dict[str, Any]], bad: set[Key]) -> list[dict[str, Any]]:
+    """The world's rows less the injected points."""
+    return [r for r in rows if _key(int(r["roller_type"]), int(r["repetition"]), r["load_n"]) not in bad]
+
+
+def outcome(rows: list[dict[str, Any]]) -> tuple[str, str]:
+    """The workflow's verdict and top explanation on these rows."""
+    result = run_discrepancy(csv_points(rows))
+    return result.verdict, result.scored[0].explanation.name
 
 
 def worlds(judge: Any, seeds: Iterable[int], scenarios: Iterable[str] | None = None) -> Iterable[tuple[str, Any]]:
@@ -198,7 +204,7 @@ def main() -> int:
             result = run_discrepancy(csv_points(world.rows))
             verdict = result.verdict
             if verdict != "consistent":  # and without the injected points: is it the outliers or the world?
-                verdict += f" ({verdict_pair(world.rows, set(bad))[1][0]} without them; {name})"
+                verdict += f" ({outcome(without(world.rows, set(bad)))[0]} without them; {name})"
             null.append((min(bad.values()), len(keys(result.data, result.screening.outliers) & set(bad)), verdict))
     print(f"blind judge, {'calibration' if args.calibration else 'evaluation'} seeds {first}-{first + args.seeds - 1}, "
           f"noise {', '.join(f'{s:g}×' for s in SCALES)}: {len(false_with) + len(false_without)} worlds, "

@@ -224,7 +224,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
     for r in results:
         top = tempered(r, temperature)[0] if temperature else (r["top"], r["top_probability"])
         stated.append((top[1], top[0] == r["truth_name"]))
-    p_all = np.array([p for p, _ in stated])
+    p_all, right = np.array([p for p, _ in stated]), np.array([k for _, k in stated])
     right_draws = np.random.default_rng(0).random((CALIBRATED_DRAWS, p_all.size)) < p_all  # a calibrated forecaster
     passes = np.ones(CALIBRATED_DRAWS, dtype=bool)
     for lo, hi in BINS:
@@ -232,7 +232,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
         if not inside.any():
             rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", "0", "-", "-", "-", "", "-"])
             continue
-        n, k = int(inside.sum()), sum(right for (p, right), i in zip(stated, inside, strict=True) if i)
+        n, k = int(inside.sum()), int(right[inside].sum())
         mean_p = float(p_all[inside].mean())
         a, b = wilson(k, n)
         holds = abs(mean_p - k / n) <= 0.05
