@@ -211,6 +211,9 @@ def test_every_candidate_has_a_probability_and_a_name_needs_nine_tenths(null_poi
         assert step["evidence"]["probability"] >= 0.9
     if doc["verdict"] in ("likely", "unexplained"):
         assert doc["explanations"][0]["explanation"] in doc["verdict_text"]
+    # a verdict that states an effect says how far its probabilities have held on blind worlds and what to run next
+    assert doc["verdict"] != "consistent" and "`labctl plan`" in doc["verdict_text"]
+    assert "labctl plan" not in run_discrepancy(null_points).verdict_text()
 
 
 def test_one_roller_type_says_what_the_data_cannot_separate():

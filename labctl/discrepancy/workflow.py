@@ -41,6 +41,12 @@ PINNED_DEPTH_BIC = 10.0
 Raftery's "very strong"); below, the warning says the evidence is weak."""
 
 
+READ_PROBABILITIES = ("the probabilities are the method's own: on worlds written blind to it, those from 0.7 up were "
+                      "right less often than stated (docs/discrepancy.md, Evaluation); before acting on a name, "
+                      "`labctl plan` on the same files recommends the measurements that would best tell the "
+                      "candidates apart")
+"""What every verdict that states an effect says about its probabilities, and what to do before acting on them."""
+
 @dataclass(frozen=True)
 class DiscrepancyResult:
     """Everything the workflow found: the fits before and after, the steps, the noise and the regions."""
@@ -147,6 +153,8 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        if self.verdict != "consistent":
+            parts.append(READ_PROBABILITIES)
         if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons + self.absorbed))
