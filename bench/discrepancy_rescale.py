@@ -39,7 +39,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import BINS, case_log_lik, reliability
+from discrepancy_scores import binned, holds_within, reliability, tempered
 
 from labctl.discrepancy.posterior import (
     LIKELY_AT,
@@ -47,9 +47,8 @@ from labctl.discrepancy.posterior import (
     PRIOR_MASS,
     TEMPERATURES,
     explanations,
-    rejected_explanations,
 )
-from labctl.discrepancy.questions import PRESENCE_TEMPERATURE, TEMPERATURE, probabilities
+from labctl.discrepancy.questions import PRESENCE_TEMPERATURE, TEMPERATURE
 
 
 def log_evidence(r: dict[str, Any], t: float, occam: str) -> np.ndarray:
@@ -90,16 +89,11 @@ def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "class
     """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule; ``t``:
     a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``)."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
-        temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
-        names = [x["explanation"] for x in r["candidates"]]
-        parts = case_log_lik(r) if cases == "resampled" else None
-        rejected = rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
-
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
-        p = probabilities(names, log_priors(r, prior), evidence, temperature, rejected, scale=lam, case_log_lik=parts)
-        return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in rejected), key=lambda v: -v[1])
+        temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
+        return tempered(r, temperature, log_priors(r, prior), evidence, lam, resample=cases == "resampled")
     return decide
 
 
@@ -122,12 +116,12 @@ def score(results: list[dict[str, Any]], decide: Rule) -> str:
             big += 1
             named_right += bool(named) and top == r["truth_name"]
     ece, ok = 0.0, True
-    for lo, hi in BINS:
-        inside = [(p, right) for p, right in stated if lo <= p < hi]
-        if inside:
-            gap = abs(np.mean([p for p, _ in inside]) - np.mean([k for _, k in inside]))
-            ece += gap * len(inside) / len(stated)
-            ok = ok and (gap <= 0.05 or len(inside) < 30)
+    p_all, right = np.array([p for p, _ in stated]), np.array([k for _, k in stated])
+    for _, _, inside in binned(stated):
+        if inside.any():
+            mean_p, share, n = float(p_all[inside].mean()), float(right[inside].mean()), int(inside.sum())
+            ece += abs(mean_p - share) * n / len(stated)
+            ok = ok and holds_within(mean_p, share, n)
     top_right = sum(k for _, k in stated)
     likely = sum(p >= LIKELY_AT for p, _ in stated)
     return (f"{top_right}/{len(results)} | {loss / len(results):.2f} | {ece:.3f} | {'yes' if ok else 'no'} | "

@@ -183,16 +183,19 @@ def case_log_lik(r: dict[str, Any]) -> Callable[[float], np.ndarray] | None:
     return lambda t: np.array([c["case_log_lik_by_temperature"][f"{t:g}"] for c in r["candidates"]])
 
 
-def tempered(r: dict[str, Any], temperature: float) -> list[tuple[str, float]]:
+def tempered(r: dict[str, Any], temperature: float, log_prior: np.ndarray | None = None,
+             log_evidence: Callable[[float], np.ndarray] | None = None, scale: float = 1.0,
+             resample: bool = True) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
     workflow's grid), most probable first, resampled over roller cases as the workflow does; without the
-    explanations the workflow rules out (``rejected_explanations``)."""
+    explanations the workflow rules out (``rejected_explanations``). A bench's other rule may give its own priors,
+    evidence, confidence scale, or decide on the pooled evidence (``resample`` false)."""
     cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
-    p = probabilities([c["explanation"] for c in cands], np.array([c["log_prior"] for c in cands]),
-                      lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands]),
-                      temperature, ruled_out, case_log_lik=case_log_lik(r))
-    return sorted(((c["explanation"], float(v)) for c, v in zip(cands, p, strict=True)
-                   if c["explanation"] not in ruled_out), key=lambda t: -t[1])
+    names = [c["explanation"] for c in cands]
+    p = probabilities(names, np.array([c["log_prior"] for c in cands]) if log_prior is None else log_prior,
+                      log_evidence or (lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands])),
+                      temperature, ruled_out, scale=scale, case_log_lik=case_log_lik(r) if resample else None)
+    return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in ruled_out), key=lambda t: -t[1])
 
 
 def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
@@ -213,6 +216,17 @@ def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
             "named": [n for n in named if n in EFFECTS], "measurement": [n for n in named if n not in EFFECTS]}
 
 
+def binned(stated: list[tuple[float, bool]]) -> list[tuple[float, float, np.ndarray]]:
+    """Each reliability bin (``BINS``) with the mask of the stated (probability, right) pairs inside it."""
+    p = np.array([x for x, _ in stated])
+    return [(lo, hi, (p >= lo) & (p < hi)) for lo, hi in BINS]
+
+
+def holds_within(mean_stated: float, share_right: float, n: int) -> bool:
+    """The reliability criterion for one bin: within 0.05, or fewer than 30 cases."""
+    return abs(mean_stated - share_right) <= 0.05 or n < 30
+
+
 def reliability(results: list[dict[str, Any]], temperature: float | None = None) -> tuple[str, bool]:
     """Stated probability of the top explanation against the share of datasets where it is the truth, per bin;
     the second value: every bin with ≥ 30 cases within 0.05. Beside each bin, how often a forecaster whose stated
@@ -227,8 +241,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
     p_all, right = np.array([p for p, _ in stated]), np.array([k for _, k in stated])
     right_draws = np.random.default_rng(0).random((CALIBRATED_DRAWS, p_all.size)) < p_all  # a calibrated forecaster
     passes = np.ones(CALIBRATED_DRAWS, dtype=bool)
-    for lo, hi in BINS:
-        inside = (p_all >= lo) & (p_all < hi)
+    for lo, hi, inside in binned(stated):
         if not inside.any():
             rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", "0", "-", "-", "-", "", "-"])
             continue
@@ -236,7 +249,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
         mean_p = float(p_all[inside].mean())
         a, b = wilson(k, n)
         holds = abs(mean_p - k / n) <= 0.05
-        ok = ok and (holds or n < 30)
+        ok = ok and holds_within(mean_p, k / n, n)
         drawn_gap = np.abs(right_draws[:, inside].mean(axis=1) - mean_p)
         if n >= 30:
             passes &= drawn_gap <= 0.05
@@ -296,12 +309,13 @@ def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[s
         _, ok = reliability(results, t)
         rows.append([f"{t:g}", f"{np.mean(loss):.3f}", f"{brier / len(results):.3f}", "yes" if ok else "no"])
     best = min(grid, key=lambda t: float(losses[t].mean()))
+    within = []
     for row, t in zip(rows, grid, strict=True):
         d = losses[t] - losses[best]
         se = float(d.std(ddof=1) / math.sqrt(d.size)) if d.size > 1 else 0.0
         row.insert(2, f"{d.mean():+.3f} ± {se:.3f}")
-    within = [t for t in grid if (losses[t] - losses[best]).mean() <= (losses[t] - losses[best]).std(ddof=1) /
-              math.sqrt(len(results))]
+        if d.mean() <= se:
+            within.append(t)
     return (_table(rows, ["temperature", "log loss (truth)", "− lowest (± s.e.)", "Brier", "reliability holds"]),
             best, max(within))
 

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.measurement import MEASUREMENT
@@ -87,20 +88,15 @@ class FormPrior:
         """The posterior mean of the bend part Bγ at one T and τ, the discrepancy integrated out with it."""
         assert self.a is not None
         a = np.column_stack([self.a, bend])
-        d = np.r_[np.full(self.a.shape[1], tau**2), np.full(bend.shape[1], BEND_SIGMA**2)]
+        d = _joint_prior(np.array([tau**2]), self.a.shape[1], a.shape[1])[0]
         coef = np.linalg.solve(a.T @ a / inflation + np.diag(1.0 / d), a.T @ e / inflation)
         return bend @ coef[self.a.shape[1]:]
 
     def case_log_marginals(self, e: np.ndarray, inflation: float, tau: float) -> list[float]:
         """Each roller case's part of log N(e; 0, T·I + τ²AA') at one T and τ (the basis is block-diagonal by case,
         so the parts sum to the whole; a term's bend columns, shared by the cases, are left out)."""
-        out = []
-        for sl, u, s2 in self.cases:
-            ec = e[sl]
-            g = tau**2 * s2 / inflation
-            quad = (float(ec @ ec) - float(np.sum(g / (1 + g) * (u.T @ ec) ** 2))) / inflation
-            out.append(-0.5 * quad - 0.5 * float(np.sum(np.log1p(g))))
-        return out
+        return [float(_log_marginal(float(e[sl] @ e[sl]), (u.T @ e[sl]) ** 2, s2, tau**2, inflation))
+                for sl, u, s2 in self.cases]
 
     def log_marginal(self, e: np.ndarray, bend: np.ndarray | None = None, inflation: float = 1.0
                      ) -> tuple[float, float]:
@@ -114,26 +110,21 @@ class FormPrior:
         """``log_marginal`` at each inflation T, the products with the data formed once."""
         t = np.asarray(inflations, dtype=float)[:, None]  # one row per T, one column per τ
         tau2 = np.asarray(TAU_GRID, dtype=float) ** 2
-        ee = float(e @ e) / t
         if bend is None or bend.shape[1] == 0 or self.a is None:
-            proj2 = (self.u.T @ e) ** 2
-            g = tau2[None, :, None] * self.s2 / t[:, :, None]  # T × τ × singular value
-            v = -0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=2) / t) - 0.5 * np.sum(np.log1p(g), axis=2)
+            v = _log_marginal(float(e @ e), (self.u.T @ e) ** 2, self.s2, tau2[None, :], t)
         else:
             a = np.column_stack([self.a, bend])
             ata, ate = a.T @ a, a.T @ e
             m1, n = self.a.shape[1], a.shape[1]
             # every (T, τ) in one batched factorisation
-            d = np.empty((len(TAU_GRID), n))
-            d[:, :m1] = tau2[:, None]
-            d[:, m1:] = BEND_SIGMA**2
+            d = _joint_prior(tau2, m1, n)
             m = np.repeat(ata[None, None] / t[:, :, None, None], len(TAU_GRID), axis=1)
             m[..., np.arange(n), np.arange(n)] += 1.0 / d[None]
             chol = np.linalg.cholesky(m)
             rhs = np.broadcast_to((ate[None, None, :] / t[:, :, None])[..., None], (*m.shape[:3], 1))
             z = np.linalg.solve(chol, rhs)[..., 0]
             logdet = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=2, axis2=3)), axis=2) + np.sum(np.log(d), axis=1)
-            v = -0.5 * (ee - np.sum(z**2, axis=2)) - 0.5 * logdet
+            v = -0.5 * (float(e @ e) / t - np.sum(z**2, axis=2)) - 0.5 * logdet
         top = np.max(v, axis=1)
         mean = top + np.log(np.mean(np.exp(v - top[:, None]), axis=1))  # log of the mean over τ, without overflow
         return [(float(x), float(TAU_GRID[int(i)])) for x, i in zip(mean, np.argmax(v, axis=1), strict=True)]
@@ -148,3 +139,22 @@ class FormPrior:
         """The posterior mean of the discrepancy (whitened units) at scale τ."""
         g = tau**2 * self.s2
         return self.u @ (g / (1 + g) * (self.u.T @ e))
+
+
+
+def _log_marginal(ee: float, proj2: np.ndarray, s2: np.ndarray, tau2: ArrayLike, inflation: ArrayLike
+                  ) -> np.ndarray:
+    """log N(e; 0, T·I + τ²·UΣ²U') less its constant, from e'e, (U'e)² and Σ² (one entry per singular value); τ²
+    and T may be arrays that broadcast against each other (the result has their shape)."""
+    tau2, t = np.asarray(tau2, dtype=float), np.asarray(inflation, dtype=float)
+    g = tau2[..., None] * s2 / t[..., None]
+    return -0.5 * (ee - np.sum(g / (1 + g) * proj2, axis=-1)) / t - 0.5 * np.sum(np.log1p(g), axis=-1)
+
+
+def _joint_prior(tau2: np.ndarray, m1: int, n: int) -> np.ndarray:
+    """The prior variances of the joint coefficients (the discrepancy's ``m1``, then a term's bend columns up to
+    ``n``), one row per τ²."""
+    d = np.empty((tau2.size, n))
+    d[:, :m1] = tau2[:, None]
+    d[:, m1:] = BEND_SIGMA**2
+    return d

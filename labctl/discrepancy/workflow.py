@@ -47,6 +47,7 @@ READ_PROBABILITIES = ("the probabilities are the method's own: on worlds written
                       "candidates apart")
 """What every verdict that states an effect says about its probabilities, and what to do before acting on them."""
 
+
 @dataclass(frozen=True)
 class DiscrepancyResult:
     """Everything the workflow found: the fits before and after, the steps, the noise and the regions."""
