@@ -68,18 +68,6 @@ BASIS: dict[str, Feature] = {
 steel), Ra0 = 0.2 µm (composite Ra of roller and rail), H the softer body's hardness."""
 
 
-LIBRARY_QUANTITY: dict[str, str] = {
-    "Ra/Ra0": "roughness", "(Ra/Ra0)·(p/p0)^-1": "roughness",
-    "p_max/H": "hardness", "(p_max/H)^2": "hardness",
-    "ln(L/L0)": "roller length", "(L/L0)^-1": "roller length", "(L/L0)^-1·(p/p0)^-0.5": "roller length",
-    "(L/L0)^-1·ln(p/p0)": "roller length", "ln(E*/E0)": "modulus",
-}
-"""Features that carry a quantity a library term is named for (roughness: surface_roughness; hardness:
-material_hardness; roller length: end_effects and misalignment; modulus: modulus_scale). An effect that depends
-on one of these is that term in a form the library lacks, so the stand-in for an effect *outside* the library goes
-without them."""
-
-
 def features(data: Dataset, names: list[str] | None = None) -> tuple[list[str], np.ndarray]:
     """The basis evaluated at every point; features constant over the data (no information) are dropped."""
     if names is not None:

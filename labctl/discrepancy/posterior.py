@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
-from labctl.discrepancy.empirical import LIBRARY_QUANTITY, MAX_FEATURES, features
+from labctl.discrepancy.empirical import MAX_FEATURES, features
 from labctl.discrepancy.form import FormPrior, contribution
 from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
@@ -277,8 +277,6 @@ class Evidence:
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
         """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
         names, x = features(self.data)
-        keep = [i for i, n in enumerate(names) if n not in LIBRARY_QUANTITY]
-        names, x = [names[i] for i in keep], x[:, keep]
         if len(self.data.roller_keys()) < 3:  # a per-geometry feature cannot be told from the seating offsets
             keep = [i for i, n in enumerate(names) if np.unique(x[:, i]).size > len(self.data.cases)]
             names, x = [names[i] for i in keep], x[:, keep]
