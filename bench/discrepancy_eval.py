@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points, truth_name, visible_size
+from discrepancy_features import features_by_truth
 from discrepancy_scores import (
     calibrate,
     detail,
@@ -198,7 +199,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "not_instrument": [c.explanation.name for c in result.scored if c.failed_instrument],
             "n_points": result.data.n_points,
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
-                            "form_chi2": c.form_chi2, "n_params": c.n_params,
+                            "form_chi2": c.form_chi2, "n_params": c.n_params, "features": c.extra.get("features"),
                             "case_log_lik_by_temperature": c.to_dict()["case_log_lik_by_temperature"],
                             "log_evidence_by_temperature": {f"{t:g}": v for t, v in c.log_evidence_by_t.items()},
                             "log_fit_by_temperature": {f"{t:g}": v for t, v in c.log_fit_by_t.items()}}
@@ -332,6 +333,8 @@ def main() -> None:
         parts.append("Reliability of the top explanation's stated probability\n\n" + table +
                      f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
         parts.append("The same, by the kind of top explanation\n\n" + reliability_by_kind(blind))
+        parts.append("What the unlisted stand-in's features carry, by the truth (a library term's quantity or not)\n\n"
+                     + features_by_truth(blind))
         if calibrating:
             table, best, cautious = calibrate(blind, TEMPERATURES)
             parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}; the largest T "
