@@ -46,6 +46,11 @@ READ_PROBABILITIES = ("the probabilities are the method's own: on worlds written
                       "`labctl plan` on the same files recommends the measurements that would best tell the "
                       "candidates apart")
 """What every verdict that states an effect says about its probabilities, and what to do before acting on them."""
+PAIR_MAY_BE_ONE = ("a pair can be one effect whose law the library lacks, its second term mending the first one's "
+                   "form: on worlds written blind to the method with repetitions scattering under about 1 %, single "
+                   "effects were named as pairs (docs/discrepancy.md, Limits); read it as one effect until the "
+                   "measurements `labctl plan` recommends separate the two terms")
+"""What a verdict that states two terms adds."""
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,8 @@ class DiscrepancyResult:
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
         if self.verdict != "consistent":
             parts.append(READ_PROBABILITIES)
+            if top is not None and top.explanation.kind == "pair" and top.probability >= LIKELY_AT:
+                parts.append(PAIR_MAY_BE_ONE)
         if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons + self.absorbed))
