@@ -329,6 +329,7 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         lib = [r for r in lib if not r["outside_library"]]
         big = [r for r in lib if r["truth_effects"] and r["size_sigma"] >= 3.0]
         top1 = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in big)
+        ranked = [r for r in lib if r["size_sigma"] >= 3.0]
         vis = [r for r in lib if r["truth_effects"] and r.get("visible_sigma", 0.0) >= 3.0]
         top1_vis = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] for r in vis)
         likely = sum(bool(r["named"]) and r["named"][0] in r["truth_effects"] or
@@ -340,11 +341,14 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         outside = [r for r in rs if r["outside_library"]]
         out_named = sum(bool(r["named"] or r["measurement"]) for r in outside)
         seconds = [r["cpu_seconds"] for r in rs]
-        rows.append([f"{scale:g}×", _frac(top1, len(big)), _frac(top1_vis, len(vis)), _frac(likely, len(vis)),
+        rows.append([f"{scale:g}×", _frac(top1, len(big)),
+                     _frac(sum(r["top"] == r["truth_name"] for r in ranked), len(ranked)),
+                     _frac(top1_vis, len(vis)), _frac(likely, len(vis)),
                      _frac(wrong, len(lib)), _frac(fp, len(nulls)),
                      _frac(out_named, len(outside)), _frac(sum(r["top"] == r["truth_name"] for r in rs), len(rs)),
                      f"{np.mean(seconds):.2f} / {np.max(seconds):.2f} s"])
-    header = ["noise", "top-1 named (size ≥ 3σ)", "top-1 named (visible ≥ 3σ)", "named or likely (visible ≥ 3σ)",
+    header = ["noise", "top-1 named (size ≥ 3σ)", "top = truth (size ≥ 3σ)", "top-1 named (visible ≥ 3σ)",
+              "named or likely (visible ≥ 3σ)",
               "wrong names (phys. or meas.)", "any name on null",
               "outside library named", "top explanation = truth (all)", "CPU mean / max"]
     out = [_table(rows, header)]
