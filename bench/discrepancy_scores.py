@@ -294,6 +294,16 @@ def _small(r: dict[str, Any]) -> bool:
     return r["size_sigma"] < 3.0 or min((r.get("size_sigma_by_effect") or {}).values(), default=3.0) < 3.0
 
 
+def seen_truth(r: dict[str, Any]) -> str:
+    """The truth's terms of size ≥ 3σ (``size_sigma_by_effect``), named as the workflow names an explanation; the
+    whole truth where no term is stored or none reaches 3σ. The acceptance asks the top-1 "for effects ≥ 3σ": a
+    term under it (a roughness of 1σ beside a tilt of 80σ) is one no method need name."""
+    by = r.get("size_sigma_by_effect") or {}
+    terms = [*r["truth_effects"], *r["truth_measurement"]]
+    seen = [t for t in terms if by.get(t, 0.0) >= 3.0]
+    return " + ".join(seen) if seen and not r["outside_library"] else r["truth_name"]
+
+
 def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float, float]:
     """Each T's score; the temperature minimising the mean log loss of the true explanation's probability; and the
     largest T whose log loss is within one standard error of that lowest (of the per-dataset difference: the
@@ -343,11 +353,12 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
         seconds = [r["cpu_seconds"] for r in rs]
         rows.append([f"{scale:g}×", _frac(top1, len(big)),
                      _frac(sum(r["top"] == r["truth_name"] for r in ranked), len(ranked)),
+                     _frac(sum(r["top"] in (r["truth_name"], seen_truth(r)) for r in ranked), len(ranked)),
                      _frac(top1_vis, len(vis)), _frac(likely, len(vis)),
                      _frac(wrong, len(lib)), _frac(fp, len(nulls)),
                      _frac(out_named, len(outside)), _frac(sum(r["top"] == r["truth_name"] for r in rs), len(rs)),
                      f"{np.mean(seconds):.2f} / {np.max(seconds):.2f} s"])
-    header = ["noise", "top-1 named (size ≥ 3σ)", "top = truth (size ≥ 3σ)", "top-1 named (visible ≥ 3σ)",
+    header = ["noise", "top-1 named (size ≥ 3σ)", "top = truth (size ≥ 3σ)", "top = its terms ≥ 3σ", "top-1 named (visible ≥ 3σ)",
               "named or likely (visible ≥ 3σ)",
               "wrong names (phys. or meas.)", "any name on null",
               "outside library named", "top explanation = truth (all)", "CPU mean / max"]
