@@ -39,20 +39,17 @@ FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
     "material_hardness": {"roughness_exponent": (0.0, 1.0)},
     "end_effects": {"half_width_share": (-3.0, 3.0)},
     "surface_roughness": {"load_exponent": (0.25, 1.0)},
-    "setup_compliance": {"load_exponent": (0.0, 1.0)},
 }
 """Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
 rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
 spread over about a decade of load); how the yield term follows the surface roughness
 (``MaterialHardness.roughness_exponent``; 1 is asperity conformity, 0 a bulk yield blind to the surface); the
-share of the contact half-width the ends add (``EndEffects.half_width_share``; 0 is a fixed edge length); how
-fast the asperities stiffen with load (``SurfaceRoughness.load_exponent``; 1 is the exponential height tail); and how
-the rig's joints stiffen with load (``SetupCompliance.load_exponent``; 0 is a rig of constant stiffness)."""
+share of the contact half-width the ends add (``EndEffects.half_width_share``; 0 is a fixed edge length); and how
+fast the asperities stiffen with load (``SurfaceRoughness.load_exponent``; 1 is the exponential height tail)."""
 SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3},
                                              "material_hardness": {"roughness_exponent": 0.0},
                                              "end_effects": {"half_width_share": 1.0},
-                                             "surface_roughness": {"load_exponent": 0.5},
-                                             "setup_compliance": {"load_exponent": 0.5}}
+                                             "surface_roughness": {"load_exponent": 0.5}}
 """Where a freed shape parameter is fitted from: the other end of the doubt from the law's own form."""
 
 

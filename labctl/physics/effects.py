@@ -22,9 +22,6 @@ from labctl.physics.tripp import TrippContact
 REFERENCE_RA_M = 0.2e-6
 ROUGHNESS_REFERENCE_N_PER_M = 1e5
 """Load per length (100 N/mm) at which the roughness term's asperity scale is stated when its exponent is not 1."""
-SETUP_REFERENCE_N = 300.0
-"""Load per roller at which the rig's stiffness factor is stated when its compliance depends on load (about the
-middle of a campaign's loads per roller)."""
 
 
 @dataclass(frozen=True)
@@ -211,17 +208,10 @@ class SetupCompliance(BoundedParams):
     """The rig's true K_setup differs from the nominal value the processing assumes (e.g. stress stiffening).
 
     The reported roller stiffness is then 1/(1/k + 3/(factor·K) - 3/K) (Eq. 4): the error grows with k.
-
-    The difference is a compliance in the load path, c = (1/factor − 1)/K. A joint is itself a contact and its
-    compliance falls with load: ``load_exponent`` q makes it c·(F/F_ref)^−q, F the load per roller and F_ref =
-    ``SETUP_REFERENCE_N`` (q = 0 a constant compliance; a ball seat, Hertzian, q = ⅓; a rough flat or bolted joint
-    up to q ≈ 1). q is not a world parameter (not in ``BOUNDS``); the discrepancy fit frees it, so a joint that
-    closes with load is not taken for a roller effect.
     """
 
     stiffness_factor: float = 1.25
     nominal_setup_n_per_m: float = 1.45e9
-    load_exponent: float = 0.0
     name: ClassVar[str] = "setup_compliance"
     RIG_LEVEL: ClassVar[bool] = True
     """A property of the rig, not of the roller: one stiffness factor for every roller measured on it at a given
@@ -229,12 +219,9 @@ class SetupCompliance(BoundedParams):
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"stiffness_factor": (0.3, 5.0)}
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
-        nominal = self.nominal_setup_n_per_m
-        if not self.load_exponent:
-            return apparent_roller_stiffness(stiffness_n_per_m, self.stiffness_factor * nominal, nominal)
-        joint = (1.0 / self.stiffness_factor - 1.0) / nominal * (np.asarray(load_n, dtype=float) / SETUP_REFERENCE_N
-                                                                 ) ** -self.load_exponent
-        return apparent_roller_stiffness(stiffness_n_per_m, 1.0 / (1.0 / nominal + joint), nominal)
+        return apparent_roller_stiffness(
+            stiffness_n_per_m, self.stiffness_factor * self.nominal_setup_n_per_m, self.nominal_setup_n_per_m
+        )
 
 
 EFFECTS: dict[str, type] = {

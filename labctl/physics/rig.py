@@ -37,11 +37,11 @@ def roller_stiffness_from_path(path_stiffness_n_per_m: ArrayLike, setup_stiffnes
 
 
 def apparent_roller_stiffness(
-    roller_stiffness_n_per_m: ArrayLike, true_setup_n_per_m: ArrayLike, assumed_setup_n_per_m: float
+    roller_stiffness_n_per_m: ArrayLike, true_setup_n_per_m: float, assumed_setup_n_per_m: float
 ) -> np.ndarray:
     """The roller stiffness Eq. 4 reports when it assumes one K_setup and the rig really has another."""
     k = np.asarray(roller_stiffness_n_per_m, dtype=float)
-    return 1.0 / (1.0 / k + 3.0 / np.asarray(true_setup_n_per_m, dtype=float) - 3.0 / assumed_setup_n_per_m)
+    return 1.0 / (1.0 / k + 3.0 / true_setup_n_per_m - 3.0 / assumed_setup_n_per_m)
 
 
 @dataclass(frozen=True)
