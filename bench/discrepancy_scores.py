@@ -234,16 +234,17 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
     ``CALIBRATED_DRAWS`` draws), and below the table how often it would pass the criterion on these datasets: with a
     few dozen cases in a bin, "within 0.05" can fail by chance alone."""
     rows, ok = [], True
-    stated = []
+    stated, seen = [], []
     for r in results:
         top = tempered(r, temperature)[0] if temperature else (r["top"], r["top_probability"])
         stated.append((top[1], top[0] == r["truth_name"]))
+        seen.append(top[0] in (r["truth_name"], seen_truth(r)))
     p_all, right = np.array([p for p, _ in stated]), np.array([k for _, k in stated])
     right_draws = np.random.default_rng(0).random((CALIBRATED_DRAWS, p_all.size)) < p_all  # a calibrated forecaster
     passes = np.ones(CALIBRATED_DRAWS, dtype=bool)
     for lo, hi, inside in binned(stated):
         if not inside.any():
-            rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", "0", "-", "-", "-", "", "-"])
+            rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", "0", "-", "-", "-", "-", "", "-"])
             continue
         n, k = int(inside.sum()), int(right[inside].sum())
         mean_p = float(p_all[inside].mean())
@@ -254,11 +255,12 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
         if n >= 30:
             passes &= drawn_gap <= 0.05
         chance = float(np.mean(drawn_gap >= abs(mean_p - k / n) - 1e-12))
+        k_seen = int(np.sum(np.array(seen)[inside]))
         rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", str(n), f"{mean_p:.3f}", f"{k / n:.3f} ({k}/{n})",
-                     f"{a:.3f}-{b:.3f}", ("within 0.05" if holds else "OFF by > 0.05") if n >= 30 else "n < 30",
-                     f"{chance:.3f}"])
-    header = ["stated probability", "n", "mean stated", "share right", "Wilson 95 %", "≥ 30 cases: stated vs right",
-              "calibrated: chance of a gap this large"]
+                     f"{a:.3f}-{b:.3f}", f"{k_seen / n:.3f} ({k_seen}/{n})",
+                     ("within 0.05" if holds else "OFF by > 0.05") if n >= 30 else "n < 30", f"{chance:.3f}"])
+    header = ["stated probability", "n", "mean stated", "share right", "Wilson 95 %",
+              "right, its terms ≥ 3σ", "≥ 30 cases: stated vs right", "calibrated: chance of a gap this large"]
     footer = (f"a forecaster whose stated probabilities are exactly right would pass (every bin with ≥ 30 cases "
               f"within 0.05) on these {len(stated)} datasets with probability {np.mean(passes):.2f}")
     return _table(rows, header) + "\n\n" + footer, ok
@@ -358,8 +360,8 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
                      _frac(wrong, len(lib)), _frac(fp, len(nulls)),
                      _frac(out_named, len(outside)), _frac(sum(r["top"] == r["truth_name"] for r in rs), len(rs)),
                      f"{np.mean(seconds):.2f} / {np.max(seconds):.2f} s"])
-    header = ["noise", "top-1 named (size ≥ 3σ)", "top = truth (size ≥ 3σ)", "top = its terms ≥ 3σ", "top-1 named (visible ≥ 3σ)",
-              "named or likely (visible ≥ 3σ)",
+    header = ["noise", "top-1 named (size ≥ 3σ)", "top = truth (size ≥ 3σ)", "top = its terms ≥ 3σ",
+              "top-1 named (visible ≥ 3σ)", "named or likely (visible ≥ 3σ)",
               "wrong names (phys. or meas.)", "any name on null",
               "outside library named", "top explanation = truth (all)", "CPU mean / max"]
     out = [_table(rows, header)]
