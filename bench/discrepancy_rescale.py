@@ -14,8 +14,11 @@ inflation T of the grid) and decides every dataset again under each rule, withou
   flexible explanation still leaves, taken as the dispersion every comparison is scaled by);
 - ``λ``: a confidence scale — the log posterior of that question divided by λ (order-preserving: the ranking within
   it is unchanged, its probabilities spread);
-- ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``) or ``equal-single`` (every single-term explanation,
-  physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members);
+- ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``), ``equal-single`` (every single-term explanation,
+  physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members) or
+  ``unlisted=X`` (the unlisted class's mass X instead of its 0.10, the other classes as they are);
+- ``ε``: the probabilities mixed with the prior afterwards, (1 − ε)·p + ε·prior (the prior renormalised over the
+  candidates not ruled out): a recalibration map that keeps the ranking and pulls every probability toward it;
 - ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
   three cases or more: ``labctl.discrepancy.questions``) or ``pooled`` (the evidence alone, as before).
 
@@ -70,6 +73,9 @@ def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
     stored = np.array([x["log_prior"] for x in r["candidates"]])
     if prior == "classes":
         return stored
+    if prior.startswith("unlisted="):
+        shift = math.log(float(prior.split("=")[1]) / PRIOR_MASS["unlisted"])
+        return stored + np.array([shift if x["explanation"] == "unlisted" else 0.0 for x in r["candidates"]])
     single = ("physical", "measurement")
     kinds = [_KIND[x["explanation"]] for x in r["candidates"]]
     share = sum(PRIOR_MASS[k] for k in single) / sum(k in single for k in kinds)
@@ -84,16 +90,22 @@ def c_hat_temperature(r: dict[str, Any]) -> float:
     return min(TEMPERATURES, key=lambda t: abs(math.log(t / c_hat)))
 
 
-def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled"
-         ) -> Rule:
+def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled",
+         mix: float = 0.0) -> Rule:
     """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule; ``t``:
-    a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``)."""
+    a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``); ``mix``: ε of the map toward the prior."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
         temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
-        return tempered(r, temperature, log_priors(r, prior), evidence, lam, resample=cases == "resampled")
+        probs = tempered(r, temperature, log_priors(r, prior), evidence, lam, resample=cases == "resampled")
+        if not mix:
+            return probs
+        stored = {x["explanation"]: x["log_prior"] for x in r["candidates"]}
+        weight = np.exp([stored[n] for n, _ in probs])
+        mixed = [(n, (1.0 - mix) * p + mix * w) for (n, p), w in zip(probs, weight / weight.sum(), strict=True)]
+        return sorted(mixed, key=lambda np_: -np_[1])
     return decide
 
 
@@ -136,22 +148,25 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled")
-    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (2.0, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
-              "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
-              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled"),
-              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled")]
-    print("| occam | scope | T | λ | prior | cases | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
+    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled", 0.0)
+    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "resampled", 0.0) for t in (2.0, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled", 0.0) for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled", 0.0),
+              ("bic", "all", TEMPERATURE, 1.0, "classes", "pooled", 0.0),
+              ("bic", "all", 2.0, 1.0, "classes", "pooled", 0.0),
+              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled", 0.0),
+              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled", 0.0)]
+    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"unlisted={m:g}", "resampled", 0.0) for m in (0.05, 0.025)]
+    rules += [("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled", eps) for eps in (0.1, 0.2)]
+    print("| occam | scope | T | λ | prior | cases | ε | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
           "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occam, scope, t, lam, prior, cases in rules:
-        decide = rule(occam, scope, t, lam, prior, cases)
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for occam, scope, t, lam, prior, cases, mix in rules:
+        decide = rule(occam, scope, t, lam, prior, cases, mix)
         shown = t if isinstance(t, str) else f"{t:g}"
         for path, results in runs:
-            print(f"| {occam} | {scope} | {shown} | {lam:g} | {prior} | {cases} | {path.rsplit('/', 1)[-1]} | "
-                  f"{score(results, decide)} |")
+            print(f"| {occam} | {scope} | {shown} | {lam:g} | {prior} | {cases} | {mix:g} | "
+                  f"{path.rsplit('/', 1)[-1]} | {score(results, decide)} |")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
     print(reliability(pooled)[0])
