@@ -43,6 +43,9 @@ from scipy.stats import multivariate_t, qmc  # noqa: E402
 
 from labctl.physics import EFFECTS  # noqa: E402  (the effects' order only, to label truths as the bench does)
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from oracle_report import report, validate  # noqa: E402
+
 BLIND = Path(__file__).resolve().parent / "blind"
 sys.path.insert(0, str(BLIND))
 from blind_contact import RollerSpec, load_materials, load_rollers  # noqa: E402
@@ -347,39 +350,6 @@ def run_world(task: tuple[str, int, float, bool]) -> dict[str, Any]:
             "size": float(ds.truth["size_sigma"]), "post": post, "seconds": time.perf_counter() - t0}
 
 
-def report(results: list[dict[str, Any]], scales: list[float]) -> None:
-    """Top-1 accuracy per noise scale: library truths ≥ 3σ, all worlds, per scenario; the misses (confusions)."""
-    for scale in scales:
-        rs = [r for r in results if r["scale"] == scale]
-        lib = [r for r in rs if r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0]
-        n_lib, n_all = sum(r["top"] == r["truth"] for r in lib), sum(r["top"] == r["truth"] for r in rs)
-        n_seen = sum(r["top"] in (r["truth"], r["seen"]) for r in lib)  # a term under 3σ need not be named
-        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {n_lib / max(len(lib), 1):.2f};"
-              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {n_seen / max(len(lib), 1):.2f};"
-              f"  all worlds {n_all}/{len(rs)} = {n_all / max(len(rs), 1):.2f}"
-              f"  ({np.median([r['seconds'] for r in rs]):.1f} s per world, median)")
-        cells = [f"{sc} {sum(r['top'] == r['truth'] for r in rs if r['scenario'] == sc)}/"
-                 f"{sum(r['scenario'] == sc for r in rs)}" for sc in W.SCENARIOS]
-        print("\n".join("  " + ", ".join(cells[i:i + 4]) for i in range(0, len(cells), 4)))
-        for r in (r for r in rs if r["top"] != r["truth"]):
-            odds, rank = r["post"][r["top"]] - r["post"][r["truth"]], list(r["post"]).index(r["truth"]) + 1
-            print(f"  miss {r['scenario']}/{r['seed']} ({r['size']:.1f} sigma): {r['truth']} -> {r['top']}  "
-                  f"(truth rank {rank}, ln odds {odds:.1f})")
-
-
-def validate(std: list[dict[str, Any]], fine: list[dict[str, Any]]) -> None:
-    """How much the class ranking moves when the integral is done finer."""
-    print("validation (standard vs finer: 3x screen, 4 starts, 300-draw importance sample), ln P normalised:")
-    for a, b in zip(std, fine, strict=True):
-        na, nb, top5 = logsumexp(list(a["post"].values())), logsumexp(list(b["post"].values())), list(a["post"])[:5]
-        print(f"  {a['scenario']}/{a['seed']} (truth {a['truth']}): top {a['top']} -> {b['top']}; truth rank "
-              f"{list(a['post']).index(a['truth']) + 1} -> {list(b['post']).index(b['truth']) + 1}, ln P "
-              f"{a['post'][a['truth']] - na:.2f} -> {b['post'][b['truth']] - nb:.2f}; standard top 5 at fine ranks "
-              f"{[list(b['post']).index(k) + 1 for k in top5]}, max |d ln P| "
-              f"{max(abs(a['post'][k] - na - b['post'][k] + nb) for k in top5):.2f}")
-    print(f"  top-1 unchanged in {sum(a['top'] == b['top'] for a, b in zip(std, fine, strict=True))}/{len(std)} worlds")
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the oracle over the generator's scenarios x seeds x noise scales and print its accuracy."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -394,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     checks = [(sc, 0, 1.0, fine) for fine in (False, True) for sc in picks]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run_world, tasks + checks, chunksize=1))
-    report(results[:len(tasks)], scales if tasks else [])
+    report(results[:len(tasks)], scales if tasks else [], W.SCENARIOS)
     if checks:
         validate(results[len(tasks):len(tasks) + len(checks) // 2], results[len(tasks) + len(checks) // 2:])
     print(f"{len(tasks) + len(checks)} worlds on {args.workers} workers in {time.perf_counter() - t0:.0f} s")
