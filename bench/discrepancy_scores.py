@@ -303,7 +303,8 @@ def seen_truth(r: dict[str, Any]) -> str:
     by = r.get("size_sigma_by_effect") or {}
     terms = [*r["truth_effects"], *r["truth_measurement"]]
     seen = [t for t in terms if by.get(t, 0.0) >= 3.0]
-    return " + ".join(seen) if seen and not r["outside_library"] else r["truth_name"]
+    one_of_two = len(seen) == 1 and len(terms) == 2 and not r["outside_library"]
+    return seen[0] if one_of_two else r["truth_name"]
 
 
 def calibrate(results: list[dict[str, Any]], grid: tuple[float, ...]) -> tuple[str, float, float]:
