@@ -297,8 +297,8 @@ def _small(r: dict[str, Any]) -> bool:
 
 
 def seen_truth(r: dict[str, Any]) -> str:
-    """The truth's terms of size ≥ 3σ (``size_sigma_by_effect``), named as the workflow names an explanation; the
-    whole truth where no term is stored or none reaches 3σ. The acceptance asks the top-1 "for effects ≥ 3σ": a
+    """The truth's terms of size ≥ 3σ (``size_sigma_by_effect``): the one term of a pair that reaches 3σ alone,
+    else the whole truth (``truth_name``). The acceptance asks the top-1 "for effects ≥ 3σ": a
     term under it (a roughness of 1σ beside a tilt of 80σ) is one no method need name."""
     by = r.get("size_sigma_by_effect") or {}
     terms = [*r["truth_effects"], *r["truth_measurement"]]
