@@ -24,7 +24,7 @@ TAU_GRID = np.geomspace(3e-4, 0.3, 16)
 """σ of the form discrepancy's coefficients (in ln k): log-uniform prior over these values."""
 FORM_DEGREE = 2
 """Legendre degree of each roller case's smooth discrepancy (0: a level, 1: a slope, 2: a bend with ln p)."""
-BEND_SIGMA = 1.0
+BEND_SIGMA = 0.5
 """Prior σ of each term's bend coefficients: its contribution d_t becomes d_t·(1 + b₁·u + b₂·u²), u = ln(p/p̄)
 over all roller cases (the same law for every roller: an approximate form that still generalises)."""
 
