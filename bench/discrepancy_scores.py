@@ -4,6 +4,7 @@ positives, honest verdicts and gap shrink per suite, as Markdown tables; per-dat
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
@@ -375,10 +376,13 @@ def summarize_blind(results: list[dict[str, Any]]) -> str:
             key = " + ".join(r["named"] + r["measurement"]) or "-"
             named[key] = named.get(key, 0) + 1
         common = ", ".join(f"{k} {v}" for k, v in sorted(named.items(), key=lambda t: -t[1])[:3])
+        tops = Counter(r["top"] for r in rs if r["size_sigma"] >= 3.0 or r["truth_name"] == "none")
+        top_common = ", ".join(f"{k} {v}" for k, v in tops.most_common(3)) or "-"
         scen.append([s, str(len(rs)), rs[0]["truth_name"] if len({r["truth_name"] for r in rs}) == 1 else "mixed",
-                     " / ".join(str(verdicts[v]) for v in verdicts), common,
+                     " / ".join(str(verdicts[v]) for v in verdicts), common, top_common,
                      f"{np.median([r['size_sigma'] for r in rs]):.1f} / "
                      f"{np.median([r.get('visible_sigma', np.nan) for r in rs]):.1f}"])
     out.append(_table(scen, ["scenario", "n", "truth", "consistent / named / likely / unexplained",
-                             "named (most common)", "median size / visible [σ]"]))
+                             "named (most common)", "most probable, size ≥ 3σ (most common)",
+                             "median size / visible [σ]"]))
     return "\n\n".join(out)

@@ -92,6 +92,25 @@ def test_asperities_that_stiffen_more_slowly_are_the_roughness_term_not_an_effec
     assert top.fit.spec.decode(top.fit.x)["surface_roughness"]["load_exponent"] == pytest.approx(0.5, abs=0.1)
 
 
+def rough_joint(case: ContactCase, f: np.ndarray) -> np.ndarray:
+    """Tripp in series with a rough flat joint in the rig's load path: its compliance 3·10⁻¹⁰ m/N at 100 N per
+    roller falls as 1/F, the same for every roller (an exponential asperity tail, in the rig, not the contact)."""
+    return 1.0 / (1.0 / ContactLaw("tripp", 2e-3).stiffness_n_per_m(case, f) + 3e-10 * 100.0 / f)
+
+
+def test_one_rail_roughness_says_roughness_cannot_be_told_from_a_rig_joint():
+    # On one rail every contact has the same composite Ra, and an asperity layer's compliance ∝ Ra/F is then the
+    # same for every roller, as a joint's in the rig's load path: the world is ranked surface_roughness, and the
+    # verdict must say the design cannot tell the two apart (before: only that Ra-dependence was not tested).
+    one = run_discrepancy(synthesize(rough_joint, noise=NoiseModel(0.02, 0.02 / 3), seed=3))
+    assert one.scored[0].explanation.name == "surface_roughness"
+    assert "a joint in the rig's load path" in one.verdict_text()
+    noise = NoiseModel(0.02, 0.02 / 3)
+    two = run_discrepancy(synthesize(rough_joint, types=(1, 3, 5), rail_ra_m=0.03e-6, noise=noise, seed=4)
+                          + synthesize(rough_joint, types=(2, 4, 6, 7), noise=noise, seed=5))
+    assert "a joint in the rig's load path" not in two.verdict_text()
+
+
 def test_three_percent_outliers_leave_the_verdict_unchanged():
     # 7 of 231 points off by a factor e^±(0.2-0.5): all are set aside and reported, and setting them aside must
     # not let two measurement-side terms absorb what the imperfect setup term leaves. Before an end point was judged

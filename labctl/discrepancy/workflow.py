@@ -302,7 +302,9 @@ def unidentifiable_reasons(data: Dataset) -> list[str]:
                    "cannot be told from load-only ones")
     if len({round(c.case.rail_ra_m * 1e9) for c in data.cases}) < 2:
         out.append("one rail roughness: a term's dependence on Ra (surface_roughness, material_hardness) is not "
-                   "tested")
+                   "tested, and surface_roughness (an asperity compliance ∝ Ra/F in every contact, the same for every "
+                   "roller on one rail) cannot be told from a joint in the rig's load path whose compliance falls "
+                   "with load")
     steps = min(np.unique(np.round(np.log(c.load_n), 2)).size for c in data.cases)
     if steps < 5:
         out.append(f"{steps} load steps per roller: load laws cannot be told apart")
