@@ -111,6 +111,22 @@ def test_one_rail_roughness_says_roughness_cannot_be_told_from_a_rig_joint():
     assert "a joint in the rig's load path" not in two.verdict_text()
 
 
+def test_a_likely_or_named_term_says_what_else_acts_like_it():
+    # On the blind judges a compliant interlayer under the rails is most probably setup_compliance and a porous
+    # layer on them surface_roughness (docs/discrepancy.md): a verdict that finds either term likely says so.
+    from labctl.physics import Misalignment, SetupCompliance
+    from tests.discrepancy_util import GENERATOR_NOISE, world
+
+    rough = run_discrepancy(synthesize(rough_joint, noise=NoiseModel(0.02, 0.02 / 3), seed=3))
+    assert rough.scored[0].explanation.name == "surface_roughness" and rough.verdict == "likely"
+    assert "surface_roughness may also be any other compliant layer on the surfaces" in rough.verdict_text()
+    rig = run_discrepancy(synthesize(world(SetupCompliance(stiffness_factor=0.7)), noise=GENERATOR_NOISE, seed=49))
+    assert rig.scored[0].explanation.name == "setup_compliance" and rig.scored[0].probability >= 0.5
+    assert "setup_compliance may also be a compliant layer under the rails" in rig.verdict_text()
+    tilt = run_discrepancy(synthesize(world(Misalignment(tilt_rad=6e-4)), noise=GENERATOR_NOISE, seed=2))
+    assert tilt.scored[0].explanation.name == "misalignment" and "may also be" not in tilt.verdict_text()
+
+
 def test_three_percent_outliers_leave_the_verdict_unchanged():
     # 7 of 231 points off by a factor e^±(0.2-0.5): all are set aside and reported, and setting them aside must
     # not let two measurement-side terms absorb what the imperfect setup term leaves. Before an end point was judged

@@ -113,6 +113,9 @@ class SurfaceRoughness(BoundedParams):
     load_exponent: float = 1.0
     name: ClassVar[str] = "surface_roughness"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"asperity_scale": (0.0, 20.0)}
+    LOOK_ALIKE: ClassVar[str] = ("any other compliant layer on the surfaces that closes with load (an oxide, a porous "
+                                 "or lubricant film)")
+    """What else in the contact gives the same signature: a verdict that names the term, or finds it likely, says so."""
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
         compliance = 2.0 * self.asperity_scale * case.combined_ra_m / load_n
@@ -213,6 +216,9 @@ class SetupCompliance(BoundedParams):
     stiffness_factor: float = 1.25
     nominal_setup_n_per_m: float = 1.45e9
     name: ClassVar[str] = "setup_compliance"
+    LOOK_ALIKE: ClassVar[str] = ("a compliant layer under the rails (a shim, a bonded or painted base), which spreads "
+                                 "each roller's load over its length plus the layer's depth, so every roller loads it "
+                                 "nearly alike")
     RIG_LEVEL: ClassVar[bool] = True
     """A property of the rig, not of the roller: one stiffness factor for every roller measured on it at a given
     load (a joint in the load path may stiffen with load, so rollers are compared at the loads they share)."""
