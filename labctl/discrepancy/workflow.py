@@ -163,8 +163,10 @@ class DiscrepancyResult:
             parts.append(READ_PROBABILITIES)
             if top is not None and top.explanation.kind == "pair" and top.probability >= LIKELY_AT:
                 parts.append(PAIR_MAY_BE_ONE)
-            alike = [(t, getattr(EFFECTS[t], "LOOK_ALIKE", "")) for t in (top.explanation.physical if top else ())]
-            parts += [f"{t} may also be {what}" for t, what in alike if what and top.probability >= LIKELY_AT]
+            if top is not None and top.probability >= LIKELY_AT:
+                kinds = {**EFFECTS, **MEASUREMENT}
+                parts += [f"{t} may also be {kinds[t].LOOK_ALIKE}" for t in top.explanation.terms
+                          if getattr(kinds[t], "LOOK_ALIKE", "")]
         if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons + self.absorbed))
