@@ -125,6 +125,10 @@ def test_a_likely_or_named_term_says_what_else_acts_like_it():
     assert "setup_compliance may also be a compliant layer under the rails" in rig.verdict_text()
     tilt = run_discrepancy(synthesize(world(Misalignment(tilt_rad=6e-4)), noise=GENERATOR_NOISE, seed=2))
     assert tilt.scored[0].explanation.name == "misalignment" and "may also be" not in tilt.verdict_text()
+    # a load cell reading 15 N too much: likely load_offset (0.73), and a hard layer on the rails looks alike
+    offset = run_discrepancy(synthesize(lambda case, f: world()(case, f - 15.0), noise=GENERATOR_NOISE, seed=43))
+    assert offset.scored[0].explanation.name == "load_offset" and offset.scored[0].probability >= 0.5
+    assert "load_offset may also be a hard coating" in offset.verdict_text()
 
 
 def test_three_percent_outliers_leave_the_verdict_unchanged():

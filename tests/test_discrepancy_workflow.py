@@ -270,8 +270,6 @@ def test_a_load_cell_offset_is_a_measurement_effect_never_physics(rough):
     assert [e["name"] for e in doc["effects"]] in ([], ["surface_roughness"] if rough else [])
     assert "load_offset" in result.scored[0].explanation.name
     assert [e["name"] for e in doc["measurement_effects"]] in ([], ["load_offset"])
-    # likely (0.73) or named (1.00 with roughness): a hard layer on the rails looks alike, and the verdict says so
-    assert result.scored[0].probability >= 0.5 and "load_offset may also be a hard coating" in result.verdict_text()
     if doc["measurement_effects"]:
         assert doc["measurement_effects"][0]["parameters"]["offset_n"] == pytest.approx(15.0, abs=5.0)
         assert doc["measurement_effects"][0]["evidence"]["kind"] == "measurement"
