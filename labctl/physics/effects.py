@@ -216,7 +216,7 @@ class SetupCompliance(BoundedParams):
     stiffness_factor: float = 1.25
     nominal_setup_n_per_m: float = 1.45e9
     name: ClassVar[str] = "setup_compliance"
-    LOOK_ALIKE: ClassVar[str] = ("a compliant layer under the rails (a shim, a bonded or painted base), which spreads "
+    LOOK_ALIKE: ClassVar[str] = ("a compliant layer under the rails (a shim or a bonded base), which spreads "
                                  "each roller's load over its length plus the layer's depth, so every roller loads it "
                                  "nearly alike")
     RIG_LEVEL: ClassVar[bool] = True
