@@ -50,7 +50,6 @@ class LoadOffset(BoundedParams):
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"offset_n": (-60.0, 60.0)}
     LOOK_ALIKE: ClassVar[str] = ("a hard coating or film on the rails whose effect fades as the contact widens past "
                                  "its thickness: read the load cell at no load before correcting its zero")
-    """What else gives the same signature (as the effects' ``LOOK_ALIKE``)."""
 
     def transform(self, case: ContactCase, load_n: FloatArray) -> tuple[ContactCase, FloatArray]:
         true = load_n - self.offset_n

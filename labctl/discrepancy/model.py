@@ -85,7 +85,8 @@ def canonical(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     return tuple(n for n in EFFECTS if n in names)
 
 
-def _terms(name: str) -> type:
+def term_class(name: str) -> type:
+    """The class of a physical effect or a measurement-side term, by name."""
     return EFFECTS[name] if name in EFFECTS else MEASUREMENT[name]
 
 
@@ -132,7 +133,7 @@ class ModelSpec:
     @cached_property
     def _slots(self) -> tuple[tuple[str, str, float, float], ...]:  # a fit decodes its vector thousands of times
         return tuple((n, k, lo, hi) for n in self.terms
-                     for k, (lo, hi) in {**_terms(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items())
+                     for k, (lo, hi) in {**term_class(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items())
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
         return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}
@@ -161,7 +162,7 @@ class ModelSpec:
 
     def encode(self, depth_m: float, values: dict[str, dict[str, float]]) -> np.ndarray:
         head = [math.log10(depth_m)] if self.fits_depth else []
-        tail = [(values[n].get(k, getattr(_terms(n), k)) - lo) / (hi - lo) for n, k, lo, hi in self.slots()]
+        tail = [(values[n].get(k, getattr(term_class(n), k)) - lo) / (hi - lo) for n, k, lo, hi in self.slots()]
         return np.array(head + tail, dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,7 @@ from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_poin
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
-from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
+from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec, term_class
 from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, Evidence, Scored
 from labctl.discrepancy.questions import TEMPERATURE, resampled_over
@@ -164,9 +164,8 @@ class DiscrepancyResult:
             if top is not None and top.explanation.kind == "pair" and top.probability >= LIKELY_AT:
                 parts.append(PAIR_MAY_BE_ONE)
             if top is not None and top.probability >= LIKELY_AT:
-                kinds = {**EFFECTS, **MEASUREMENT}
-                parts += [f"{t} may also be {kinds[t].LOOK_ALIKE}" for t in top.explanation.terms
-                          if getattr(kinds[t], "LOOK_ALIKE", "")]
+                parts += [f"{t} may also be {term_class(t).LOOK_ALIKE}" for t in top.explanation.terms
+                          if term_class(t).LOOK_ALIKE]
         if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons + self.absorbed))

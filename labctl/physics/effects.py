@@ -92,6 +92,10 @@ class Effect(Protocol):
 class BoundedParams:
     """Mixin of a model term with bounded parameters: ``parameters()`` are its ``BOUNDS`` keys with their values."""
 
+    LOOK_ALIKE: ClassVar[str] = ""
+    """What else gives the term's signature, where the physics has a look-alike: a verdict that names the term, or
+    finds it likely, says so."""
+
     def parameters(self) -> dict[str, float]:
         return {k: float(getattr(self, k)) for k in self.BOUNDS}  # type: ignore[attr-defined]
 
@@ -115,7 +119,6 @@ class SurfaceRoughness(BoundedParams):
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"asperity_scale": (0.0, 20.0)}
     LOOK_ALIKE: ClassVar[str] = ("any other compliant layer on the surfaces that closes with load (an oxide, a porous "
                                  "or lubricant film)")
-    """What else in the contact gives the same signature: a verdict that names the term, or finds it likely, says so."""
 
     def apply(self, case: ContactCase, load_n: FloatArray, stiffness_n_per_m: FloatArray) -> FloatArray:
         compliance = 2.0 * self.asperity_scale * case.combined_ra_m / load_n
