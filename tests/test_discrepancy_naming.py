@@ -11,7 +11,8 @@ import pytest
 
 from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
-from labctl.physics import ContactCase, ContactLaw
+from labctl.physics import ContactCase, ContactLaw, Misalignment, SetupCompliance
+from tests.discrepancy_util import GENERATOR_NOISE, world
 
 
 def joint_spring(depth_m: float, k_joint: float, beta: float):
@@ -98,26 +99,28 @@ def rough_joint(case: ContactCase, f: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 / ContactLaw("tripp", 2e-3).stiffness_n_per_m(case, f) + 3e-10 * 100.0 / f)
 
 
-def test_one_rail_roughness_says_roughness_cannot_be_told_from_a_rig_joint():
+@pytest.fixture(scope="module")
+def one_rail_joint():
+    """The rough rig joint on one rail, all seven roller types (run once for the tests that read its verdict)."""
+    return run_discrepancy(synthesize(rough_joint, noise=GENERATOR_NOISE, seed=3))
+
+
+def test_one_rail_roughness_says_roughness_cannot_be_told_from_a_rig_joint(one_rail_joint):
     # On one rail every contact has the same composite Ra, and an asperity layer's compliance ∝ Ra/F is then the
     # same for every roller, as a joint's in the rig's load path: the world is ranked surface_roughness, and the
     # verdict must say the design cannot tell the two apart (before: only that Ra-dependence was not tested).
-    one = run_discrepancy(synthesize(rough_joint, noise=NoiseModel(0.02, 0.02 / 3), seed=3))
+    one = one_rail_joint
     assert one.scored[0].explanation.name == "surface_roughness"
     assert "a joint in the rig's load path" in one.verdict_text()
-    noise = NoiseModel(0.02, 0.02 / 3)
-    two = run_discrepancy(synthesize(rough_joint, types=(1, 3, 5), rail_ra_m=0.03e-6, noise=noise, seed=4)
-                          + synthesize(rough_joint, types=(2, 4, 6, 7), noise=noise, seed=5))
+    two = run_discrepancy(synthesize(rough_joint, types=(1, 3, 5), rail_ra_m=0.03e-6, noise=GENERATOR_NOISE, seed=4)
+                          + synthesize(rough_joint, types=(2, 4, 6, 7), noise=GENERATOR_NOISE, seed=5))
     assert "a joint in the rig's load path" not in two.verdict_text()
 
 
-def test_a_likely_or_named_term_says_what_else_acts_like_it():
+def test_a_likely_or_named_term_says_what_else_acts_like_it(one_rail_joint):
     # On the blind judges a compliant interlayer under the rails is most probably setup_compliance and a porous
     # layer on them surface_roughness (docs/discrepancy.md): a verdict that finds either term likely says so.
-    from labctl.physics import Misalignment, SetupCompliance
-    from tests.discrepancy_util import GENERATOR_NOISE, world
-
-    rough = run_discrepancy(synthesize(rough_joint, noise=NoiseModel(0.02, 0.02 / 3), seed=3))
+    rough = one_rail_joint
     assert rough.scored[0].explanation.name == "surface_roughness" and rough.verdict == "likely"
     assert "surface_roughness may also be any other compliant layer on the surfaces" in rough.verdict_text()
     rig = run_discrepancy(synthesize(world(SetupCompliance(stiffness_factor=0.7)), noise=GENERATOR_NOISE, seed=49))
