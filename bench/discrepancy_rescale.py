@@ -99,13 +99,14 @@ def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "class
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
         temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
-        probs = tempered(r, temperature, log_priors(r, prior), evidence, lam, resample=cases == "resampled")
+        priors = log_priors(r, prior)
+        probs = tempered(r, temperature, priors, evidence, lam, resample=cases == "resampled")
         if not mix:
             return probs
-        stored = {x["explanation"]: x["log_prior"] for x in r["candidates"]}
-        weight = np.exp([stored[n] for n, _ in probs])
-        mixed = [(n, (1.0 - mix) * p + mix * w) for (n, p), w in zip(probs, weight / weight.sum(), strict=True)]
-        return sorted(mixed, key=lambda np_: -np_[1])
+        by_name = dict(zip((x["explanation"] for x in r["candidates"]), priors, strict=True))
+        weight = np.exp([by_name[name] for name, _ in probs])
+        mixed = [(name, (1.0 - mix) * p + mix * w) for (name, p), w in zip(probs, weight / weight.sum(), strict=True)]
+        return sorted(mixed, key=lambda item: -item[1])
     return decide
 
 
@@ -148,20 +149,21 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled", 0.0)
-    rules = [workflow] + [("hyper-g", "all", t, 1.0, "classes", "resampled", 0.0) for t in (2.0, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled", 0.0) for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled", 0.0),
-              ("bic", "all", TEMPERATURE, 1.0, "classes", "pooled", 0.0),
-              ("bic", "all", 2.0, 1.0, "classes", "pooled", 0.0),
-              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled", 0.0),
-              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled", 0.0)]
-    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"unlisted={m:g}", "resampled", 0.0) for m in (0.05, 0.025)]
-    rules += [("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled", eps) for eps in (0.1, 0.2)]
+    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled")
+    rules: list[tuple] = [workflow]
+    rules += [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (2.0, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
+    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
+              "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
+              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled"),
+              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled")]
+    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"unlisted={m:g}", "resampled") for m in (0.05, 0.025)]
+    rules += [(*workflow, eps) for eps in (0.1, 0.2)]  # the workflow's rule, mapped toward the prior
     print("| occam | scope | T | λ | prior | cases | ε | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
           "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occam, scope, t, lam, prior, cases, mix in rules:
+    for occam, scope, t, lam, prior, cases, *mapped in rules:
+        mix = mapped[0] if mapped else 0.0
         decide = rule(occam, scope, t, lam, prior, cases, mix)
         shown = t if isinstance(t, str) else f"{t:g}"
         for path, results in runs:

@@ -240,7 +240,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
         top = tempered(r, temperature)[0] if temperature else (r["top"], r["top_probability"])
         stated.append((top[1], top[0] == r["truth_name"]))
         seen.append(top[0] in (r["truth_name"], seen_truth(r)))
-    p_all, right = np.array([p for p, _ in stated]), np.array([k for _, k in stated])
+    p_all, right, seen_right = np.array([p for p, _ in stated]), np.array([k for _, k in stated]), np.array(seen)
     right_draws = np.random.default_rng(0).random((CALIBRATED_DRAWS, p_all.size)) < p_all  # a calibrated forecaster
     passes = np.ones(CALIBRATED_DRAWS, dtype=bool)
     for lo, hi, inside in binned(stated):
@@ -256,7 +256,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
         if n >= 30:
             passes &= drawn_gap <= 0.05
         chance = float(np.mean(drawn_gap >= abs(mean_p - k / n) - 1e-12))
-        k_seen = int(np.sum(np.array(seen)[inside]))
+        k_seen = int(seen_right[inside].sum())
         rows.append([f"{lo:.3g}-{min(hi, 1):.3g}", str(n), f"{mean_p:.3f}", f"{k / n:.3f} ({k}/{n})",
                      f"{a:.3f}-{b:.3f}", f"{k_seen / n:.3f} ({k_seen}/{n})",
                      ("within 0.05" if holds else "OFF by > 0.05") if n >= 30 else "n < 30", f"{chance:.3f}"])
