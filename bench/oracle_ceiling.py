@@ -15,11 +15,13 @@ amplitudes ℓ = ln amp carry the generator's prior (ln z = ln(max |ln k/k_tripp
 sign (½ each) and a uniform coordinate. Mode: Halton screen of u, amplitudes profiled, warm starts from the
 single-family modes, L-BFGS-B from the best two. There ln L is taken quadratic (central differences, gradient kept
 for modes on a bound, Hessian eigenvalues floored at 1) and integrated over the exact prior by sampling, ln z
-linearised. ``--validate K`` redoes K worlds with a 3x screen, 4 starts and 300-draw importance sampling. Cannot:
+linearised. ``--validate K`` redoes K worlds with a 3x screen, 4 starts and 300-draw importance sampling.
+``--free-depth``: Tripp's depth (the generator's 3 mm) unknown, flat in ln t over 0.7–10 mm, integrated by Laplace
+at its mode (Gauss-Newton on the seating Gaussian; the effects keep their 3 mm Tripp, times its depth change). Cannot:
 integrate more than the best mode; treat the generator's clipping of an amplitude to its range (~2 % of effects)
 other than as density; be exact where the posterior is far from Gaussian.
 
-    python bench/oracle_ceiling.py --seeds 3 --noise 0.5,1,2 --workers 2 [--validate 6]
+    python bench/oracle_ceiling.py --seeds 3 --noise 0.5,1,2 --workers 2 [--validate 6] [--free-depth]
 """
 
 from __future__ import annotations
@@ -69,8 +71,12 @@ Part = namedtuple("Part", "fam cal sign n_u", defaults=("", 1.0, 0))
 """One component of a hypothesis: an effect family (n_u shape coordinates, then ln amp) or a calibration."""
 Hyp = namedtuple("Hyp", "scenario label log_prior parts layout")
 """A sub-hypothesis: a scenario with its families (and calibration sign) fixed, its ln prior weight, its layout."""
-State = namedtuple("State", "rollers stack ln_tripp var norm point_norm smed")
-"""What the true loads fix: rollers (per type, stacked), ln k_tripp, point variances, their norms, σ_med1."""
+State = namedtuple("State", "rollers stack ln_tripp var norm point_norm smed beta")
+"""What the true loads fix: rollers (per type, stacked), ln k_tripp, point variances, their norms, σ_med1, and β:
+Tripp's compliance at depth t·e^δ is c·(1 + β·δ) (only the rail's ln(2t/a) term holds t)."""
+DEPTH_SPAN = (np.log(0.7 / 3.0), np.log(10.0 / 3.0))
+"""``--free-depth``: ln(t / 3 mm) with a flat prior over 0.7–10 mm, what a method must assume without the
+generator's depth."""
 
 
 def logsumexp(v: np.ndarray | list[float]) -> float:
@@ -135,7 +141,7 @@ def hypotheses() -> list[Hyp]:
 class World:
     """A world's rows (type x repetition x step, duplicate row dropped), the noise model and its likelihood."""
 
-    def __init__(self, rows: list[dict[str, Any]], noise: dict[str, float]) -> None:
+    def __init__(self, rows: list[dict[str, Any]], noise: dict[str, float], free_depth: bool = False) -> None:
         rows = sorted((r for i, r in enumerate(rows) if i == 0 or r != rows[i - 1]),
                       key=lambda r: (int(r["roller_type"]), int(r["repetition"]), float(r["load_n"])))
         self.shape = (len(W.ROLLER_TYPES), W.REPETITIONS, W.LOAD_STEPS)
@@ -148,7 +154,7 @@ class World:
         sp = [self.specs[int(r["roller_type"])] for r in rows]
         self.stack_spec = RollerSpec(0, *(np.array([getattr(s, k) for s in sp]) for k in
                                           ("diameter_m", "contact_length_m", "total_length_m")), sp[0].material)
-        self.ones, self.modes, self.base = np.ones(W.LOAD_STEPS), {}, None
+        self.ones, self.modes, self.base, self.free_depth = np.ones(W.LOAD_STEPS), {}, None, free_depth
         self.base = self.state(1.0, 0.0)
 
     def state(self, gain: float, offset: float) -> State:
@@ -160,13 +166,29 @@ class World:
         stack, rel = RollerLoads(self.stack_spec, self.rail, self.ra, f), W._sigma_rel(f, self.noise)
         var = ((rel * self.noise["scale"]) ** 2).reshape(self.shape)
         point_norm = -0.5 * np.log(2 * np.pi * var)
+        beta = (4.0 * self.rail.compliance / np.pi / stack.compliance(stack.line_load)).reshape(self.shape)
         return State([RollerLoads(self.specs[t], self.rail, float(ra), ft) for t, ft, ra in by_type], stack,
                      np.log(stack.tripp()), var, np.sum(point_norm, axis=2, keepdims=True), point_norm,
-                     float(np.median(rel)))
+                     float(np.median(rel)), beta)
 
     def lnlike(self, lnk: np.ndarray, st: State) -> float:
-        """ln p(rows | ln k_clean): Gaussian points, seating integrated per repetition, outlier fault summed."""
-        r, w, it2 = self.y - lnk.reshape(self.shape), 1.0 / st.var, 1.0 / self.tau2
+        """ln p(rows | ln k_clean): Gaussian points, seating integrated per repetition, outlier fault summed; with
+        ``free_depth`` Tripp's depth integrated over ``DEPTH_SPAN`` too (Laplace at its mode)."""
+        if not self.free_depth:
+            return self._lnlike(self.y - lnk.reshape(self.shape), st)
+        r0, w, it2, delta = self.y - lnk.reshape(self.shape), 1.0 / st.var, 1.0 / self.tau2, 0.0
+        for _ in range(4):  # Gauss-Newton on the seating Gaussian: k_tripp scales by 1/(1 + β·δ)
+            r, ds = r0 + np.log1p(st.beta * delta), st.beta / (1.0 + st.beta * delta)
+            c = (w @ self.ones)[..., None] + it2
+            grad = np.sum(w * r * ds) - np.sum((w * r) @ self.ones * ((w * ds) @ self.ones) / c[..., 0])
+            curv = np.sum(w * ds * ds) - np.sum(((w * ds) @ self.ones) ** 2 / c[..., 0])
+            delta = float(np.clip(delta - grad / curv, *DEPTH_SPAN))
+        return (self._lnlike(r0 + np.log1p(st.beta * delta), st) + 0.5 * np.log(2 * np.pi / curv)
+                - np.log(DEPTH_SPAN[1] - DEPTH_SPAN[0]))
+
+    def _lnlike(self, r: np.ndarray, st: State) -> float:
+        """ln p(rows | residuals r = ln k_obs − ln k_clean), the depth given."""
+        w, it2 = 1.0 / st.var, 1.0 / self.tau2
         wr = w * r
         a, b, c = ((v @ self.ones)[..., None] for v in (wr * r, wr, w))
         lg = -0.5 * (a - b * b / (it2 + c)) - 0.5 * np.log1p(self.tau2 * c) + st.norm
@@ -329,19 +351,20 @@ def evidence(world: World, hyp: Hyp, fine: bool = False) -> float:
     return logsumexp(lnl + ln_prior_at(hyp, xs, lz, jc) - prop.logpdf(xs)) - np.log(n)
 
 
-def classify(rows: list[dict[str, Any]], noise: dict[str, float], fine: bool = False) -> dict[str, float]:
+def classify(rows: list[dict[str, Any]], noise: dict[str, float], fine: bool = False, free_depth: bool = False
+             ) -> dict[str, float]:
     """ln posterior (unnormalised) of every truth class, best first."""
-    world, terms = World(rows, noise), {}
+    world, terms = World(rows, noise, free_depth), {}
     for hyp in hypotheses():
         terms.setdefault(hyp.label, []).append(hyp.log_prior + evidence(world, hyp, fine))
     return dict(sorted(((k, logsumexp(v)) for k, v in terms.items()), key=lambda kv: -kv[1]))
 
 
-def run_world(task: tuple[str, int, float, bool]) -> dict[str, Any]:
+def run_world(task: tuple[str, int, float, bool, bool]) -> dict[str, Any]:
     """Generate one world and classify it (a worker's job)."""
-    (scenario, seed, scale, fine), t0 = task, time.perf_counter()
+    (scenario, seed, scale, fine, free_depth), t0 = task, time.perf_counter()
     ds = W.generate(scenario, seed, scale)
-    post = classify(ds.rows, ds.truth["noise"], fine)
+    post = classify(ds.rows, ds.truth["noise"], fine, free_depth)
     truth = "unlisted" if ds.truth["outside_library"] else label(ds.truth["effects"], ds.truth["measurement_effects"])
     by = ds.truth.get("size_sigma_by_effect") or {}
     seen = [[n for n in ds.truth[k] if by.get(n, 0.0) >= 3.0] for k in ("effects", "measurement_effects")]
@@ -357,11 +380,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise", default="0.5,1,2", help="noise scales, comma-separated")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--validate", type=int, default=0, help="also redo K worlds (noise 1, seed 0) finely")
+    ap.add_argument("--free-depth", action="store_true",
+                    help="Tripp's depth unknown (flat in ln t over 0.7-10 mm), as it is to any method")
     args = ap.parse_args(argv)
     t0, scales = time.perf_counter(), [float(v) for v in args.noise.split(",")]
-    tasks = [(sc, seed, scale, False) for scale in scales for sc in W.SCENARIOS for seed in range(args.seeds)]
+    tasks = [(sc, s, x, False, args.free_depth) for x in scales for sc in W.SCENARIOS for s in range(args.seeds)]
     picks = W.SCENARIOS[::max(1, len(W.SCENARIOS) // max(args.validate, 1))][:args.validate]
-    checks = [(sc, 0, 1.0, fine) for fine in (False, True) for sc in picks]
+    checks = [(sc, 0, 1.0, fine, args.free_depth) for fine in (False, True) for sc in picks]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run_world, tasks + checks, chunksize=1))
     report(results[:len(tasks)], scales if tasks else [], W.SCENARIOS)

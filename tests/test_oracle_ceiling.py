@@ -45,3 +45,28 @@ def test_a_nearly_noise_free_single_effect_is_named_first() -> None:
     first, second = list(post.items())[:2]
     assert first[0] == "end_effects"
     assert first[1] - second[1] > 5.0
+
+
+def test_free_depth_moves_tripp_as_the_contact_model_does(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tripp's stiffness at depth 3 mm·e^δ is k_tripp/(1 + β·δ), exactly: what ``--free-depth`` integrates over."""
+    import blind_contact
+
+    ds = oc.W.generate("none", 0, 1.0)
+    world = oc.World(ds.rows, ds.truth["noise"], True)
+    st, delta = world.base, 0.8
+    monkeypatch.setattr(blind_contact, "DEPTH_M", blind_contact.DEPTH_M * np.exp(delta))
+    moved = np.log(st.stack.tripp()).reshape(world.shape)
+    assert moved == pytest.approx(st.ln_tripp.reshape(world.shape) - np.log1p(st.beta * delta), abs=1e-12)
+
+
+def test_free_depth_takes_up_a_depth_change_a_fixed_depth_cannot() -> None:
+    """Null data at a shallower depth (δ = −0.5): with the depth free their likelihood under Tripp at 3 mm is far
+    above the one with the depth fixed, and a little below the one at the true depth (the integral over a flat prior
+    on ln t: the peak times its width over the prior's)."""
+    ds = oc.W.generate("none", 0, 1.0)
+    fixed, free = oc.World(ds.rows, ds.truth["noise"]), oc.World(ds.rows, ds.truth["noise"], True)
+    st, delta = free.base, -0.5
+    at_true_depth = fixed.lnlike(st.ln_tripp, st)
+    fixed.y = free.y = fixed.y - np.log1p(st.beta * delta)
+    assert fixed.lnlike(st.ln_tripp, st) < at_true_depth - 100.0
+    assert at_true_depth - 15.0 < free.lnlike(st.ln_tripp, st) < at_true_depth
