@@ -312,3 +312,17 @@ def test_a_baseline_the_lack_of_fit_test_rejects_leaves_none_no_probability():
     assert probability["none"] == 0.0 and result.scored[0].explanation.name != "none"
     assert math.isclose(sum(probability.values()), 1.0)
     assert "none" not in result.verdict_text().split("most probable explanations:")[-1]
+
+
+def test_a_shape_parameter_can_be_freed_alone():
+    """The shape doubt frees one shape parameter of a term at a time (each departure from the law alone): a spec with
+    one of the end term's two freed fits that one only; the whole term frees both."""
+    from labctl.discrepancy.model import FIT_ONLY_BOUNDS, ModelSpec
+
+    spec = ModelSpec().with_effects("end_effects")
+    assert set(FIT_ONLY_BOUNDS["end_effects"]) == {"half_width_share", "radius_share"}
+    one = [k for _, k, *_ in spec.with_free_shape("end_effects", "radius_share").slots()]
+    assert one == ["edge_length_m", "radius_share"]
+    both = [k for _, k, *_ in spec.with_free_shape("end_effects").slots()]
+    assert both == ["edge_length_m", "half_width_share", "radius_share"]
+    assert [k for _, k, *_ in spec.slots()] == ["edge_length_m"]

@@ -189,3 +189,17 @@ def test_crowned_rollers_are_not_named_surface_roughness(depth_m, relief, drop_m
     assert doc["verdict"] in ("likely", "unexplained")
     assert "candidates" in doc["verdict_text"] and "NOT consistent" in doc["verdict_text"]
     assert doc["empirical_term"] is not None and doc["empirical_term"]["label"] == "unnamed"
+
+
+def test_ends_whose_zone_scales_with_the_roller_radius_are_end_effects_alone():
+    # An edge zone of 0.1·R at each end (k·(1 + 0.2·R/L_we), the ends' profile scaling with the roller), in the
+    # test's own form. Before the end term's radius share, the library's fixed edge could not follow it across
+    # roller types and a softening yield term mended it: "end_effects + material_hardness" at 0.97-0.99.
+    def law(case: ContactCase, load_n: np.ndarray) -> np.ndarray:
+        return world()(case, load_n) * (1.0 + 0.2 * case.roller.radius_m / case.roller.contact_length_m)
+
+    result = run_discrepancy(synthesize(law, noise=GENERATOR_NOISE, seed=11))
+    top = result.scored[0]
+    assert top.explanation.name == "end_effects" and top.probability >= 0.5
+    assert top.fit.effect_parameters()["end_effects"]["radius_share"] == pytest.approx(0.1, abs=0.02)
+    assert "material_hardness" not in [e["name"] for e in result.to_dict()["effects"]]

@@ -37,18 +37,19 @@ BAD_RESIDUAL = 10.0
 FIT_ONLY_BOUNDS: dict[str, dict[str, tuple[float, float]]] = {
     "misalignment": {"transition": (0.0, 0.6)},
     "material_hardness": {"roughness_exponent": (0.0, 1.0)},
-    "end_effects": {"half_width_share": (-3.0, 3.0)},
+    "end_effects": {"half_width_share": (-3.0, 3.0), "radius_share": (-0.3, 0.6)},
     "surface_roughness": {"load_exponent": (0.25, 1.0)},
 }
 """Shape parameters beyond the effect's world ``BOUNDS``, fitted only when a spec frees them (``free_shape``): the
 rounding of the tilt law's closing (``Misalignment.transition``; 0 is the independent-spring kink, 0.6 a closing
 spread over about a decade of load); how the yield term follows the surface roughness
 (``MaterialHardness.roughness_exponent``; 1 is asperity conformity, 0 a bulk yield blind to the surface); the
-share of the contact half-width the ends add (``EndEffects.half_width_share``; 0 is a fixed edge length); and how
+share of the contact half-width the ends add (``EndEffects.half_width_share``; 0 is a fixed edge length) and of the
+roller radius (``EndEffects.radius_share``); and how
 fast the asperities stiffen with load (``SurfaceRoughness.load_exponent``; 1 is the exponential height tail)."""
 SHAPE_STARTS: dict[str, dict[str, float]] = {"misalignment": {"transition": 0.3},
                                              "material_hardness": {"roughness_exponent": 0.0},
-                                             "end_effects": {"half_width_share": 1.0},
+                                             "end_effects": {"half_width_share": 1.0, "radius_share": 0.1},
                                              "surface_roughness": {"load_exponent": 0.5}}
 """Where a freed shape parameter is fitted from: the other end of the doubt from the law's own form."""
 
@@ -122,9 +123,9 @@ class ModelSpec:
         return ModelSpec(self.baseline, canonical([*self.effects, *physical]), self.fixed,
                          tuple(n for n in MEASUREMENT if n in chain), self.depth_bounds_m, self.free_shape)
 
-    def with_free_shape(self, name: str) -> ModelSpec:
-        """The same model with ``name``'s shape parameters fitted too."""
-        return replace(self, free_shape=(*self.free_shape, name))
+    def with_free_shape(self, name: str, parameter: str | None = None) -> ModelSpec:
+        """The same model with ``name``'s shape parameters (or only ``parameter`` of them) fitted too."""
+        return replace(self, free_shape=(*self.free_shape, name if parameter is None else f"{name}:{parameter}"))
 
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
@@ -136,7 +137,10 @@ class ModelSpec:
                      for k, (lo, hi) in {**term_class(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items())
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
-        return FIT_ONLY_BOUNDS.get(name, {}) if name in self.free_shape else {}
+        shape = FIT_ONLY_BOUNDS.get(name, {})
+        if name in self.free_shape:
+            return shape
+        return {k: b for k, b in shape.items() if f"{name}:{k}" in self.free_shape}
 
     def n_params(self) -> int:
         return int(self.fits_depth) + len(self.slots())

@@ -56,7 +56,8 @@ INSTRUMENT_CHECK_FROM = 1e-3
 without those that fail, until none is due."""
 SHAPE_DOUBT = 1.0 / 3.0
 """Prior probability that a term's shape (``FIT_ONLY_BOUNDS``) is not the library's: the library's law is taken as
-twice as likely as the departure, so where it fits exactly a candidate loses ln 1.5 to the doubt."""
+twice as likely as the departure (each of its shape parameters freed alone), so where it fits exactly a candidate
+loses ln 1.5 to the doubt."""
 NAME_AT = 0.9
 LIKELY_AT = 0.5
 
@@ -254,25 +255,31 @@ class Evidence:
     def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
         roughness exponent, the end term's half-width share, the asperities' load exponent) has its form in doubt
-        too: the evidence averaged over the library's law and the law with its shape fitted (``SHAPE_DOUBT``), the
-        fit kept the one with more evidence."""
+        too: the evidence averaged over the library's law and the law with one shape parameter of each term fitted
+        (``SHAPE_DOUBT``, split evenly among the parameters), the fit kept the one with most evidence."""
         fit = library.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:
             return library
-        spec = fit.spec
-        for name in shaped:
-            spec = spec.with_free_shape(name)
         values = fit.spec.decode(fit.x)
-        freed = self.score(library.explanation, self.fit(spec, warm=fit, guess={
-            n: {**values[n], **SHAPE_STARTS[n]} for n in shaped}), candidates)
-        best = freed if freed.log_evidence > library.log_evidence else library
+        params = {n: list(FIT_ONLY_BOUNDS[n]) for n in shaped}
+        variants = list(dict.fromkeys(tuple((n, ps[min(j, len(ps) - 1)]) for n, ps in params.items())
+                                      for j in range(max(len(ps) for ps in params.values()))))
+        freed = []
+        for variant in variants:  # one shape parameter of each term at a time: each departure from the law alone
+            spec = fit.spec
+            for name, parameter in variant:
+                spec = spec.with_free_shape(name, parameter)
+            freed.append(self.score(library.explanation, self.fit(spec, warm=fit, guess={
+                n: {**values[n], p: SHAPE_STARTS[n][p]} for n, p in variant}), candidates))
+        best = max([library, *freed], key=lambda c: c.log_evidence)
+        each = math.log(SHAPE_DOUBT / len(freed))
 
-        def doubted(law: dict[float, float], shaped: dict[float, float]) -> dict[float, float]:
-            return {t: float(np.logaddexp(math.log1p(-SHAPE_DOUBT) + law[t], math.log(SHAPE_DOUBT) + shaped[t]))
+        def doubted(law: dict[float, float], shaped: list[dict[float, float]]) -> dict[float, float]:
+            return {t: float(np.logaddexp.reduce([math.log1p(-SHAPE_DOUBT) + law[t], *(each + v[t] for v in shaped)]))
                     for t in self.temperatures}
-        return replace(best, log_evidence_by_t=doubted(library.log_evidence_by_t, freed.log_evidence_by_t),
-                       log_fit_by_t=doubted(library.log_fit_by_t, freed.log_fit_by_t))
+        return replace(best, log_evidence_by_t=doubted(library.log_evidence_by_t, [f.log_evidence_by_t for f in freed]),
+                       log_fit_by_t=doubted(library.log_fit_by_t, [f.log_fit_by_t for f in freed]))
 
     def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
         """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""

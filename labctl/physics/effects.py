@@ -134,12 +134,15 @@ class EndEffects(BoundedParams):
 
     k = k_line·(1 + 2·edge/L_we): stiffness per length falls with roller length. The edge is ``edge_length_m``
     plus ``half_width_share`` κ times the contact half-width a: an end's stress field reaches about a half-width
-    beyond it, so the zone the ends add (or lose) may grow with load. κ is not a world parameter (not in
-    ``BOUNDS``); the discrepancy fit frees it, so ends that engage with load are not taken for another effect.
+    beyond it, so the zone the ends add (or lose) may grow with load; plus ``radius_share`` ψ times the roller
+    radius R, an end profile or chamfer cut in proportion to the roller. κ and ψ are not world parameters (not in
+    ``BOUNDS``); the discrepancy fit frees them, so ends that engage with load or scale with the roller are not
+    taken for another effect.
     """
 
     edge_length_m: float = 0.1e-3
     half_width_share: float = 0.0
+    radius_share: float = 0.0
     name: ClassVar[str] = "end_effects"
     BOUNDS: ClassVar[dict[str, tuple[float, float]]] = {"edge_length_m": (0.0, 2e-3)}
 
@@ -147,6 +150,8 @@ class EndEffects(BoundedParams):
         edge = self.edge_length_m
         if self.half_width_share:
             edge = edge + self.half_width_share * case.half_width_m(load_n)
+        if self.radius_share:
+            edge = edge + self.radius_share * case.roller.radius_m
         return stiffness_n_per_m * (1.0 + 2.0 * edge / case.roller.contact_length_m)
 
 
