@@ -254,9 +254,9 @@ class Evidence:
 
     def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
-        roughness exponent, the end term's half-width share, the asperities' load exponent) has its form in doubt
-        too: the evidence averaged over the library's law and the law with one shape parameter of each term fitted
-        (``SHAPE_DOUBT``, split evenly among the parameters), the fit kept the one with most evidence."""
+        roughness exponent, the end term's half-width and radius shares, the asperities' load exponent) has its form
+        in doubt too: the evidence averaged over the library's law and the law with one shape parameter of each term
+        fitted (``SHAPE_DOUBT``, split evenly among the parameters), the fit kept the one with most evidence."""
         fit = library.fit
         shaped = [n for n in FIT_ONLY_BOUNDS if fit is not None and n in fit.spec.effects]
         if fit is None or not shaped:
