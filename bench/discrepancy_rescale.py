@@ -16,7 +16,7 @@ inflation T of the grid) and decides every dataset again under each rule, withou
   it is unchanged, its probabilities spread);
 - ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``), ``equal-single`` (every single-term explanation,
   physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members) or
-  ``unlisted=X`` (the unlisted class's mass X instead of its 0.10, the other classes as they are);
+  ``unlisted=X`` or ``pair=X`` (that class's mass X instead of its 0.10, the other classes as they are);
 - ``ε``: the probabilities mixed with the prior afterwards, (1 − ε)·p + ε·prior (the prior renormalised over the
   candidates not ruled out): a recalibration map that keeps the ranking and pulls every probability toward it;
 - ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
@@ -73,9 +73,10 @@ def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
     stored = np.array([x["log_prior"] for x in r["candidates"]])
     if prior == "classes":
         return stored
-    if prior.startswith("unlisted="):
-        shift = math.log(float(prior.split("=")[1]) / PRIOR_MASS["unlisted"])
-        return stored + np.array([shift if x["explanation"] == "unlisted" else 0.0 for x in r["candidates"]])
+    if "=" in prior:  # one class's mass changed, the others as they are
+        kind, mass = prior.split("=")
+        shift = math.log(float(mass) / PRIOR_MASS[kind])
+        return stored + np.array([shift if _KIND[x["explanation"]] == kind else 0.0 for x in r["candidates"]])
     single = ("physical", "measurement")
     kinds = [_KIND[x["explanation"]] for x in r["candidates"]]
     share = sum(PRIOR_MASS[k] for k in single) / sum(k in single for k in kinds)
@@ -158,6 +159,7 @@ def main() -> None:
               ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled"),
               ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled")]
     rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"unlisted={m:g}", "resampled") for m in (0.05, 0.025)]
+    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"pair={m:g}", "resampled") for m in (0.2, 0.05)]
     rules += [(*workflow, eps) for eps in (0.1, 0.2)]  # the workflow's rule, mapped toward the prior
     print("| occam | scope | T | λ | prior | cases | ε | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
           "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
