@@ -14,6 +14,7 @@ from scipy.special import logsumexp
 
 from labctl.discrepancy import load_points, run_discrepancy
 from labctl.discrepancy.form import TAU_GRID, FormPrior
+from labctl.discrepancy.model import FIT_ONLY_BOUNDS, ModelSpec
 from labctl.discrepancy.occam import HYPER_A, log_bayes_factor
 from labctl.discrepancy.posterior import PRIOR_MASS, explanations, log_prior
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
@@ -317,8 +318,6 @@ def test_a_baseline_the_lack_of_fit_test_rejects_leaves_none_no_probability():
 def test_a_shape_parameter_can_be_freed_alone():
     """The shape doubt frees one shape parameter of a term at a time (each departure from the law alone): a spec with
     one of the end term's two freed fits that one only; the whole term frees both."""
-    from labctl.discrepancy.model import FIT_ONLY_BOUNDS, ModelSpec
-
     spec = ModelSpec().with_effects("end_effects")
     assert set(FIT_ONLY_BOUNDS["end_effects"]) == {"half_width_share", "radius_share"}
     one = [k for _, k, *_ in spec.with_free_shape("end_effects", "radius_share").slots()]

@@ -49,7 +49,7 @@ def test_a_nearly_noise_free_single_effect_is_named_first() -> None:
 
 def test_free_depth_moves_tripp_as_the_contact_model_does(monkeypatch: pytest.MonkeyPatch) -> None:
     """Tripp's stiffness at depth 3 mm·e^δ is k_tripp/(1 + β·δ), exactly: what ``--free-depth`` integrates over."""
-    import blind_contact
+    import blind_contact  # on the path once the oracle is loaded (it puts bench/blind there)
 
     ds = oc.W.generate("none", 0, 1.0)
     world = oc.World(ds.rows, ds.truth["noise"], True)
