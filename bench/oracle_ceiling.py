@@ -176,12 +176,12 @@ class World:
         ``free_depth`` Tripp's depth integrated over ``DEPTH_SPAN`` too (Laplace at its mode)."""
         if not self.free_depth:
             return self._lnlike(self.y - lnk.reshape(self.shape), st)
-        r0, w, it2, delta = self.y - lnk.reshape(self.shape), 1.0 / st.var, 1.0 / self.tau2, 0.0
+        r0, w, delta = self.y - lnk.reshape(self.shape), 1.0 / st.var, 0.0
+        c = w @ self.ones + 1.0 / self.tau2  # per repetition: its points' weight plus the seating's
         for _ in range(4):  # Gauss-Newton on the seating Gaussian: k_tripp scales by 1/(1 + β·δ)
             r, ds = r0 + np.log1p(st.beta * delta), st.beta / (1.0 + st.beta * delta)
-            c = (w @ self.ones)[..., None] + it2
-            grad = np.sum(w * r * ds) - np.sum((w * r) @ self.ones * ((w * ds) @ self.ones) / c[..., 0])
-            curv = np.sum(w * ds * ds) - np.sum(((w * ds) @ self.ones) ** 2 / c[..., 0])
+            grad = np.sum(w * r * ds) - np.sum((w * r) @ self.ones * ((w * ds) @ self.ones) / c)
+            curv = np.sum(w * ds * ds) - np.sum(((w * ds) @ self.ones) ** 2 / c)
             delta = float(np.clip(delta - grad / curv, *DEPTH_SPAN))
         return (self._lnlike(r0 + np.log1p(st.beta * delta), st) + 0.5 * np.log(2 * np.pi / curv)
                 - np.log(DEPTH_SPAN[1] - DEPTH_SPAN[0]))

@@ -102,8 +102,8 @@ class ModelSpec:
     """Measurement-side terms (``labctl.discrepancy.measurement``): applied to the model's inputs."""
     depth_bounds_m: tuple[float, float] = TRIPP_DEPTH_RANGE_M
     """Tripp's evaluation depth is fitted within its physical range (a depth outside it is no contact physics)."""
-    free_shape: tuple[str, ...] = ()
-    """Terms whose shape parameters (``FIT_ONLY_BOUNDS``) are fitted; the others keep the effect's default form."""
+    free_shape: tuple[tuple[str, str], ...] = ()
+    """(term, shape parameter) pairs (``FIT_ONLY_BOUNDS``) fitted; the rest keep the effect's default form."""
 
     def depth_at_bound(self, depth_m: float | None) -> bool:
         """A fitted depth pinned at an end of its range: the baseline cannot absorb what the data show."""
@@ -125,7 +125,8 @@ class ModelSpec:
 
     def with_free_shape(self, name: str, parameter: str | None = None) -> ModelSpec:
         """The same model with ``name``'s shape parameters (or only ``parameter`` of them) fitted too."""
-        return replace(self, free_shape=(*self.free_shape, name if parameter is None else f"{name}:{parameter}"))
+        freed = [parameter] if parameter is not None else list(FIT_ONLY_BOUNDS.get(name, {}))
+        return replace(self, free_shape=(*self.free_shape, *((name, k) for k in freed)))
 
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
@@ -137,10 +138,7 @@ class ModelSpec:
                      for k, (lo, hi) in {**term_class(n).BOUNDS, **SIGNED_BOUNDS.get(n, {}), **self._shape(n)}.items())
 
     def _shape(self, name: str) -> dict[str, tuple[float, float]]:
-        shape = FIT_ONLY_BOUNDS.get(name, {})
-        if name in self.free_shape:
-            return shape
-        return {k: b for k, b in shape.items() if f"{name}:{k}" in self.free_shape}
+        return {k: b for k, b in FIT_ONLY_BOUNDS.get(name, {}).items() if (name, k) in self.free_shape}
 
     def n_params(self) -> int:
         return int(self.fits_depth) + len(self.slots())

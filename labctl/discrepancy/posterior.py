@@ -91,6 +91,14 @@ class Explanation:
         return "measurement" if not self.physical else "mixed"
 
 
+def _one_shape_at_a_time(terms: list[str]) -> list[tuple[tuple[str, str], ...]]:
+    """The shape doubt's departures from the library's law: the j-th shape parameter of each term freed alone (a term
+    with fewer keeps its last), so a law that needs one departure is not charged for the others."""
+    params = {n: list(FIT_ONLY_BOUNDS[n]) for n in terms}
+    width = max(len(ps) for ps in params.values())
+    return list(dict.fromkeys(tuple((n, ps[min(j, len(ps) - 1)]) for n, ps in params.items()) for j in range(width)))
+
+
 def explanations() -> list[Explanation]:
     """Every candidate: none, each physical term, pairs, each measurement term alone or with one physical term,
     unlisted."""
@@ -262,11 +270,8 @@ class Evidence:
         if fit is None or not shaped:
             return library
         values = fit.spec.decode(fit.x)
-        params = {n: list(FIT_ONLY_BOUNDS[n]) for n in shaped}
-        variants = list(dict.fromkeys(tuple((n, ps[min(j, len(ps) - 1)]) for n, ps in params.items())
-                                      for j in range(max(len(ps) for ps in params.values()))))
         freed = []
-        for variant in variants:  # one shape parameter of each term at a time: each departure from the law alone
+        for variant in _one_shape_at_a_time(shaped):
             spec = fit.spec
             for name, parameter in variant:
                 spec = spec.with_free_shape(name, parameter)
