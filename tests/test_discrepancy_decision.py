@@ -317,11 +317,12 @@ def test_a_baseline_the_lack_of_fit_test_rejects_leaves_none_no_probability():
 
 def test_a_shape_parameter_can_be_freed_alone():
     """The shape doubt frees one shape parameter of a term at a time (each departure from the law alone): a spec with
-    one of the end term's two freed fits that one only; the whole term frees both."""
+    one of the end term's two freed fits that one only; both freed fit both, in the term's order."""
     spec = ModelSpec().with_effects("end_effects")
     assert set(FIT_ONLY_BOUNDS["end_effects"]) == {"half_width_share", "radius_share"}
     one = [k for _, k, *_ in spec.with_free_shape("end_effects", "radius_share").slots()]
     assert one == ["edge_length_m", "radius_share"]
-    both = [k for _, k, *_ in spec.with_free_shape("end_effects").slots()]
+    both = [k for _, k, *_ in spec.with_free_shape("end_effects", "radius_share")
+            .with_free_shape("end_effects", "half_width_share").slots()]
     assert both == ["edge_length_m", "half_width_share", "radius_share"]
     assert [k for _, k, *_ in spec.slots()] == ["edge_length_m"]

@@ -123,10 +123,9 @@ class ModelSpec:
         return ModelSpec(self.baseline, canonical([*self.effects, *physical]), self.fixed,
                          tuple(n for n in MEASUREMENT if n in chain), self.depth_bounds_m, self.free_shape)
 
-    def with_free_shape(self, name: str, parameter: str | None = None) -> ModelSpec:
-        """The same model with ``name``'s shape parameters (or only ``parameter`` of them) fitted too."""
-        freed = [parameter] if parameter is not None else list(FIT_ONLY_BOUNDS.get(name, {}))
-        return replace(self, free_shape=(*self.free_shape, *((name, k) for k in freed)))
+    def with_free_shape(self, name: str, parameter: str) -> ModelSpec:
+        """The same model with shape parameter ``parameter`` of term ``name`` fitted too."""
+        return replace(self, free_shape=(*self.free_shape, (name, parameter)))
 
     def slots(self) -> list[tuple[str, str, float, float]]:
         """(term, parameter, lower, upper) per fitted term parameter, in vector order after the depth."""
