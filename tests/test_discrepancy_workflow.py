@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from labctl.discrepancy import run_discrepancy
+from labctl.discrepancy.posterior import PRIOR_MASS
 from labctl.discrepancy.synthetic import NoiseModel, case_for, synthesize
 from labctl.physics import (
     EQ5,
@@ -174,10 +175,13 @@ def test_null_data_tripp_at_another_depth_names_nothing(depth_m, seed):
     assert doc["baseline_parameters"]["depth_m"] == pytest.approx(depth_m, rel=0.25)
     assert doc["regions"] == []
     # "unlisted" is an effect outside the library, never the baseline under another name: it carries a feature
-    # and pays for it (½·ln n + ln C(F, 1) ≈ 5 nats), so it does not share the baseline's probability with "none"
+    # and pays for it, so the data speak against it at every scale (a copy of the baseline would tie with "none")
+    # and lower it below its prior mass
     prob = {s.explanation.name: s for s in result.scored}
     assert prob["unlisted"].extra["features"]
-    assert prob["unlisted"].probability <= 0.1 * prob["none"].probability
+    for t, log_evidence in prob["unlisted"].log_evidence_by_t.items():
+        assert log_evidence < prob["none"].log_evidence_by_t[t] - 0.5
+    assert prob["unlisted"].probability < PRIOR_MASS["unlisted"]
     assert "an effect below the detection limit is not ruled out" in doc["verdict_text"]
 
 

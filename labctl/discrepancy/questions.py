@@ -19,10 +19,10 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import logsumexp
 
-TEMPERATURE = 16.0
+TEMPERATURE = 4.0
 """The inflation of the question "which effect?" (and the one each candidate's discrepancy scale and shape are
-chosen at), chosen on the blind worlds' calibration seeds: the largest T whose log loss of the true explanation is
-within one standard error of the lowest (docs/discrepancy.md, Evaluation)."""
+chosen at), chosen on the blind worlds' twenty calibration seeds: the largest T whose log loss of the true
+explanation is within one standard error of the lowest (docs/discrepancy.md, Evaluation)."""
 PRESENCE_TEMPERATURE = 1.0
 """The scale "none" is weighed against every effect at: the noise model's own (no inflation)."""
 MIN_CASES = 3
