@@ -19,6 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
+from labctl.discrepancy.design import design_limits, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -76,7 +77,11 @@ class DiscrepancyResult:
     scored: tuple[Scored, ...] = ()
     """Every candidate explanation with its posterior probability, most probable first."""
     likely: Scored | None = None
-    """The most probable explanation when its probability is 0.5-0.9 (not named)."""
+    """The most probable explanation when it is not named: its probability is 0.5-0.9, or the design cannot
+    separate its two terms (``not_named``)."""
+    not_named: str = ""
+    """The design limit that kept a two-term explanation of probability ≥ 0.9 from being named
+    (``labctl.discrepancy.design``)."""
     reasons: tuple[str, ...] = ()
     """What in the data's design limits which candidates can be told apart."""
     absorbed: tuple[str, ...] = ()
@@ -135,7 +140,11 @@ class DiscrepancyResult:
                 parts.append(f"form differs: the residual is NOT consistent with the noise ({level}) and still "
                              f"{residual}")
         else:
-            if self.likely is not None:
+            if self.likely is not None and self.not_named:
+                parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
+                             f"not named: {self.not_named}, so this design cannot separate its two terms (below)); "
+                             f"candidates: {self._top()}")
+            elif self.likely is not None:
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
                              f"below the {NAME_AT:g} needed to name it); candidates: {self._top()}")
             elif top is not None and top.explanation.unlisted and top.probability >= LIKELY_AT:
@@ -227,6 +236,7 @@ class DiscrepancyResult:
                          "resampled_over_cases": resampled_over(len(self.data.cases)),
                          "top": self.scored[0].to_dict() if self.scored else None,
                          "likely": None if self.likely is None else self.likely.to_dict(),
+                         "not_named_because": self.not_named or None,
                          "identifiability": [*self.reasons, *self.absorbed]},
             "closest_library_term": None if self.closest is None else
             {"name": self.closest.name, "explained_share": self.closest.share, "delta_bic": self.closest.delta_bic},
@@ -296,24 +306,6 @@ def _steps(scored: list[Scored], top: Scored, base: Fit, fits: dict[tuple[str, .
     return steps
 
 
-def unidentifiable_reasons(data: Dataset) -> list[str]:
-    """Why the data's design may not separate candidates (few geometries, one rail roughness, few loads)."""
-    out = []
-    if len(data.roller_keys()) < 3:
-        out.append(f"{len(data.roller_keys())} roller geometr{'y' if len(data.roller_keys()) == 1 else 'ies'}: "
-                   "terms that differ by how they scale with length and diameter (end_effects, misalignment) "
-                   "cannot be told from load-only ones")
-    if len({round(c.case.rail_ra_m * 1e9) for c in data.cases}) < 2:
-        out.append("one rail roughness: a term's dependence on Ra (surface_roughness, material_hardness) is not "
-                   "tested, and surface_roughness (an asperity compliance ∝ Ra/F in every contact, the same for every "
-                   "roller on one rail) cannot be told from a joint in the rig's load path whose compliance falls "
-                   "with load")
-    steps = min(np.unique(np.round(np.log(c.load_n), 2)).size for c in data.cases)
-    if steps < 5:
-        out.append(f"{steps} load steps per roller: load laws cannot be told apart")
-    return out
-
-
 def baseline_spec(baseline: str, setup_stiffness_n_per_m: float | None = None) -> ModelSpec:
     """The baseline with no term added; K_setup defaults to the shipped rig file's nominal value."""
     k_setup = setup_stiffness_n_per_m or load_rig().setup_stiffness_n_per_m
@@ -351,7 +343,9 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
             top = scored[0]
     steps: list[Step] = []
     likely = None
-    if top.explanation.terms and top.probability >= NAME_AT:
+    limits = design_limits(data)
+    held = unseparated(top.explanation, limits) if top.probability >= NAME_AT else None
+    if top.explanation.terms and top.probability >= NAME_AT and held is None:
         steps = _steps(scored, top, base, evidence.fits)
     elif top.explanation.terms and top.probability >= LIKELY_AT:
         likely = top
@@ -370,7 +364,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
-        scored=tuple(scored), likely=likely, reasons=tuple(unidentifiable_reasons(data)),
+        scored=tuple(scored), likely=likely, not_named="" if held is None else held.text.partition(":")[0],
+        reasons=tuple(limit.text for limit in limits),
         absorbed=tuple(absorbed_reasons(data, base)),
     )
 

@@ -1,0 +1,65 @@
+"""What a campaign's design leaves untested: too few roller geometries, one rail roughness, too few load steps.
+
+Each limit says in words what the data cannot tell apart and which library terms it leaves without the dependence
+that sets them apart from the rest. A two-term explanation with such a term is not named, whatever its probability:
+the design cannot separate the pair from one effect that the other candidates (or a look-alike outside the library)
+would also give, so the verdict says which terms and why instead of naming the pair.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.posterior import Explanation
+
+LENGTH_SCALING = frozenset({"end_effects", "misalignment"})
+"""Terms told from load-only ones by how they scale with roller length and diameter."""
+RA_SCALING = frozenset({"surface_roughness"})
+"""Terms told from a rig joint that closes with load only by their dependence on the rail's roughness."""
+MIN_GEOMETRIES = 3
+MIN_RAILS = 2
+MIN_LOAD_STEPS = 5
+
+
+@dataclass(frozen=True)
+class DesignLimit:
+    """One limit of the campaign's design: what it leaves untested, and the terms it leaves unseparated
+    (``None``: every term)."""
+
+    text: str
+    terms: frozenset[str] | None
+
+    def covers(self, explanation: Explanation) -> bool:
+        """Whether a two-term explanation rests on a term this limit leaves unseparated."""
+        if len(explanation.terms) < 2:
+            return False
+        return self.terms is None or bool(self.terms & set(explanation.terms))
+
+
+def design_limits(data: Dataset) -> list[DesignLimit]:
+    """Why the data's design may not separate candidates (few geometries, one rail roughness, few loads)."""
+    out = []
+    geometries = len(data.roller_keys())
+    if geometries < MIN_GEOMETRIES:
+        out.append(DesignLimit(
+            f"{geometries} roller geometr{'y' if geometries == 1 else 'ies'}: terms that differ by how they scale "
+            "with length and diameter (end_effects, misalignment) cannot be told from load-only ones",
+            LENGTH_SCALING))
+    if len({round(c.case.rail_ra_m * 1e9) for c in data.cases}) < MIN_RAILS:
+        out.append(DesignLimit(
+            "one rail roughness: a term's dependence on Ra (surface_roughness, material_hardness) is not tested, "
+            "and surface_roughness (an asperity compliance ∝ Ra/F in every contact, the same for every roller on "
+            "one rail) cannot be told from a joint in the rig's load path whose compliance falls with load",
+            RA_SCALING))
+    steps = min(np.unique(np.round(np.log(c.load_n), 2)).size for c in data.cases)
+    if steps < MIN_LOAD_STEPS:
+        out.append(DesignLimit(f"{steps} load steps per roller: load laws cannot be told apart", None))
+    return out
+
+
+def unseparated(explanation: Explanation, limits: list[DesignLimit]) -> DesignLimit | None:
+    """The first design limit that keeps a two-term explanation from being named, if any."""
+    return next((limit for limit in limits if limit.covers(explanation)), None)

@@ -1,0 +1,56 @@
+"""The campaign's design limits: which two-term explanations each one keeps from being named."""
+
+from __future__ import annotations
+
+import pytest
+
+from labctl.discrepancy.data import build_dataset
+from labctl.discrepancy.design import design_limits, unseparated
+from labctl.discrepancy.posterior import Explanation
+from labctl.discrepancy.synthetic import synthesize
+from tests.discrepancy_util import world
+
+
+def limits_of(types=range(1, 8), rails=(0.2e-6, 0.03e-6), steps=11):
+    points = [p for i, ra in enumerate(rails) for p in synthesize(world(), types, rail_ra_m=ra, steps=steps, seed=i)]
+    return design_limits(build_dataset(points))
+
+
+def pair(*physical, measurement=()):
+    return Explanation(tuple(physical), tuple(measurement))
+
+
+def test_a_full_design_holds_no_pair_back():
+    assert limits_of() == []
+
+
+@pytest.mark.parametrize("explanation", [pair("surface_roughness", "end_effects"),
+                                         pair("surface_roughness", measurement=("modulus_scale",)),
+                                         pair("setup_compliance", "surface_roughness")], ids=lambda e: e.name)
+def test_one_rail_holds_back_every_pair_with_roughness(explanation):
+    limits = limits_of(rails=(0.2e-6,))
+    held = unseparated(explanation, limits)
+    assert held is not None and held.text.startswith("one rail roughness")
+
+
+@pytest.mark.parametrize("explanation", [pair("surface_roughness"), pair("end_effects", "misalignment"),
+                                         pair("material_hardness", measurement=("load_offset",)),
+                                         Explanation(unlisted=True), Explanation()], ids=lambda e: e.name)
+def test_one_rail_leaves_single_terms_and_pairs_without_roughness_alone(explanation):
+    assert unseparated(explanation, limits_of(rails=(0.2e-6,))) is None
+
+
+def test_two_geometries_hold_back_pairs_with_a_length_scaling_term():
+    limits = limits_of(types=(1, 2))
+    assert unseparated(pair("surface_roughness", "end_effects"), limits).text.startswith("2 roller geometries")
+    assert unseparated(pair("misalignment", measurement=("load_offset",)), limits) is not None
+    assert unseparated(pair("surface_roughness", "material_hardness"), limits) is None
+    assert unseparated(pair("end_effects"), limits) is None
+
+
+def test_few_load_steps_hold_back_every_pair():
+    limits = limits_of(steps=4)
+    assert [limit.text for limit in limits] == ["4 load steps per roller: load laws cannot be told apart"]
+    assert unseparated(pair("surface_roughness", "material_hardness"), limits) is not None
+    assert unseparated(pair("setup_compliance", measurement=("load_gain",)), limits) is not None
+    assert unseparated(pair("setup_compliance"), limits) is None
