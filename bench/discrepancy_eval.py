@@ -195,6 +195,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "named": physical, "measurement": chain, "verdict": result.verdict, "verdict_text": result.verdict_text(),
             "top": result.scored[0].explanation.name, "top_probability": result.scored[0].probability,
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
+            "design_limits": [limit.to_dict() for limit in result.limits],
             "baseline_lof_p": result.baseline_lack_of_fit_p,
             "not_instrument": [c.explanation.name for c in result.scored if c.failed_instrument],
             "n_points": result.data.n_points,

@@ -42,7 +42,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from discrepancy_scores import binned, holds_within, reliability, tempered
+from discrepancy_scores import binned, decided, holds_within, reliability, tempered
 
 from labctl.discrepancy.posterior import (
     LIKELY_AT,
@@ -120,8 +120,7 @@ def score(results: list[dict[str, Any]], decide: Rule) -> str:
         if p >= NAME_AT and top != "none":
             sure.append(top == r["truth_name"])
         loss -= math.log(max(dict(probs).get(r["truth_name"], 0.0), 1e-12))
-        terms = [] if top in ("none", "unlisted") else top.split(" + ")
-        named = terms if p >= NAME_AT else []
+        _, named = decided(r, top, p)
         truth = set() if r["truth_name"] in ("none", "unlisted") else set(r["truth_name"].split(" + "))
         if r["truth_name"] != "none":
             effects += 1

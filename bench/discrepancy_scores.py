@@ -11,8 +11,9 @@ from typing import Any
 import numpy as np
 from discrepancy_worlds import CALIBRATION
 
+from labctl.discrepancy.design import DesignLimit, decide
 from labctl.discrepancy.noise import lack_of_fit_rejects
-from labctl.discrepancy.posterior import rejected_explanations
+from labctl.discrepancy.posterior import Explanation, rejected_explanations
 from labctl.discrepancy.questions import probabilities
 from labctl.physics import EFFECTS
 
@@ -199,18 +200,25 @@ def tempered(r: dict[str, Any], temperature: float, log_prior: np.ndarray | None
     return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in ruled_out), key=lambda t: -t[1])
 
 
+def decided(r: dict[str, Any], top: str, probability: float) -> tuple[str, list[str]]:
+    """What the workflow's rule (``labctl.discrepancy.design.decide``) does with a stored result's most probable
+    explanation at this probability: named, likely or none, and the terms named; under the design limits the run
+    stored (a file without them: none)."""
+    terms = () if top in ("none", "unlisted") else tuple(top.split(" + "))
+    limits = [DesignLimit.from_dict(d) for d in r.get("design_limits", ())]
+    action, _ = decide(Explanation(terms), probability, limits)
+    return action, list(terms) if action == "named" else []
+
+
 def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
     """A blind result decided again at another temperature from its stored evidence — the workflow's own rule:
-    name the top explanation at ≥ 0.9, 'likely' at 0.5-0.9, else consistent (baseline passes the lack-of-fit
-    test and nothing is likely) or unexplained."""
+    name the top explanation at ≥ 0.9 (unless the design holds its pair back), 'likely' at 0.5-0.9, else
+    consistent (baseline passes the lack-of-fit test and nothing is likely) or unexplained."""
     probs = tempered(r, temperature)
     top, p = probs[0]
-    terms = [] if top in ("none", "unlisted") else top.split(" + ")
-    named = terms if p >= 0.9 else []
-    if named:
-        verdict = "named"
-    elif terms and p >= 0.5:
-        verdict = "likely"
+    action, named = decided(r, top, p)
+    if action in ("named", "likely"):
+        verdict = action
     else:
         verdict = "consistent" if (r.get("baseline_lof_p") or 0.0) >= 0.01 else "unexplained"
     return {**r, "top": top, "top_probability": p, "verdict": verdict,

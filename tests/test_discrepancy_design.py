@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
 from labctl.discrepancy.data import build_dataset
 from labctl.discrepancy.design import design_limits, unseparated
 from labctl.discrepancy.posterior import Explanation
+from labctl.discrepancy.questions import TEMPERATURE
 from labctl.discrepancy.synthetic import synthesize
 from tests.discrepancy_util import world
 
@@ -54,3 +58,18 @@ def test_few_load_steps_hold_back_every_pair():
     assert unseparated(pair("surface_roughness", "material_hardness"), limits) is not None
     assert unseparated(pair("setup_compliance", measurement=("load_gain",)), limits) is not None
     assert unseparated(pair("setup_compliance"), limits) is None
+
+
+def test_the_benchs_rescoring_decides_as_the_workflow_does():
+    # the evaluation bench decides every stored result again (``retemper``); at the workflow's own T it must
+    # give the workflow's verdict, a pair held back by the design included (a blind rig joint that closes with
+    # load, on one rail: surface_roughness + setup_compliance at 0.98, "likely")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from discrepancy_eval import Task, run_task
+    from discrepancy_scores import retemper
+
+    stored = run_task(Task("blind", "setup_compliance", 2011, 1.0))
+    again = retemper(stored, TEMPERATURE)
+    assert stored["verdict"] == "likely" and "not named: one rail roughness" in stored["verdict_text"]
+    assert (again["verdict"], again["named"], again["measurement"]) == ("likely", [], [])
+    assert again["top"] == stored["top"] == "surface_roughness + setup_compliance"

@@ -8,12 +8,14 @@ would also give, so the verdict says which terms and why instead of naming the p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
-from labctl.discrepancy.posterior import Explanation
+from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, Explanation
 
 LENGTH_SCALING = frozenset({"end_effects", "misalignment"})
 """Terms told from load-only ones by how they scale with roller length and diameter."""
@@ -31,6 +33,13 @@ class DesignLimit:
 
     text: str
     terms: frozenset[str] | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"text": self.text, "terms": None if self.terms is None else sorted(self.terms)}
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> DesignLimit:
+        return cls(doc["text"], None if doc["terms"] is None else frozenset(doc["terms"]))
 
     def covers(self, explanation: Explanation) -> bool:
         """Whether a two-term explanation rests on a term this limit leaves unseparated."""
@@ -60,6 +69,18 @@ def design_limits(data: Dataset) -> list[DesignLimit]:
     return out
 
 
-def unseparated(explanation: Explanation, limits: list[DesignLimit]) -> DesignLimit | None:
+def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> DesignLimit | None:
     """The first design limit that keeps a two-term explanation from being named, if any."""
     return next((limit for limit in limits if limit.covers(explanation)), None)
+
+
+def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]
+           ) -> tuple[str, DesignLimit | None]:
+    """What the verdict does with the most probable explanation: ``named`` at ≥ 0.9 unless a design limit holds
+    its pair back, ``likely`` from 0.5 (and a held pair), else ``none``; with the limit that held it back."""
+    if not explanation.terms:
+        return "none", None
+    held = unseparated(explanation, limits) if probability >= NAME_AT else None
+    if probability >= NAME_AT and held is None:
+        return "named", None
+    return ("likely", held) if probability >= LIKELY_AT else ("none", None)

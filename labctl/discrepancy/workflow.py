@@ -19,7 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
-from labctl.discrepancy.design import design_limits, unseparated
+from labctl.discrepancy.design import DesignLimit, decide, design_limits
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -78,14 +78,24 @@ class DiscrepancyResult:
     """Every candidate explanation with its posterior probability, most probable first."""
     likely: Scored | None = None
     """The most probable explanation when it is not named: its probability is 0.5-0.9, or the design cannot
-    separate its two terms (``not_named``)."""
-    not_named: str = ""
+    separate its two terms (``held_by``)."""
+    held_by: DesignLimit | None = None
     """The design limit that kept a two-term explanation of probability ≥ 0.9 from being named
     (``labctl.discrepancy.design``)."""
-    reasons: tuple[str, ...] = ()
+    limits: tuple[DesignLimit, ...] = ()
     """What in the data's design limits which candidates can be told apart."""
     absorbed: tuple[str, ...] = ()
     """Measurement-side terms the baseline's fitted depth takes up (``labctl.discrepancy.absorbed``): untested."""
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        """The design's limits in words."""
+        return tuple(limit.text for limit in self.limits)
+
+    @property
+    def not_named(self) -> str:
+        """The limit that held the most probable pair back, in a few words ("one rail roughness"), or ""."""
+        return "" if self.held_by is None else self.held_by.text.partition(":")[0]
 
     @property
     def consistent(self) -> bool:
@@ -237,6 +247,7 @@ class DiscrepancyResult:
                          "top": self.scored[0].to_dict() if self.scored else None,
                          "likely": None if self.likely is None else self.likely.to_dict(),
                          "not_named_because": self.not_named or None,
+                         "design_limits": [limit.to_dict() for limit in self.limits],
                          "identifiability": [*self.reasons, *self.absorbed]},
             "closest_library_term": None if self.closest is None else
             {"name": self.closest.name, "explained_share": self.closest.share, "delta_bic": self.closest.delta_bic},
@@ -341,14 +352,10 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
             data, noise = fewer, less
             search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
             top = scored[0]
-    steps: list[Step] = []
-    likely = None
     limits = design_limits(data)
-    held = unseparated(top.explanation, limits) if top.probability >= NAME_AT else None
-    if top.explanation.terms and top.probability >= NAME_AT and held is None:
-        steps = _steps(scored, top, base, evidence.fits)
-    elif top.explanation.terms and top.probability >= LIKELY_AT:
-        likely = top
+    action, held = decide(top.explanation, top.probability, limits)
+    steps = _steps(scored, top, base, evidence.fits) if action == "named" else []
+    likely = top if action == "likely" else None
     current = steps[-1].fit if steps else base
     nuisance = _nuisance(search, [base, current])
     closest = empirical = None
@@ -364,8 +371,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
-        scored=tuple(scored), likely=likely, not_named="" if held is None else held.text.partition(":")[0],
-        reasons=tuple(limit.text for limit in limits),
+        scored=tuple(scored), likely=likely, held_by=held, limits=tuple(limits),
         absorbed=tuple(absorbed_reasons(data, base)),
     )
 
