@@ -35,10 +35,12 @@ class DesignLimit:
     terms: frozenset[str] | None
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON form (``decision.design_limits``); a bench stores it to decide again as the workflow does."""
         return {"text": self.text, "terms": None if self.terms is None else sorted(self.terms)}
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any]) -> DesignLimit:
+        """The limit a ``to_dict`` document holds."""
         return cls(doc["text"], None if doc["terms"] is None else frozenset(doc["terms"]))
 
     def covers(self, explanation: Explanation) -> bool:
