@@ -7,12 +7,14 @@ from pathlib import Path
 
 import pytest
 
+from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.data import build_dataset
 from labctl.discrepancy.design import design_limits, unseparated
 from labctl.discrepancy.posterior import Explanation
 from labctl.discrepancy.questions import TEMPERATURE
 from labctl.discrepancy.synthetic import synthesize
-from tests.discrepancy_util import world
+from labctl.physics import EndEffects, MaterialHardness, Misalignment, SetupCompliance, SurfaceRoughness
+from tests.discrepancy_util import NOISE, names, world
 
 
 def limits_of(types=range(1, 8), rails=(0.2e-6, 0.03e-6), steps=11):
@@ -58,6 +60,25 @@ def test_few_load_steps_hold_back_every_pair():
     assert unseparated(pair("surface_roughness", "material_hardness"), limits) is not None
     assert unseparated(pair("setup_compliance", measurement=("load_gain",)), limits) is not None
     assert unseparated(pair("setup_compliance"), limits) is None
+
+
+@pytest.mark.parametrize("effect", [EndEffects(edge_length_m=0.2e-3), MaterialHardness(gain=0.6, threshold=0.3),
+                                    Misalignment(tilt_rad=4e-4), SetupCompliance(stiffness_factor=1.25)],
+                         ids=lambda e: e.name)
+def test_hidden_effect_on_top_of_the_default_world_is_named_after_roughness(effect):
+    """The twin's default world already has roughness (Tripp 1.5 mm + asperity scale 1.5); a scenario adds one.
+    On two rail roughnesses the pair is named; on one the roughness cannot be told from a rig joint that closes
+    with load, so the same pair is only "likely", and the verdict says why."""
+    truth = world(SurfaceRoughness(asperity_scale=1.5), effect, depth_m=1.5e-3)
+    one_rail = synthesize(truth, noise=NOISE, seed=3)
+    result = run_discrepancy(one_rail + synthesize(truth, rail_ra_m=0.03e-6, noise=NOISE, seed=103))
+    assert names(result) == ["surface_roughness", effect.name]
+    assert result.to_dict()["gap_after"] < 0.03
+    held = run_discrepancy(one_rail)
+    assert held.scored[0].explanation.name == f"surface_roughness + {effect.name}"
+    assert held.scored[0].probability >= 0.9 and names(held) == [] and held.verdict == "likely"
+    assert held.to_dict()["decision"]["not_named_because"] == "one rail roughness"
+    assert "not named: one rail roughness, so this design cannot separate its two terms" in held.verdict_text()
 
 
 def test_the_benchs_rescoring_decides_as_the_workflow_does():
