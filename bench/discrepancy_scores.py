@@ -206,7 +206,7 @@ def decided(r: dict[str, Any], top: str, probability: float) -> tuple[str, list[
     stored (a file without them: none)."""
     terms = () if top in ("none", "unlisted") else tuple(top.split(" + "))
     limits = [DesignLimit.from_dict(d) for d in r.get("design_limits", ())]
-    action, _ = decide(Explanation(terms), probability, limits)
+    action = decide(Explanation(terms), probability, limits)
     return action, list(terms) if action == "named" else []
 
 

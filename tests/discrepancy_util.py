@@ -9,7 +9,7 @@ DEPTH_M = 2e-3
 GENERATOR_NOISE = NoiseModel(low=0.02, high=0.02 / 3)
 """The independent generator's noise: 2 % at the preload, a third of it at the top of the load range."""
 NOISE = NoiseModel(low=0.03, high=0.01)
-"""The workflow tests' noise: 3 % per point at the preload falling to 1 % at the top load."""
+"""The workflow tests' noise: 3 % per point at the preload, 1 % near 30 % of C0 (the paper's spread)."""
 
 
 def world(*effects, depth_m=DEPTH_M):

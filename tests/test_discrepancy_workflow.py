@@ -24,8 +24,6 @@ from labctl.physics import (
 from labctl.physics.materials import hardness_pa
 from tests.discrepancy_util import DEPTH_M, GENERATOR_NOISE, NOISE, names, world
 
-"""A few % at the preload, 1 % near 30 % of C0 (the paper's spread)."""
-
 
 def eq5(case, load_n):
     return EmpiricalFit(EQ5, case.roller.contact_length_m).stiffness_n_per_m(load_n)

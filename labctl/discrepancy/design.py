@@ -76,13 +76,11 @@ def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> Desi
     return next((limit for limit in limits if limit.covers(explanation)), None)
 
 
-def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]
-           ) -> tuple[str, DesignLimit | None]:
+def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]) -> str:
     """What the verdict does with the most probable explanation: ``named`` at ≥ 0.9 unless a design limit holds
-    its pair back, ``likely`` from 0.5 (and a held pair), else ``none``; with the limit that held it back."""
-    if not explanation.terms:
-        return "none", None
-    held = unseparated(explanation, limits) if probability >= NAME_AT else None
-    if probability >= NAME_AT and held is None:
-        return "named", None
-    return ("likely", held) if probability >= LIKELY_AT else ("none", None)
+    its pair back (``unseparated``), ``likely`` from 0.5 (a held pair too), else ``none``."""
+    if not explanation.terms or probability < LIKELY_AT:
+        return "none"
+    if probability >= NAME_AT and unseparated(explanation, limits) is None:
+        return "named"
+    return "likely"

@@ -19,7 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
-from labctl.discrepancy.design import DesignLimit, decide, design_limits
+from labctl.discrepancy.design import DesignLimit, decide, design_limits, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -79,9 +79,6 @@ class DiscrepancyResult:
     likely: Scored | None = None
     """The most probable explanation when it is not named: its probability is 0.5-0.9, or the design cannot
     separate its two terms (``held_by``)."""
-    held_by: DesignLimit | None = None
-    """The design limit that kept a two-term explanation of probability ≥ 0.9 from being named
-    (``labctl.discrepancy.design``)."""
     limits: tuple[DesignLimit, ...] = ()
     """What in the data's design limits which candidates can be told apart."""
     absorbed: tuple[str, ...] = ()
@@ -91,6 +88,13 @@ class DiscrepancyResult:
     def reasons(self) -> tuple[str, ...]:
         """The design's limits in words."""
         return tuple(limit.text for limit in self.limits)
+
+    @property
+    def held_by(self) -> DesignLimit | None:
+        """The design limit that kept a two-term explanation of probability ≥ 0.9 from being named, if any."""
+        if self.likely is None or self.likely.probability < NAME_AT:
+            return None
+        return unseparated(self.likely.explanation, self.limits)
 
     @property
     def not_named(self) -> str:
@@ -150,13 +154,11 @@ class DiscrepancyResult:
                 parts.append(f"form differs: the residual is NOT consistent with the noise ({level}) and still "
                              f"{residual}")
         else:
-            if self.likely is not None and self.not_named:
+            if self.likely is not None:
+                why = (f"not named: {self.not_named}, so this design cannot separate its two terms (below)"
+                       if self.not_named else f"below the {NAME_AT:g} needed to name it")
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
-                             f"not named: {self.not_named}, so this design cannot separate its two terms (below)); "
-                             f"candidates: {self._top()}")
-            elif self.likely is not None:
-                parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
-                             f"below the {NAME_AT:g} needed to name it); candidates: {self._top()}")
+                             f"{why}); candidates: {self._top()}")
             elif top is not None and top.explanation.unlisted and top.probability >= LIKELY_AT:
                 parts.append(f"unexplained: most probably an effect outside the library (unlisted "
                              f"{top.probability:.2f}); candidates: {self._top()}")
@@ -353,7 +355,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
             search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
             top = scored[0]
     limits = design_limits(data)
-    action, held = decide(top.explanation, top.probability, limits)
+    action = decide(top.explanation, top.probability, limits)
     steps = _steps(scored, top, base, evidence.fits) if action == "named" else []
     likely = top if action == "likely" else None
     current = steps[-1].fit if steps else base
@@ -371,7 +373,7 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
         regions=locate(data, base.residuals, base.sigma), regions_after=locate(data, current.residuals, current.sigma),
         trends=trends(data, base.residuals, sigma), screening=screening, closest=closest, empirical=empirical,
         nuisance=tuple(nuisance), trends_after=tuple(trends(data, current.residuals, sigma)),
-        scored=tuple(scored), likely=likely, held_by=held, limits=tuple(limits),
+        scored=tuple(scored), likely=likely, limits=tuple(limits),
         absorbed=tuple(absorbed_reasons(data, base)),
     )
 
