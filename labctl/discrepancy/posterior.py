@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.empirical import MAX_FEATURES, features
 from labctl.discrepancy.form import FormPrior, contribution
-from labctl.discrepancy.free_form import FREE_FORM_DOUBT, Selected, averaged, select, signature
 from labctl.discrepancy.instrument import check_instrument, rig_level
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, SHAPE_STARTS, Fit, ModelSpec, depth_column, fit_model
@@ -286,40 +286,51 @@ class Evidence:
         return replace(best, log_evidence_by_t=doubted(library.log_evidence_by_t, [f.log_evidence_by_t for f in freed]),
                        log_fit_by_t=doubted(library.log_fit_by_t, [f.log_fit_by_t for f in freed]))
 
-    def selected(self, base: Fit, allowed: tuple[str, ...] | None = None) -> Selected | None:
-        """An empirical form on the baseline's residual (``labctl.discrepancy.free_form.select``), the depth's column
-        always in."""
+    def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
+        """The baseline plus up to MAX_FEATURES empirical features (forward selection by evidence)."""
+        names, x = features(self.data)
+        if len(self.data.roller_keys()) < 3:  # a per-geometry feature cannot be told from the seating offsets
+            keep = [i for i, n in enumerate(names) if np.unique(x[:, i]).size > len(self.data.cases)]
+            names, x = [names[i] for i in keep], x[:, keep]
         j = depth_column(base, self.data)
         head = np.zeros((self.n, 0)) if j is None else self.noise.whiten(self.data, j[:, None], self.sigma)
-        return select(self.data, self.form, base.z, head, lambda x: self.noise.whiten(self.data, x, self.sigma),
-                      self.charged, base.spec.n_params(), self.temperatures, allowed)
+        xw = self.noise.whiten(self.data, x, self.sigma)
+        y = base.z
+        k0 = base.spec.n_params()
 
-    def unlisted(self, base: Fit, expl: Explanation, candidates: list[Explanation]) -> Scored:
-        """The baseline plus up to MAX_FEATURES empirical features of any kind (forward selection by evidence)."""
-        chosen = self.selected(base)
-        assert chosen is not None, "the basis has a feature that varies over any campaign (the load)"
-        e = chosen.residual
-        return Scored(expl, None, chosen.log_evidence_by_t, chosen.log_fit_by_t, log_prior(expl, candidates),
-                      base.spec.n_params() + len(chosen.features), chosen.tau, float(e @ e),
-                      float(np.sum((e - self.form.smooth(e, chosen.tau)) ** 2)),
-                      extra={"features": list(chosen.features)}, case_log_lik_by_t=chosen.case_log_lik_by_t)
+        def evaluate(chosen: list[int], t: float) -> tuple[float, float, np.ndarray]:
+            a = np.column_stack([head, xw[:, chosen]])
+            coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+            e = y - a @ coef
+            log_m, tau = self.form.log_marginal(e, inflation=t)
+            log_fit = log_m - math.log(math.comb(len(names), len(chosen)))
+            return log_fit, tau, e
 
-    def free_form(self, library: Scored, base: Fit) -> Scored:
-        """A candidate whose terms all have a signature (``labctl.discrepancy.free_form.SIGNATURES``): its evidence
-        averaged over the library law and the free form; each roller case's part from the form that carries more
-        of it. The fit (and the parameters reported) stay the library law's."""
-        allowed = signature(library.explanation.terms)
-        chosen = None if allowed is None else self.selected(base, allowed)
-        if chosen is None:
-            return library
-        law, free = library.log_evidence_by_t, chosen.log_evidence_by_t
-        parts = {t: chosen.case_log_lik_by_t[t] if free[t] + math.log(FREE_FORM_DOUBT) >
-                 law[t] + math.log1p(-FREE_FORM_DOUBT) else library.case_log_lik_by_t[t] for t in law}
-        share = 1.0 / (1.0 + math.exp(min(700.0, law[TEMPERATURE] + math.log1p(-FREE_FORM_DOUBT) -
-                                          free[TEMPERATURE] - math.log(FREE_FORM_DOUBT))))
-        return replace(library, log_evidence_by_t=averaged(law, free),
-                       log_fit_by_t=averaged(library.log_fit_by_t, chosen.log_fit_by_t), case_log_lik_by_t=parts,
-                       extra={**library.extra, "free_form": {"features": list(chosen.features), "share": share}})
+        def select(t: float) -> tuple[list[int], tuple[float, float, np.ndarray]]:
+            # at least one feature: with none, "unlisted" is the baseline itself — "none" under another name, which
+            # would take "none"'s place (at no Occam cost) where the lack-of-fit test has rejected it
+            chosen: list[int] = []
+            best = (-math.inf, 0.0, y)
+            while len(chosen) < min(MAX_FEATURES, len(names)):
+                trial = [(evaluate([*chosen, i], t), i) for i in range(len(names)) if i not in chosen]
+                top = max(trial, key=lambda r: evidence(r[0][0], len(chosen) + 1, t))
+                if evidence(top[0][0], len(chosen) + 1, t) <= evidence(best[0], len(chosen), t):
+                    break
+                best, chosen = top[0], [*chosen, top[1]]
+            return chosen, best
+
+        def evidence(log_fit: float, m: int, t: float) -> float:
+            return self.charged(log_fit, k0 + m, t) if m else -math.inf
+
+        selected = {t: select(t) for t in self.temperatures}
+        fit_by_t = {t: best[0] for t, (_, best) in selected.items()}
+        by_t = {t: evidence(best[0], len(chosen), t) for t, (chosen, best) in selected.items()}
+        chosen, (_, tau, e) = selected[TEMPERATURE]
+        smooth = self.form.smooth(e, tau)
+        parts = {t: self.form.case_log_marginals(best[2], t, best[1]) for t, (_, best) in selected.items()}
+        return Scored(expl, None, by_t, fit_by_t, log_prior(expl, candidates), k0 + len(chosen), tau, float(e @ e),
+                      float(np.sum((e - smooth) ** 2)), extra={"features": [names[i] for i in chosen]},
+                      case_log_lik_by_t=parts)
 
     def all(self, base_spec: ModelSpec, max_terms: int = 2) -> tuple[Fit, list[Scored]]:
         """The baseline fit and every candidate of at most ``max_terms`` terms scored (probabilities filled in)."""
@@ -346,8 +357,7 @@ class Evidence:
                 two = self.fit(base_spec.with_effects(a, b), warm=fits[(b,)], guess=fits[(a,)].spec.decode(
                     fits[(a,)].x))
                 fits[key] = min(one, two, key=lambda f: float(f.z @ f.z))
-            scored.append(self.free_form(self.shape_doubt(self.score(expl, fits[key], candidates), candidates),
-                                         base))
+            scored.append(self.shape_doubt(self.score(expl, fits[key], candidates), candidates))
         lof_p = base.lack_of_fit_p(self.data, self.noise)
         not_instrument: list[str] = []
         while True:
