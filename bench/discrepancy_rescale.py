@@ -20,7 +20,13 @@ inflation T of the grid) and decides every dataset again under each rule, withou
 - ``ε``: the probabilities mixed with the prior afterwards, (1 − ε)·p + ε·prior (the prior renormalised over the
   candidates not ruled out): a recalibration map that keeps the ranking and pulls every probability toward it;
 - ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
-  three cases or more: ``labctl.discrepancy.questions``) or ``pooled`` (the evidence alone, as before).
+  three cases or more: ``labctl.discrepancy.questions``) or ``pooled`` (the evidence alone, as before);
+- ``a``: the resampling's Dirichlet concentration (1, the workflow's: the Bayesian bootstrap; below 1 the case
+  weights spread further, so a lead that rests on a few roller cases counts for less);
+- ``map``: ``isotonic`` — the top explanation's probability recalibrated by the isotonic regression of "right"
+  on it over the first file (``scipy.optimize.isotonic_regression``; the other candidates scaled to keep the sum):
+  the standard recalibration map, fitted where a rule would be chosen and judged on the other files (on the first
+  it is in-sample and passes by construction).
 
 The first file is the one a rule would be chosen on (calibration seeds); the others show what it does elsewhere.
 Per file: top explanation = truth, log loss of the truth's probability, expected calibration error over the
@@ -43,6 +49,7 @@ from typing import Any
 
 import numpy as np
 from discrepancy_scores import binned, decided, holds_within, reliability, tempered
+from scipy.optimize import isotonic_regression
 
 from labctl.discrepancy.posterior import (
     LIKELY_AT,
@@ -92,16 +99,18 @@ def c_hat_temperature(r: dict[str, Any]) -> float:
 
 
 def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled",
-         mix: float = 0.0) -> Rule:
+         mix: float = 0.0, concentration: float = 1.0) -> Rule:
     """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule; ``t``:
-    a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``); ``mix``: ε of the map toward the prior."""
+    a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``); ``mix``: ε of the map toward the prior;
+    ``concentration``: the resampling's."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
         temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
         priors = log_priors(r, prior)
-        probs = tempered(r, temperature, priors, evidence, lam, resample=cases == "resampled")
+        probs = tempered(r, temperature, priors, evidence, lam, resample=cases == "resampled",
+                         concentration=concentration)
         if not mix:
             return probs
         by_name = dict(zip((x["explanation"] for x in r["candidates"]), priors, strict=True))
@@ -109,6 +118,22 @@ def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "class
         mixed = [(name, (1.0 - mix) * p + mix * w) for (name, p), w in zip(probs, weight / weight.sum(), strict=True)]
         return sorted(mixed, key=lambda item: -item[1])
     return decide
+
+
+def isotonic(decide: Rule, results: list[dict[str, Any]]) -> Rule:
+    """``decide`` with its top probability mapped by the isotonic regression of "right" on it over ``results``
+    (the other candidates scaled so the probabilities still sum to one)."""
+    pairs = sorted((probs[0][1], float(probs[0][0] == r["truth_name"])) for r in results for probs in [decide(r)])
+    stated = np.array([p for p, _ in pairs])
+    fitted = isotonic_regression(np.array([y for _, y in pairs])).x
+
+    def mapped(r: dict[str, Any]) -> list[tuple[str, float]]:
+        probs = decide(r)
+        top = probs[0][1]
+        new = float(np.interp(top, stated, fitted))
+        rest = (1.0 - new) / (1.0 - top) if top < 1.0 else 0.0
+        return sorted([(probs[0][0], new), *((n, p * rest) for n, p in probs[1:])], key=lambda item: -item[1])
+    return mapped
 
 
 def score(results: list[dict[str, Any]], decide: Rule) -> str:
@@ -149,27 +174,33 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    workflow = ("hyper-g", "all", TEMPERATURE, 1.0, "classes", "resampled")
-    rules: list[tuple] = [workflow]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "resampled") for t in (2.0, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", t, 1.0, "classes", "pooled") for t in (TEMPERATURE, 4.0, 8.0, 32.0)]
-    rules += [("hyper-g", "all", TEMPERATURE, 2.0, "classes", "pooled"), ("bic", "all", TEMPERATURE, 1.0, "classes",
-              "pooled"), ("bic", "all", 2.0, 1.0, "classes", "pooled"),
-              ("hyper-g", "all", TEMPERATURE, 1.0, "equal-single", "resampled"),
-              ("hyper-g", "all", "c-hat", 1.0, "classes", "resampled")]
-    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"unlisted={m:g}", "resampled") for m in (0.05, 0.025)]
-    rules += [("hyper-g", "all", TEMPERATURE, 1.0, f"pair={m:g}", "resampled") for m in (0.2, 0.05)]
-    rules += [(*workflow, eps) for eps in (0.1, 0.2)]  # the workflow's rule, mapped toward the prior
-    print("| occam | scope | T | λ | prior | cases | ε | file | top = truth | log loss | ECE | bins ≥ 30 within 0.05 | "
-          "named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occam, scope, t, lam, prior, cases, *mapped in rules:
-        mix = mapped[0] if mapped else 0.0
-        decide = rule(occam, scope, t, lam, prior, cases, mix)
+    workflow: dict[str, Any] = {"occam": "hyper-g", "scope": "all", "t": TEMPERATURE, "lam": 1.0,
+                                "prior": "classes", "cases": "resampled", "mix": 0.0, "concentration": 1.0}
+    changes: list[dict[str, Any]] = [{}]
+    changes += [{"t": t} for t in (2.0, 8.0, 32.0, "c-hat")]
+    changes += [{"cases": "pooled", "t": t} for t in (TEMPERATURE, 8.0, 32.0)]
+    changes += [{"cases": "pooled", "lam": 2.0}, {"cases": "pooled", "occam": "bic"},
+                {"cases": "pooled", "occam": "bic", "t": 2.0}]
+    changes += [{"prior": prior} for prior in ("equal-single", "unlisted=0.05", "unlisted=0.025", "pair=0.2",
+                                               "pair=0.05")]
+    changes += [{"mix": eps} for eps in (0.1, 0.2)]  # the workflow's rule, mapped toward the prior
+    changes += [{"concentration": a} for a in (0.5, 0.25, 0.1)]
+    changes += [{"map": "isotonic"}, {"map": "isotonic", "concentration": 0.25}]
+    print("| occam | scope | T | λ | prior | cases | ε | a | map | file | top = truth | log loss | ECE | "
+          "bins ≥ 30 within 0.05 | named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for change in changes:
+        row = {**workflow, **change}
+        recalibration = row.pop("map", "none")
+        decide = rule(**row)
+        if recalibration == "isotonic":  # fitted on the first file, judged on the others
+            decide = isotonic(decide, runs[0][1])
+        t = row["t"]
         shown = t if isinstance(t, str) else f"{t:g}"
         for path, results in runs:
-            print(f"| {occam} | {scope} | {shown} | {lam:g} | {prior} | {cases} | {mix:g} | "
-                  f"{path.rsplit('/', 1)[-1]} | {score(results, decide)} |")
+            print(f"| {row['occam']} | {row['scope']} | {shown} | {row['lam']:g} | {row['prior']} | {row['cases']} | "
+                  f"{row['mix']:g} | {row['concentration']:g} | {recalibration} | {path.rsplit('/', 1)[-1]} | "
+                  f"{score(results, decide)} |")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
     print(reliability(pooled)[0])

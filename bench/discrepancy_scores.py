@@ -187,16 +187,17 @@ def case_log_lik(r: dict[str, Any]) -> Callable[[float], np.ndarray] | None:
 
 def tempered(r: dict[str, Any], temperature: float, log_prior: np.ndarray | None = None,
              log_evidence: Callable[[float], np.ndarray] | None = None, scale: float = 1.0,
-             resample: bool = True) -> list[tuple[str, float]]:
+             resample: bool = True, concentration: float = 1.0) -> list[tuple[str, float]]:
     """Every candidate's probability at another noise inflation T (from the evidence stored at each T of the
     workflow's grid), most probable first, resampled over roller cases as the workflow does; without the
     explanations the workflow rules out (``rejected_explanations``). A bench's other rule may give its own priors,
-    evidence, confidence scale, or decide on the pooled evidence (``resample`` false)."""
+    evidence, confidence scale, resampling concentration, or decide on the pooled evidence (``resample`` false)."""
     cands, ruled_out = r["candidates"], rejected_explanations(r.get("baseline_lof_p"), r.get("not_instrument", ()))
     names = [c["explanation"] for c in cands]
     p = probabilities(names, np.array([c["log_prior"] for c in cands]) if log_prior is None else log_prior,
                       log_evidence or (lambda t: np.array([c["log_evidence_by_temperature"][f"{t:g}"] for c in cands])),
-                      temperature, ruled_out, scale=scale, case_log_lik=case_log_lik(r) if resample else None)
+                      temperature, ruled_out, scale=scale, case_log_lik=case_log_lik(r) if resample else None,
+                      concentration=concentration)
     return sorted(((n, float(v)) for n, v in zip(names, p, strict=True) if n not in ruled_out), key=lambda t: -t[1])
 
 

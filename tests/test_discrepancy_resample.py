@@ -101,3 +101,15 @@ def test_the_json_says_whether_the_question_was_resampled_over_roller_cases(type
     assert out["decision"]["resampled_over_cases"] is resampled_
     assert out["decision"]["temperature"] == TEMPERATURE
     assert sum(x["probability"] for x in out["explanations"]) == pytest.approx(1.0)
+
+
+def test_a_wider_resampling_spreads_a_lead_that_rests_on_a_few_cases():
+    # candidate 2 wins four cases by a little, candidate 1 three cases by more and the pooled evidence: the lower
+    # the Dirichlet concentration, the more often a resample weights a few cases up, and the closer the two come
+    chi2 = np.array([[100.0] * 7, [90.0] * 4 + [60.0] * 3, [88.0] * 4 + [64.0] * 3])
+    log_post = np.array([-np.inf, *(-0.5 * chi2[1:].sum(axis=1))])
+    tops = [resampled(log_post, -0.5 * chi2, concentration=a)[1:] for a in (1.0, 0.25)]
+    assert all(p.sum() == pytest.approx(1.0) for p in tops)
+    assert abs(tops[1][0] - tops[1][1]) < abs(tops[0][0] - tops[0][1])
+    w = case_weights(7, 0.25)
+    assert np.allclose(w.sum(axis=1), 0.0) and w.std() > case_weights(7).std()

@@ -32,14 +32,15 @@ DRAWS = 1000
 
 
 @lru_cache(maxsize=16)
-def case_weights(n_cases: int) -> np.ndarray:
-    """``DRAWS`` × ``n_cases`` Bayesian-bootstrap weights less one, C·α − 1 with α ~ Dirichlet(1, …, 1)."""
-    draws = np.random.default_rng(0).dirichlet(np.ones(n_cases), size=DRAWS) * n_cases - 1.0
+def case_weights(n_cases: int, concentration: float = 1.0) -> np.ndarray:
+    """``DRAWS`` × ``n_cases`` Bayesian-bootstrap weights less one, C·α − 1 with α ~ Dirichlet(a, …, a), a the
+    ``concentration`` (1: the Bayesian bootstrap; below 1 a bench's wider resampling, the weights spread further)."""
+    draws = np.random.default_rng(0).dirichlet(np.full(n_cases, concentration), size=DRAWS) * n_cases - 1.0
     draws.setflags(write=False)
     return draws
 
 
-def resampled(log_post: np.ndarray, case_log_lik: np.ndarray) -> np.ndarray:
+def resampled(log_post: np.ndarray, case_log_lik: np.ndarray, concentration: float = 1.0) -> np.ndarray:
     """Each candidate's probability, the mean over resamples of softmax(log_post + Σ_c w_c·ℓ_kc).
 
     ``log_post``: each candidate's log prior + log evidence at T (−inf: no probability); ``case_log_lik``:
@@ -49,14 +50,15 @@ def resampled(log_post: np.ndarray, case_log_lik: np.ndarray) -> np.ndarray:
     if not alive.any():
         return out
     ell = np.asarray(case_log_lik, dtype=float)[alive]
-    s = log_post[alive][None, :] + case_weights(ell.shape[1]) @ ell.T
+    s = log_post[alive][None, :] + case_weights(ell.shape[1], concentration) @ ell.T
     out[alive] = np.mean(np.exp(s - logsumexp(s, axis=1, keepdims=True)), axis=0)
     return out
 
 
 def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Callable[[float], np.ndarray],
                   temperature: float = TEMPERATURE, rejected: frozenset[str] = frozenset(), scale: float = 1.0,
-                  case_log_lik: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
+                  case_log_lik: Callable[[float], np.ndarray] | None = None, concentration: float = 1.0
+                  ) -> np.ndarray:
     """Every candidate's posterior probability, in two questions. Is there any effect? "none" against all the
     others at the noise model's own scale (``PRESENCE_TEMPERATURE``): the noise comes from the repetitions, and
     a misfit beyond it is evidence of some effect whatever its law. Which one? The others against each other at
@@ -65,7 +67,7 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
     likelihood at T) is given for at least ``MIN_CASES`` cases. ``log_evidence(T)``: each candidate's
     log p(D | M) at inflation T; the ``rejected`` explanations (``rejected_explanations``) get no probability.
     ``scale`` divides the second question's log posterior (1 in the workflow; a bench's confidence scale, which
-    keeps the ranking and spreads the probabilities)."""
+    keeps the ranking and spreads the probabilities); ``concentration``: the resampling's (``case_weights``)."""
     names_a = np.array(names)
     none = names_a == "none"
     ruled_out = np.isin(names_a, list(rejected))
@@ -80,7 +82,7 @@ def probabilities(names: Sequence[str], log_prior: np.ndarray, log_evidence: Cal
         s = np.where(others, (log_prior + log_evidence(temperature)) / scale, -np.inf)
         ell = None if case_log_lik is None else np.asarray(case_log_lik(temperature))
         if ell is not None and resampled_over(ell.shape[1]):
-            out[others] = (1.0 - p_none) * resampled(s, ell / scale)[others]
+            out[others] = (1.0 - p_none) * resampled(s, ell / scale, concentration)[others]
         else:
             out[others] = (1.0 - p_none) * np.exp(s[others] - logsumexp(s[others]))
     return out
