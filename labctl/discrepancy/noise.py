@@ -12,7 +12,8 @@ Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened w
 seating, r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by
 σ_i. "Consistent with the noise" is the lack-of-fit F test of generalised least squares at level
 ``CONSISTENT_P``: the model's whitened misfit beyond the saturated model (one mean per load step and case)
-against the pure error.
+against the pure error, read against its null distribution simulated under the estimated noise model
+(``labctl.discrepancy.lof_reference``: the estimate itself makes the plain F reference reject too often).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import numpy as np
 from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats.f.sf)
 
 from labctl.discrepancy.data import CaseData, Dataset
+from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
 from labctl.errors import InputError
 
@@ -69,6 +71,29 @@ class NoiseFloor:
     seating_dof: int = 0
     outliers: tuple[int, ...] = field(default=())
     """Indices (into the dataset it was estimated on) of gross outliers: excluded from every fit."""
+    _references: dict[tuple[int, bytes], Reference | None] = field(default_factory=dict, init=False, repr=False,
+                                                                     compare=False)
+    """The lack-of-fit test's simulated null distribution, by the campaign it was simulated for."""
+
+    def reference(self, data: Dataset) -> Reference | None:
+        """The lack-of-fit statistic's null distribution on ``data`` under this noise model, simulated once
+        (``labctl.discrepancy.lof_reference``); None without repetitions (the plain F reference is kept)."""
+        if self.method != "repetitions":
+            return None
+        key = (data.n_points, data.load_n.tobytes())
+        if key not in self._references:
+            def statistic(campaign: Dataset, y: np.ndarray) -> tuple[float, int] | None:
+                floor = estimate_noise(campaign)
+                test = floor.lack_of_fit(campaign, -y, floor.sigma_at(campaign), 0, simulated=False)
+                return None if test is None else (test.f, test.df_lack)
+            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic)
+        return self._references[key]
+
+    def p_value(self, data: Dataset, f: float, df_lack: int, df_pure: int) -> float:
+        """The lack-of-fit p-value of statistic ``f`` on ``data``: against the simulated reference, or F(df_lack,
+        df_pure) without one."""
+        ref = self.reference(data)
+        return float(fdtrc(df_lack, df_pure, f)) if ref is None else ref.p(f, df_lack)
 
     def sigma_at(self, data: Dataset) -> np.ndarray:
         """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands."""
@@ -86,9 +111,10 @@ class NoiseFloor:
         return [{"load_per_length_n_per_mm": float(np.exp(x)) * 1e-3, "sigma": s}
                 for x, s in zip(self.band_ln_p, self.band_sigma, strict=True)]
 
-    def lack_of_fit(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int
-                    ) -> LackOfFit | None:
-        """F test of the model's misfit beyond the saturated model against the pure error; None if untestable."""
+    def lack_of_fit(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray, n_params: int,
+                    simulated: bool = True) -> LackOfFit | None:
+        """F test of the model's misfit beyond the saturated model against the pure error, read against the
+        simulated reference (``simulated``; else the plain F distribution); None if untestable."""
         e = self.whiten(data, residuals, sigma)
         s_model = float(e @ e)
         n = e.size
@@ -104,7 +130,8 @@ class NoiseFloor:
         if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
             return None
         f = max(0.0, s_model - s_pure) / df_lack / (s_pure / df_pure)
-        return LackOfFit(f, df_lack, df_pure, float(fdtrc(df_lack, df_pure, f)), s_pure / df_pure)
+        p = self.p_value(data, f, df_lack, df_pure) if simulated else float(fdtrc(df_lack, df_pure, f))
+        return LackOfFit(f, df_lack, df_pure, p, s_pure / df_pure)
 
     def cells(self, data: Dataset, sigma: np.ndarray) -> np.ndarray:
         """The saturated model's columns (one per replicate set: a load step of a case), whitened (n × m)."""

@@ -45,7 +45,7 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     if len(noise.groups) * fdtrc(1, test.df_pure, gain[j] / pure) >= OUTLIER_ALPHA:
         return []
     rest = max(0.0, float(e @ e) - gain[j] - pure * test.df_pure) / (test.df_lack - 1) / pure
-    if lack_of_fit_rejects(float(fdtrc(test.df_lack - 1, test.df_pure, rest))):
+    if lack_of_fit_rejects(noise.p_value(data, rest, test.df_lack - 1, test.df_pure)):
         return []
     step = noise.groups[j]
     z = e[step] * np.sign(along[j])

@@ -1,0 +1,61 @@
+"""The lack-of-fit test read against its null distribution simulated under the estimated noise model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from labctl.discrepancy import run_discrepancy
+from labctl.discrepancy.data import build_dataset
+from labctl.discrepancy.lof_reference import Reference, with_ln_stiffness
+from labctl.discrepancy.model import fit_model
+from labctl.discrepancy.noise import estimate_noise
+from labctl.discrepancy.search import Search
+from labctl.discrepancy.synthetic import NoiseModel, synthesize
+from labctl.discrepancy.workflow import baseline_spec
+from labctl.physics import ContactLaw, SurfaceRoughness
+
+NULL_NOISE = NoiseModel(0.02, 0.02 / 3)
+
+
+def campaign(*effects, seed=0):
+    return synthesize(ContactLaw("tripp", 2e-3, effects).stiffness_n_per_m, noise=NULL_NOISE, seed=seed,
+                      seating_rel=0.006)
+
+
+def baseline_test(points, simulated=True):
+    data = build_dataset(points)
+    noise = estimate_noise(data)
+    spec = baseline_spec("tripp")
+    fit = fit_model(data, spec, sigma=Search(data, noise).sigma, seating_sigma=noise.seating_sigma)
+    return noise, data, noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params(), simulated=simulated)
+
+
+def test_a_campaign_with_other_ln_k_keeps_its_design():
+    data = build_dataset(campaign())
+    y = np.arange(data.n_points, dtype=float)
+    other = with_ln_stiffness(data, y)
+    assert np.array_equal(other.ln_stiffness, y)
+    assert np.array_equal(other.load_n, data.load_n) and np.array_equal(other.run_ids(), data.run_ids())
+
+
+def test_the_reference_is_a_scaled_f_and_the_same_every_time():
+    noise, data, test = baseline_test(campaign(seed=1))
+    ref = noise.reference(data)
+    assert isinstance(ref, Reference) and 0.8 < ref.scale < 1.3 and ref.dfd > 20
+    assert test.p == baseline_test(campaign(seed=1))[2].p  # fixed draws
+    assert 0.0 <= test.p <= 1.0 and ref.p(2.0 * test.f + 1.0, test.df_lack) < test.p
+
+
+def test_a_null_campaign_the_plain_f_test_rejects_is_consistent_with_the_noise():
+    # the plain F reference ignores that σ(F) and σ_seat were estimated from the same repetitions; on this null
+    # campaign it rejected the exact baseline at 0.01 and the workflow said "unexplained"
+    points = campaign(seed=166)
+    assert baseline_test(points, simulated=False)[2].p < 0.01
+    assert baseline_test(points)[2].p >= 0.01
+    assert run_discrepancy(points).verdict == "consistent"
+
+
+def test_an_effect_is_still_found_against_the_simulated_reference():
+    _, _, test = baseline_test(campaign(SurfaceRoughness(asperity_scale=0.5), seed=2))
+    assert test.p < 1e-4
