@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.data import build_dataset
