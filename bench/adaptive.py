@@ -161,9 +161,7 @@ def truth_se(fit: EffectFit, world: World, points: Sequence[StiffnessPoint]) -> 
         return design_se(true, points)
     data = build_dataset(list(points))
     mu = true.rival.predict(data, true.rival.theta)
-    exact = Dataset(tuple(replace(c, ln_stiffness=mu[s]) for c, s in zip(data.cases, data.case_slices(),
-                                                                           strict=True)))
-    return kinked_se(true, exact)[0][1]
+    return kinked_se(true, data.with_ln_stiffness(mu))[0][1]
 
 
 def design_points(template: StiffnessPoint, loads_per_rep: Sequence[Sequence[float]]) -> list[StiffnessPoint]:

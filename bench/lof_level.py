@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 from discrepancy_blind import blind_worlds, csv_points
 
-from labctl.discrepancy.model import fit_model
 from labctl.discrepancy.search import Search
 from labctl.discrepancy.set_aside import screened
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
@@ -51,7 +50,7 @@ def p_values(job: tuple[str, int]) -> tuple[str, float, float] | None:
         return None
     spec = baseline_spec("tripp")
     data, noise, _ = screened(pts, spec)
-    fit = fit_model(data, spec, sigma=Search(data, noise).sigma, seating_sigma=noise.seating_sigma)
+    fit = Search(data, noise).fit(spec)
     plain = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params(), simulated=False)
     test = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
     if plain is None or test is None:

@@ -6,8 +6,7 @@ import numpy as np
 
 from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.data import build_dataset
-from labctl.discrepancy.lof_reference import Reference, with_ln_stiffness
-from labctl.discrepancy.model import fit_model
+from labctl.discrepancy.lof_reference import Reference
 from labctl.discrepancy.noise import estimate_noise
 from labctl.discrepancy.search import Search
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
@@ -26,14 +25,14 @@ def baseline_test(points, simulated=True):
     data = build_dataset(points)
     noise = estimate_noise(data)
     spec = baseline_spec("tripp")
-    fit = fit_model(data, spec, sigma=Search(data, noise).sigma, seating_sigma=noise.seating_sigma)
+    fit = Search(data, noise).fit(spec)
     return noise, data, noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params(), simulated=simulated)
 
 
 def test_a_campaign_with_other_ln_k_keeps_its_design():
     data = build_dataset(campaign())
     y = np.arange(data.n_points, dtype=float)
-    other = with_ln_stiffness(data, y)
+    other = data.with_ln_stiffness(y)
     assert np.array_equal(other.ln_stiffness, y)
     assert np.array_equal(other.load_n, data.load_n) and np.array_equal(other.run_ids(), data.run_ids())
 

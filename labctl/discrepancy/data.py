@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -92,6 +92,11 @@ class Dataset:
 
     def subset(self, keep: Iterable[int]) -> Dataset:
         return Dataset(tuple(self.cases[i] for i in keep))
+
+    def with_ln_stiffness(self, ln_k: np.ndarray) -> Dataset:
+        """The same campaign (cases, loads, seatings) with ln k replaced by ``ln_k`` (cases concatenated)."""
+        return Dataset(tuple(replace(c, ln_stiffness=np.asarray(ln_k[s], dtype=float))
+                             for c, s in zip(self.cases, self.case_slices(), strict=True)))
 
     def run_ids(self) -> np.ndarray:
         """Seating index per point: one per (roller case, repetition); a point without a repetition number is

@@ -13,7 +13,6 @@ the model's own df_lack. Fixed draws: the same data always give the same p-value
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -39,28 +38,18 @@ class Reference:
         return float(fdtrc(df_lack, self.dfd, f / self.scale))
 
 
-def with_ln_stiffness(data: Dataset, y: np.ndarray) -> Dataset:
-    """The same campaign (design, loads, seatings) with ln k replaced by ``y`` (cases concatenated)."""
-    cases, start = [], 0
-    for c in data.cases:
-        n = c.ln_stiffness.size
-        cases.append(dataclasses.replace(c, ln_stiffness=np.asarray(y[start:start + n], dtype=float)))
-        start += n
-    return dataclasses.replace(data, cases=tuple(cases))
-
-
 def simulate(data: Dataset, sigma: np.ndarray, seating_sigma: float,
-             statistic: Callable[[Dataset, np.ndarray], tuple[float, int] | None]) -> Reference | None:
+             statistic: Callable[[Dataset], tuple[float, int] | None]) -> Reference | None:
     """Fit the reference to ``DRAWS`` null campaigns like ``data`` (point σ ``sigma``, seating σ
-    ``seating_sigma``); ``statistic(campaign, y)``: the lack-of-fit statistic of the true mean (zero) and its
-    df_lack on a simulated campaign whose ln k is ``y``, its noise estimated anew (None: no test). None when the
+    ``seating_sigma``); ``statistic(campaign)``: the lack-of-fit statistic of the true mean (zero) and its
+    df_lack on a simulated campaign, its noise estimated anew (None: no test). None when the
     draws give no test."""
     rng = np.random.default_rng(0)
     runs = data.run_ids()
     draws, df = [], 0
     for _ in range(DRAWS):
         y = sigma * rng.standard_normal(sigma.size) + seating_sigma * rng.standard_normal(int(runs.max()) + 1)[runs]
-        test = statistic(with_ln_stiffness(data, y), y)
+        test = statistic(data.with_ln_stiffness(y))
         if test is not None and np.isfinite(test[0]):
             draws.append(test[0])
             df = max(df, test[1])

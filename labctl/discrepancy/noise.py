@@ -82,9 +82,10 @@ class NoiseFloor:
             return None
         key = (data.n_points, data.load_n.tobytes())
         if key not in self._references:
-            def statistic(campaign: Dataset, y: np.ndarray) -> tuple[float, int] | None:
+            def statistic(campaign: Dataset) -> tuple[float, int] | None:
                 floor = estimate_noise(campaign)
-                test = floor.lack_of_fit(campaign, -y, floor.sigma_at(campaign), 0, simulated=False)
+                test = floor.lack_of_fit(campaign, -campaign.ln_stiffness, floor.sigma_at(campaign), 0,
+                                         simulated=False)
                 return None if test is None else (test.f, test.df_lack)
             self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic)
         return self._references[key]
