@@ -21,7 +21,6 @@ import numpy as np
 from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats.f.sf)
 
 from labctl.discrepancy.data import Dataset
-from labctl.discrepancy.tails import GAUSSIAN, unit_draws
 
 DRAWS = 100
 """Simulated campaigns per reference fit."""
@@ -40,18 +39,16 @@ class Reference:
 
 
 def simulate(data: Dataset, sigma: np.ndarray, seating_sigma: float,
-             statistic: Callable[[Dataset], tuple[float, int] | None], tail_dof: float = GAUSSIAN
-             ) -> Reference | None:
+             statistic: Callable[[Dataset], tuple[float, int] | None]) -> Reference | None:
     """Fit the reference to ``DRAWS`` null campaigns like ``data`` (point σ ``sigma``, seating σ
-    ``seating_sigma``, Student-t tails of ``tail_dof``); ``statistic(campaign)``: the lack-of-fit statistic of
-    the true mean (zero) and its df_lack on a simulated campaign, its noise estimated anew (None: no test).
-    None when the draws give no test."""
+    ``seating_sigma``); ``statistic(campaign)``: the lack-of-fit statistic of the true mean (zero) and its
+    df_lack on a simulated campaign, its noise estimated anew (None: no test). None when the
+    draws give no test."""
     rng = np.random.default_rng(0)
     runs = data.run_ids()
     draws, df = [], 0
     for _ in range(DRAWS):
-        seats = seating_sigma * rng.standard_normal(int(runs.max()) + 1)
-        y = sigma * unit_draws(rng, tail_dof, sigma.size) + seats[runs]
+        y = sigma * rng.standard_normal(sigma.size) + seating_sigma * rng.standard_normal(int(runs.max()) + 1)[runs]
         test = statistic(data.with_ln_stiffness(y))
         if test is not None and np.isfinite(test[0]):
             draws.append(test[0])

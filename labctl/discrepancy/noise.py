@@ -27,7 +27,6 @@ from scipy.special import fdtrc  # the F distribution's survival function (scipy
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
-from labctl.discrepancy.tails import GAUSSIAN, tail_dof
 from labctl.errors import InputError
 
 SAME_STEP = 0.05
@@ -70,8 +69,6 @@ class NoiseFloor:
     seating_sigma: float = 0.0
     """σ of ln k shared by all points of one seating (repetition of a roller case)."""
     seating_dof: int = 0
-    tail_dof: float = GAUSSIAN
-    """Student-t degrees of freedom of the point noise (``labctl.discrepancy.tails``; ∞: Gaussian)."""
     outliers: tuple[int, ...] = field(default=())
     """Indices (into the dataset it was estimated on) of gross outliers: excluded from every fit."""
     _references: dict[tuple[int, bytes], Reference | None] = field(default_factory=dict, init=False, repr=False,
@@ -90,8 +87,7 @@ class NoiseFloor:
                 test = floor.lack_of_fit(campaign, -campaign.ln_stiffness, floor.sigma_at(campaign), 0,
                                          simulated=False)
                 return None if test is None else (test.f, test.df_lack)
-            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic,
-                                             self.tail_dof)
+            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic)
         return self._references[key]
 
     def p_value(self, data: Dataset, f: float, df_lack: int, df_pure: int) -> float:
@@ -209,8 +205,6 @@ class _TwoWay:
 
     residual: np.ndarray
     leverage: np.ndarray
-    fourth_share: np.ndarray
-    """Σ_k M_ik⁴ / M_ii² (M = I − H): how much of the point noise's excess kurtosis the residual keeps."""
 
 
 def _two_way(y: np.ndarray, groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
@@ -229,10 +223,7 @@ def _two_way(y: np.ndarray, groups: list[np.ndarray], runs: np.ndarray, keep: np
     residual[keep] = y[keep] - xk @ coef
     leverage = np.ones(n)
     leverage[keep] = np.einsum("ij,ji->i", xk, pinv)
-    m = np.eye(xk.shape[0]) - xk @ pinv
-    fourth = np.zeros(n)
-    fourth[keep] = np.sum(m**4, axis=1) / np.maximum(np.diag(m) ** 2, 1e-300)
-    return _TwoWay(residual, np.clip(leverage, 0.0, 1.0), fourth)
+    return _TwoWay(residual, np.clip(leverage, 0.0, 1.0))
 
 
 def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -280,10 +271,10 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
         resid = np.full(y.size, np.nan)
-        lev, fourth = np.ones(y.size), np.zeros(y.size)
+        lev = np.ones(y.size)
         for cg, sl in zip(case_groups, slices, strict=True):
             tw = _two_way(y[sl], cg, runs[sl], keep[sl])
-            resid[sl], lev[sl], fourth[sl] = tw.residual, tw.leverage, tw.fourth_share
+            resid[sl], lev[sl] = tw.residual, tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
         across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
@@ -299,9 +290,7 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
                            outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
         tau, tau_dof = _seating_sigma(data, floor, case_groups, keep)
-        z = across / floor.sigma_at(data)
-        return replace(floor, seating_sigma=tau, seating_dof=tau_dof,
-                       tail_dof=tail_dof(z[informative], fourth[informative]))
+        return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:
         raise InputError("cannot estimate the measurement noise: give repetitions of the load steps or at least "
