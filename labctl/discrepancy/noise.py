@@ -87,8 +87,7 @@ class NoiseFloor:
                 test = floor.lack_of_fit(campaign, -campaign.ln_stiffness, floor.sigma_at(campaign), 0,
                                          simulated=False)
                 return None if test is None else (test.f, test.df_lack)
-            self._references[key] = simulate(data, self.sigma_at(data, extrapolate=True), self.seating_sigma,
-                                             statistic)
+            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic)
         return self._references[key]
 
     def p_value(self, data: Dataset, f: float, df_lack: int, df_pure: int) -> float:
@@ -97,19 +96,12 @@ class NoiseFloor:
         ref = self.reference(data)
         return float(fdtrc(df_lack, df_pure, f)) if ref is None else ref.p(f, df_lack)
 
-    def sigma_at(self, data: Dataset, extrapolate: bool = False) -> np.ndarray:
-        """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands (log-linear);
-        beyond the outer bands' centres held at their σ, or (``extrapolate``) continued along the outer segments."""
+    def sigma_at(self, data: Dataset) -> np.ndarray:
+        """σ of ln k for each point of any dataset, interpolated in ln(F/L_we) between the load bands."""
         x = np.log(data.load_per_length_n_per_m)
         if len(self.band_sigma) < 2:
             return np.full(x.size, self.sigma)
-        xb, lb = np.asarray(self.band_ln_p), np.log(self.band_sigma)
-        ln_sigma = np.interp(x, xb, lb)
-        if extrapolate:
-            low, high = x < xb[0], x > xb[-1]
-            ln_sigma[low] = lb[0] + (x[low] - xb[0]) * (lb[1] - lb[0]) / (xb[1] - xb[0])
-            ln_sigma[high] = lb[-1] + (x[high] - xb[-1]) * (lb[-1] - lb[-2]) / (xb[-1] - xb[-2])
-        return np.exp(ln_sigma)
+        return np.exp(np.interp(x, self.band_ln_p, np.log(self.band_sigma)))
 
     def whiten(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """Residuals (n or n×k) made independent with unit variance under the model (see the module doc)."""
