@@ -6,7 +6,11 @@ workflow (``bench/blind``, ``bench/blind2``: their null scenario at noise 1×, t
 out). Each is screened and its baseline fitted as the workflow does (``labctl.discrepancy.set_aside.screened``), and
 its lack-of-fit p-value taken against the plain F(df_lack, df_pure) reference and against the reference simulated
 under the estimated noise model (``labctl.discrepancy.lof_reference``). A test that holds its level rejects about
-1 %, 5 % and 10 % of them at those levels (the ± is the binomial standard error at the nominal rate).
+1 %, 5 % and 10 % of them at those levels (the ± is the binomial standard error at the nominal rate). A second table
+splits the simulated reference's rejections by the noise the workflow estimated on each campaign — how steeply σ(F)
+rises to low loads (its lowest load band's σ over its highest's) and how large the seating offset is beside the point
+noise (σ_seat over the pooled σ), each in thirds over all campaigns: where the noise model falls short, the
+rejections gather.
 
     python bench/lof_level.py --seeds 200 --workers 2
 """
@@ -42,8 +46,9 @@ def points(source: str, seed: int) -> list[Any] | None:
     return csv_points(world.rows)
 
 
-def p_values(job: tuple[str, int]) -> tuple[str, float, float] | None:
-    """The baseline's lack-of-fit p-value, plain and simulated, on one null campaign."""
+def p_values(job: tuple[str, int]) -> tuple[str, float, float, float, float] | None:
+    """The baseline's lack-of-fit p-value, plain and simulated, on one null campaign, and its estimated noise's
+    steepness (σ of the lowest load band / the highest's) and seating share (σ_seat / pooled σ)."""
     source, seed = job
     pts = points(source, seed)
     if pts is None:
@@ -55,7 +60,28 @@ def p_values(job: tuple[str, int]) -> tuple[str, float, float] | None:
     test = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
     if plain is None or test is None:
         return None
-    return source, plain.p, test.p
+    steep = noise.band_sigma[0] / noise.band_sigma[-1] if len(noise.band_sigma) > 1 else 1.0
+    return source, plain.p, test.p, steep, noise.seating_sigma / noise.sigma
+
+
+def by_noise(results: list[tuple[str, float, float, float, float]]) -> str:
+    """The simulated reference's rejections per source, in thirds of the estimated noise's steepness and seating
+    share (tercile edges over all campaigns)."""
+    rows = [f"| source | estimated noise | n | {' | '.join(f'rejected at {a:g}' for a in LEVELS)} |",
+            "|---|---|---|" + "---|" * len(LEVELS)]
+    for column, name in ((3, "σ low / high load"), (4, "σ_seat / σ")):
+        values = np.array([r[column] for r in results])
+        edges = np.quantile(values, [1 / 3, 2 / 3])
+        for source in SOURCES:
+            mine = [r for r in results if r[0] == source]
+            x, p = np.array([r[column] for r in mine]), np.array([r[2] for r in mine])
+            third = np.searchsorted(edges, x)
+            for k, label in enumerate((f"{name} < {edges[0]:.2f}", f"{name} {edges[0]:.2f}–{edges[1]:.2f}",
+                                       f"{name} ≥ {edges[1]:.2f}")):
+                q = p[third == k]
+                shares = " | ".join(f"{np.mean(q < a):.3f} ({int(np.sum(q < a))})" for a in LEVELS)
+                rows.append(f"| {source} | {label} | {q.size} | {shares} |")
+    return "\n".join(rows)
 
 
 def main() -> None:
@@ -76,6 +102,8 @@ def main() -> None:
             shares = " | ".join(f"{np.mean(p < a):.3f} ({int(np.sum(p < a))}; ± {math.sqrt(a * (1 - a) / p.size):.3f})"
                                 for a in LEVELS)
             print(f"| {source} | {name} | {p.size} | {shares} |")
+    print("\nThe simulated reference's rejections by the noise estimated on each campaign\n")
+    print(by_noise(results))
 
 
 if __name__ == "__main__":
