@@ -101,12 +101,7 @@ class NoiseFloor:
         x = np.log(data.load_per_length_n_per_m)
         if len(self.band_sigma) < 2:
             return np.full(x.size, self.sigma)
-        xb, lb = np.asarray(self.band_ln_p), np.log(self.band_sigma)
-        ln_sigma = np.interp(x, xb, lb)
-        low, high = x < xb[0], x > xb[-1]
-        ln_sigma[low] = lb[0] + (x[low] - xb[0]) * (lb[1] - lb[0]) / (xb[1] - xb[0])
-        ln_sigma[high] = lb[-1] + (x[high] - xb[-1]) * (lb[-1] - lb[-2]) / (xb[-1] - xb[-2])
-        return np.exp(ln_sigma)
+        return np.exp(np.interp(x, self.band_ln_p, np.log(self.band_sigma)))
 
     def whiten(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """Residuals (n or n×k) made independent with unit variance under the model (see the module doc)."""
