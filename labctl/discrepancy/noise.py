@@ -35,7 +35,7 @@ CONSISTENT_P = 0.01
 """Level of the lack-of-fit test: residuals count as noise when its p-value is at least this."""
 BAND_DOF = 12
 """Least degrees of freedom pooled in one load band."""
-MAX_BANDS = 6
+MAX_BANDS = 4
 
 
 @dataclass(frozen=True)
