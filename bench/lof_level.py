@@ -10,9 +10,11 @@ under the estimated noise model (``labctl.discrepancy.lof_reference``). A test t
 splits the simulated reference's rejections by the noise the workflow estimated on each campaign — how steeply σ(F)
 rises to low loads (its lowest load band's σ over its highest's) and how large the seating offset is beside the point
 noise (σ_seat over the pooled σ), each in thirds over all campaigns: where the noise model falls short, the
-rejections gather.
+rejections gather. ``--oracle`` runs the first judge's nulls alone, the reference drawn also from the judge's own
+noise (its truth file's σ_rel(F) = a + b·(F_pre/F)^c and σ_seat: what no workflow knows), to tell what a better
+noise estimate could gain.
 
-    python bench/lof_level.py --seeds 200 --workers 2
+    python bench/lof_level.py --seeds 200 --workers 2 [--oracle]
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from typing import Any
 import numpy as np
 from discrepancy_blind import blind_worlds, csv_points
 
+from labctl.discrepancy.lof_reference import simulate
+from labctl.discrepancy.noise import null_statistic
 from labctl.discrepancy.search import Search
 from labctl.discrepancy.set_aside import screened
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
@@ -84,11 +88,44 @@ def by_noise(results: list[tuple[str, float, float, float, float]]) -> str:
     return "\n".join(rows)
 
 
+def oracle_p(seed: int) -> tuple[float, float] | None:
+    """A first-judge null campaign's lack-of-fit p-value against the estimated-noise reference and against one
+    simulated under the judge's own noise (None: a seed with injected outliers)."""
+    world = blind_worlds("blind").generate("none", seed, 1.0)
+    if (world.truth.get("faults") or {}).get("outliers"):
+        return None
+    spec = baseline_spec("tripp")
+    data, noise, _ = screened(csv_points(world.rows), spec)
+    fit = Search(data, noise).fit(spec)
+    test = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
+    n = world.truth["noise"]
+    true_sigma = n["a"] + n["b"] * (n["preload_n"] / data.load_n) ** n["c"]
+    reference = simulate(data, true_sigma, n["seat_sigma"], null_statistic)
+    if test is None or reference is None:
+        return None
+    return test.p, reference.p(test.f, test.df_lack)
+
+
+def print_oracle(seeds: int, workers: int) -> None:
+    with ProcessPoolExecutor(workers) as pool:
+        pairs = np.array([r for r in pool.map(oracle_p, range(seeds), chunksize=4) if r is not None])
+    print(f"| first judge's nulls: reference drawn from | n | {' | '.join(f'rejected at {a:g}' for a in LEVELS)} |")
+    print("|---|---|" + "---|" * len(LEVELS))
+    for name, column in (("the estimated noise (the workflow's)", 0), ("the judge's own noise (oracle)", 1)):
+        shares = " | ".join(f"{np.mean(pairs[:, column] < a):.3f} ({int(np.sum(pairs[:, column] < a))})"
+                            for a in LEVELS)
+        print(f"| {name} | {len(pairs)} | {shares} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=200, help="null campaigns per source (default 200)")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--oracle", action="store_true", help="the first judge's nulls against its own noise too")
     args = parser.parse_args()
+    if args.oracle:
+        print_oracle(args.seeds, args.workers)
+        return
     jobs = [(source, seed) for source in SOURCES for seed in range(args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:
         results = [r for r in pool.map(p_values, jobs, chunksize=4) if r is not None]

@@ -82,12 +82,7 @@ class NoiseFloor:
             return None
         key = (data.n_points, data.load_n.tobytes())
         if key not in self._references:
-            def statistic(campaign: Dataset) -> tuple[float, int] | None:
-                floor = estimate_noise(campaign)
-                test = floor.lack_of_fit(campaign, -campaign.ln_stiffness, floor.sigma_at(campaign), 0,
-                                         simulated=False)
-                return None if test is None else (test.f, test.df_lack)
-            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, statistic)
+            self._references[key] = simulate(data, self.sigma_at(data), self.seating_sigma, null_statistic)
         return self._references[key]
 
     def p_value(self, data: Dataset, f: float, df_lack: int, df_pure: int) -> float:
@@ -152,6 +147,14 @@ class NoiseFloor:
                       ) -> float | None:
         test = self.lack_of_fit(data, residuals, sigma, n_params)
         return None if test is None else test.p
+
+
+def null_statistic(campaign: Dataset) -> tuple[float, int] | None:
+    """The lack-of-fit statistic and its df_lack of the true mean (ln k = 0) on a simulated null campaign, its
+    noise estimated anew as on the data (None: no test)."""
+    floor = estimate_noise(campaign)
+    test = floor.lack_of_fit(campaign, -campaign.ln_stiffness, floor.sigma_at(campaign), 0, simulated=False)
+    return None if test is None else (test.f, test.df_lack)
 
 
 def lack_of_fit_rejects(p: float | None) -> bool:
