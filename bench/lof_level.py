@@ -39,15 +39,29 @@ LEVELS = (0.01, 0.05, 0.10)
 SOURCES = ("own", "blind", "blind2")
 
 
+def null_world(source: str, seed: int) -> Any:
+    """A judge's null world at noise 1× (its rows and truth), or None for a seed with injected outliers."""
+    world = blind_worlds(source).generate("none" if source == "blind" else "null", seed, 1.0)
+    return None if (world.truth.get("faults") or {}).get("outliers") else world
+
+
 def points(source: str, seed: int) -> list[Any] | None:
     """One null campaign's points, or None (a blind seed with injected outliers)."""
     if source == "own":
         return synthesize(ContactLaw("tripp", 2e-3).stiffness_n_per_m, noise=NoiseModel(0.02, 0.02 / 3),
                           seed=seed, seating_rel=0.006)
-    world = blind_worlds(source).generate("none" if source == "blind" else "null", seed, 1.0)
-    if (world.truth.get("faults") or {}).get("outliers"):
-        return None
-    return csv_points(world.rows)
+    world = null_world(source, seed)
+    return None if world is None else csv_points(world.rows)
+
+
+def baseline_tests(pts: list[Any]) -> tuple[Any, Any, Any, Any]:
+    """Screen a campaign and fit its baseline as the workflow does: (data, noise model, the baseline's lack-of-fit
+    test against the plain F reference and against the simulated one; None where untestable)."""
+    spec = baseline_spec("tripp")
+    data, noise, _ = screened(pts, spec)
+    fit = Search(data, noise).fit(spec)
+    plain = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params(), simulated=False)
+    return data, noise, plain, noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
 
 
 def p_values(job: tuple[str, int]) -> tuple[str, float, float, float, float] | None:
@@ -57,15 +71,17 @@ def p_values(job: tuple[str, int]) -> tuple[str, float, float, float, float] | N
     pts = points(source, seed)
     if pts is None:
         return None
-    spec = baseline_spec("tripp")
-    data, noise, _ = screened(pts, spec)
-    fit = Search(data, noise).fit(spec)
-    plain = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params(), simulated=False)
-    test = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
+    _, noise, plain, test = baseline_tests(pts)
     if plain is None or test is None:
         return None
     steep = noise.band_sigma[0] / noise.band_sigma[-1] if len(noise.band_sigma) > 1 else 1.0
     return source, plain.p, test.p, steep, noise.seating_sigma / noise.sigma
+
+
+def shares(p: np.ndarray, spread: bool = False) -> str:
+    """The share and count of p-values below each level (``spread``: and the binomial standard error there)."""
+    return " | ".join(f"{np.mean(p < a):.3f} ({int(np.sum(p < a))}"
+                      + (f"; ± {math.sqrt(a * (1 - a) / p.size):.3f})" if spread else ")") for a in LEVELS)
 
 
 def by_noise(results: list[tuple[str, float, float, float, float]]) -> str:
@@ -83,24 +99,20 @@ def by_noise(results: list[tuple[str, float, float, float, float]]) -> str:
             for k, label in enumerate((f"{name} < {edges[0]:.2f}", f"{name} {edges[0]:.2f}–{edges[1]:.2f}",
                                        f"{name} ≥ {edges[1]:.2f}")):
                 q = p[third == k]
-                shares = " | ".join(f"{np.mean(q < a):.3f} ({int(np.sum(q < a))})" for a in LEVELS)
-                rows.append(f"| {source} | {label} | {q.size} | {shares} |")
+                rows.append(f"| {source} | {label} | {q.size} | {shares(q)} |")
     return "\n".join(rows)
 
 
 def oracle_p(seed: int) -> tuple[float, float] | None:
     """A first-judge null campaign's lack-of-fit p-value against the estimated-noise reference and against one
     simulated under the judge's own noise (None: a seed with injected outliers)."""
-    world = blind_worlds("blind").generate("none", seed, 1.0)
-    if (world.truth.get("faults") or {}).get("outliers"):
+    world = null_world("blind", seed)
+    if world is None:
         return None
-    spec = baseline_spec("tripp")
-    data, noise, _ = screened(csv_points(world.rows), spec)
-    fit = Search(data, noise).fit(spec)
-    test = noise.lack_of_fit(data, fit.residuals, fit.sigma, spec.n_params())
-    n = world.truth["noise"]
-    true_sigma = n["a"] + n["b"] * (n["preload_n"] / data.load_n) ** n["c"]
-    reference = simulate(data, true_sigma, n["seat_sigma"], null_statistic)
+    data, _, _, test = baseline_tests(csv_points(world.rows))
+    noise = world.truth["noise"]
+    sigma = blind_worlds("blind")._sigma_rel(data.load_n, noise)  # the judge's own σ_rel(F)
+    reference = simulate(data, sigma, noise["seat_sigma"], null_statistic)
     if test is None or reference is None:
         return None
     return test.p, reference.p(test.f, test.df_lack)
@@ -112,9 +124,7 @@ def print_oracle(seeds: int, workers: int) -> None:
     print(f"| first judge's nulls: reference drawn from | n | {' | '.join(f'rejected at {a:g}' for a in LEVELS)} |")
     print("|---|---|" + "---|" * len(LEVELS))
     for name, column in (("the estimated noise (the workflow's)", 0), ("the judge's own noise (oracle)", 1)):
-        shares = " | ".join(f"{np.mean(pairs[:, column] < a):.3f} ({int(np.sum(pairs[:, column] < a))})"
-                            for a in LEVELS)
-        print(f"| {name} | {len(pairs)} | {shares} |")
+        print(f"| {name} | {len(pairs)} | {shares(pairs[:, column])} |")
 
 
 def main() -> None:
@@ -136,9 +146,7 @@ def main() -> None:
         rows = [r for r in results if r[0] == source]
         for name, column in (("plain F", 1), ("simulated", 2)):
             p = np.array([r[column] for r in rows])
-            shares = " | ".join(f"{np.mean(p < a):.3f} ({int(np.sum(p < a))}; ± {math.sqrt(a * (1 - a) / p.size):.3f})"
-                                for a in LEVELS)
-            print(f"| {source} | {name} | {p.size} | {shares} |")
+            print(f"| {source} | {name} | {p.size} | {shares(p, spread=True)} |")
     print("\nThe simulated reference's rejections by the noise estimated on each campaign\n")
     print(by_noise(results))
 
