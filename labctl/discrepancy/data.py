@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -16,6 +16,7 @@ from labctl.physics.validity import check_roller_loads
 from labctl.stiffness_table import StiffnessPoint, read_stiffness_table
 
 HDF5_SUFFIXES = (".h5", ".hdf5")
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,15 @@ class Dataset:
     """The measured points as cases; residual vectors concatenate the cases in this order."""
 
     cases: tuple[CaseData, ...]
+    _design: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
+    """What depends only on the design (cases, loads, seatings), worked out once: shared by ``with_ln_stiffness``."""
+
+    def design_memo(self, key: Any, make: Callable[[], T]) -> T:
+        """``make()``, computed once per design: a quantity of the loads and seatings alone (not of ln k), which every
+        campaign ``with_ln_stiffness`` gives (the lack-of-fit reference's draws) shares."""
+        if key not in self._design:
+            self._design[key] = make()
+        return self._design[key]
 
     @property
     def n_points(self) -> int:
@@ -96,16 +106,15 @@ class Dataset:
     def with_ln_stiffness(self, ln_k: np.ndarray) -> Dataset:
         """The same campaign (cases, loads, seatings) with ln k replaced by ``ln_k`` (cases concatenated)."""
         return Dataset(tuple(replace(c, ln_stiffness=np.asarray(ln_k[s], dtype=float))
-                             for c, s in zip(self.cases, self.case_slices(), strict=True)))
+                             for c, s in zip(self.cases, self.case_slices(), strict=True)), self._design)
 
     def run_ids(self) -> np.ndarray:
         """Seating index per point: one per (roller case, repetition); a point without a repetition number is
         its own seating. Points of one seating share its random offset in the statistical model."""
-        return self._run_ids
+        return self.design_memo("run_ids", self._make_run_ids)
 
-    @cached_property
-    def _run_ids(self) -> np.ndarray:
-        """``run_ids``, worked out once: every fit and noise whitening of a dataset asks for it (read-only)."""
+    def _make_run_ids(self) -> np.ndarray:
+        """``run_ids``, worked out once per design: every fit and noise whitening asks for it (read-only)."""
         ids = np.empty(self.n_points, dtype=int)
         next_id = 0
         for c, sl in zip(self.cases, self.case_slices(), strict=True):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats.f.sf)
@@ -180,6 +181,13 @@ def whiten(run_ids: np.ndarray, residuals: np.ndarray, sigma: np.ndarray, seatin
     return (r - (c[:, None] * mean)[run_ids]) / sigma[:, None]
 
 
+def _replicate_sets(data: Dataset) -> tuple[list[list[np.ndarray]], list[np.ndarray]]:
+    """Each case's replicate sets (indices into the case) and all of them as indices into the dataset."""
+    case_groups = [_case_groups(c) for c in data.cases]
+    groups = [g + sl.start for cg, sl in zip(case_groups, data.case_slices(), strict=True) for g in cg]
+    return case_groups, groups
+
+
 def _case_groups(c: CaseData) -> list[np.ndarray]:
     """Replicate sets of one case: by step rank when every repetition has the same steps, else by load."""
     reps = np.unique(c.repetition)
@@ -204,15 +212,24 @@ def _case_groups(c: CaseData) -> list[np.ndarray]:
 
 @dataclass(frozen=True)
 class _TwoWay:
-    """Per-point results of the two-way (load step + seating) fit of one case."""
+    """The two-way (load step + seating) least squares of one case with some points left out: its design alone."""
 
-    residual: np.ndarray
+    design: np.ndarray
+    """The kept points' columns (step means, seating offsets)."""
+    pinv: np.ndarray
+    keep: np.ndarray
     leverage: np.ndarray
 
+    def residual(self, y: np.ndarray) -> np.ndarray:
+        """y less its fit (NaN at the points left out)."""
+        residual = np.full(y.size, np.nan)
+        residual[self.keep] = y[self.keep] - self.design @ (self.pinv @ y[self.keep])
+        return residual
 
-def _two_way(y: np.ndarray, groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
-    """Least squares of y on step means plus seating offsets (points not in ``keep`` left out)."""
-    n = y.size
+
+def _two_way(groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
+    """Least squares on step means plus seating offsets (points not in ``keep`` left out)."""
+    n = runs.size
     run_values = np.unique(runs)
     x = np.zeros((n, len(groups) + run_values.size))
     for j, g in enumerate(groups):
@@ -221,12 +238,9 @@ def _two_way(y: np.ndarray, groups: list[np.ndarray], runs: np.ndarray, keep: np
         x[runs == r, len(groups) + j] = 1.0
     xk = x[keep]
     pinv = np.linalg.pinv(xk)
-    coef = pinv @ y[keep]
-    residual = np.full(n, np.nan)
-    residual[keep] = y[keep] - xk @ coef
     leverage = np.ones(n)
     leverage[keep] = np.einsum("ij,ji->i", xk, pinv)
-    return _TwoWay(residual, np.clip(leverage, 0.0, 1.0))
+    return _TwoWay(xk, pinv, keep.copy(), np.clip(leverage, 0.0, 1.0))
 
 
 def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -263,11 +277,8 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
 
 def estimate_noise(data: Dataset) -> NoiseFloor:
     """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
-    groups: list[np.ndarray] = []
-    case_groups = [_case_groups(c) for c in data.cases]
+    case_groups, groups = data.design_memo("replicate sets", lambda: _replicate_sets(data))
     slices = data.case_slices()
-    for cg, sl in zip(case_groups, slices, strict=True):
-        groups.extend(g + sl.start for g in cg)
     y = data.ln_stiffness
     runs = data.run_ids()
     x = np.log(data.load_per_length_n_per_m)
@@ -275,9 +286,9 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
     for _ in range(4):
         resid = np.full(y.size, np.nan)
         lev = np.ones(y.size)
-        for cg, sl in zip(case_groups, slices, strict=True):
-            tw = _two_way(y[sl], cg, runs[sl], keep[sl])
-            resid[sl], lev[sl] = tw.residual, tw.leverage
+        for i, (cg, sl) in enumerate(zip(case_groups, slices, strict=True)):
+            tw = data.design_memo(("two-way", i, keep[sl].tobytes()), partial(_two_way, cg, runs[sl], keep[sl]))
+            resid[sl], lev[sl] = tw.residual(y[sl]), tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
         across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
@@ -292,7 +303,8 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         pooled = math.sqrt(float(ss.sum()) / dof_total)
         floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
                            outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
-        tau, tau_dof = _seating_sigma(data, floor, case_groups, keep)
+        seatings = data.design_memo(("seatings", keep.tobytes()), partial(_seatings, data, case_groups, keep))
+        tau, tau_dof = _seating_sigma(data, floor, seatings)
         return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:
@@ -301,36 +313,61 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
     return NoiseFloor(math.sqrt(ss_p / dof), dof, "neighbour-differences", tuple(groups))
 
 
-def _seating_sigma(data: Dataset, floor: NoiseFloor, case_groups: list[list[np.ndarray]], keep: np.ndarray
-                   ) -> tuple[float, int]:
-    """σ_seat by moments: the spread of each seating's weighted mean residual about its load steps' means,
-    less what the point noise alone gives it."""
-    sigma = floor.sigma_at(data)
-    num, den = 0.0, 0
+@dataclass(frozen=True)
+class _Seatings:
+    """The points σ_seat is estimated from — kept, in a load step with another kept point, of a case with two
+    seatings or more among them — by step, and of those with a repetition number (``seated``, positions in
+    ``points``) their seating and each seating's case, numbered from 0: the design alone."""
+
+    points: np.ndarray
+    step: np.ndarray
+    seated: np.ndarray
+    seat: np.ndarray
+    case_of_seat: np.ndarray
+
+
+def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarray) -> _Seatings:
+    runs = data.run_ids()
+    repetition = np.concatenate([c.repetition for c in data.cases])
+    steps: list[np.ndarray] = []
+    case_of_run: dict[int, int] = {}
     for c, cg, sl in zip(data.cases, case_groups, data.case_slices(), strict=True):
         reps = np.unique(c.repetition[keep[sl]])
-        reps = reps[reps >= 0]
-        if reps.size < 2:
+        case_steps = [g for g in (g[keep[sl][g]] + sl.start for g in cg) if g.size > 1]
+        if reps[reps >= 0].size < 2 or not case_steps:
             continue
-        y, k, s = c.ln_stiffness, keep[sl], sigma[sl]
-        e1 = np.full(y.size, np.nan)
-        for g in cg:
-            g = g[k[g]]
-            if g.size > 1:
-                e1[g] = y[g] - y[g].mean()
-        means, inv_w = [], []
-        for r in reps:
-            m = (c.repetition == r) & np.isfinite(e1)
-            if not np.any(m):
-                continue
-            w = 1.0 / s[m] ** 2
-            means.append(float(np.sum(w * e1[m]) / w.sum()))
-            inv_w.append(1.0 / float(w.sum()))
-        if len(means) < 2:
+        pts = np.concatenate(case_steps)
+        seats = np.unique(runs[pts[repetition[pts] >= 0]])
+        if seats.size < 2:
             continue
-        mu = np.array(means)
-        num += float(np.sum((mu - mu.mean()) ** 2)) - (len(means) - 1) * float(np.mean(inv_w))
-        den += len(means) - 1
-    if den == 0:
+        steps.extend(case_steps)
+        case = len(set(case_of_run.values()))
+        case_of_run.update((int(r), case) for r in seats)
+    if not steps:
+        empty = np.zeros(0, dtype=int)
+        return _Seatings(empty, empty, empty, empty, empty)
+    points = np.concatenate(steps)
+    seated = np.flatnonzero(repetition[points] >= 0)
+    run_list = np.array(sorted(case_of_run))
+    return _Seatings(points, np.repeat(np.arange(len(steps)), [g.size for g in steps]), seated,
+                     np.searchsorted(run_list, runs[points[seated]]),
+                     np.array([case_of_run[int(r)] for r in run_list]))
+
+
+def _seating_sigma(data: Dataset, floor: NoiseFloor, seatings: _Seatings) -> tuple[float, int]:
+    """σ_seat by moments: the spread of each seating's weighted mean residual about its load steps' means,
+    less what the point noise alone gives it."""
+    if seatings.points.size == 0:
         return 0.0, 0
+    y = data.ln_stiffness[seatings.points]
+    step = seatings.step
+    e1 = y - (np.bincount(step, y) / np.bincount(step))[step]
+    w = 1.0 / floor.sigma_at(data)[seatings.points[seatings.seated]] ** 2
+    w_sum = np.bincount(seatings.seat, w)
+    mu = np.bincount(seatings.seat, w * e1[seatings.seated]) / w_sum
+    case = seatings.case_of_seat
+    count = np.bincount(case)
+    centre = np.bincount(case, mu) / count
+    num = float(np.sum((mu - centre[case]) ** 2) - np.sum((count - 1) * np.bincount(case, 1.0 / w_sum) / count))
+    den = int(np.sum(count - 1))
     return math.sqrt(max(0.0, num / den)), den

@@ -29,9 +29,22 @@ def outlier_z(n_points: int) -> float:
 def off_line(x: np.ndarray, y: np.ndarray, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
     """Points ``i`` against the straight lines through points ``j`` and ``k`` (y against x = ln F), standardised
     for the line's own noise (equal point noise): (y_i − line)/√(1 + w_j² + w_k²); coincident j, k: their mean."""
-    span = x[k] - x[j]
-    t = np.divide(x[i] - x[j], span, out=np.full(np.shape(span), 0.5), where=span != 0)
-    return (y[i] - (1 - t) * y[j] - t * y[k]) / np.sqrt(1 + (1 - t) ** 2 + t**2)
+    return _Lines(i, j, k, x).off(y)
+
+
+class _Lines:
+    """Points ``i`` and the lines through points ``j`` and ``k`` in x = ln F: the weights, which x alone sets."""
+
+    def __init__(self, i: np.ndarray, j: np.ndarray, k: np.ndarray, x: np.ndarray) -> None:
+        span = x[k] - x[j]
+        self.i, self.j, self.k = i, j, k
+        self.t = np.divide(x[i] - x[j], span, out=np.full(np.shape(span), 0.5), where=span != 0)
+        self.s = 1 - self.t
+        self.norm = np.sqrt(1 + self.s**2 + self.t**2)
+
+    def off(self, y: np.ndarray) -> np.ndarray:
+        """Each point's distance from its line, in the line's own noise (``off_line``)."""
+        return (y[self.i] - self.s * y[self.j] - self.t * y[self.k]) / self.norm
 
 
 def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
@@ -53,24 +66,43 @@ def _reference_pairs(p: int, n: int) -> list[tuple[int, int]]:
     return [(side[0], side[1])] + ([(side[1], side[min(3, len(side) - 1)])] if len(side) > 2 else [])
 
 
+class _Neighbourhoods(_Lines):
+    """Every kept point's ``_reference_pairs`` over the dataset, one row each in ``slots`` (−1 beyond its last)."""
+
+    def __init__(self, data: Dataset, keep: np.ndarray) -> None:
+        x, runs = np.log(data.load_n), data.run_ids()
+        rows: list[tuple[int, int, int]] = []
+        for run in np.unique(runs):
+            idx = np.flatnonzero((runs == run) & keep)
+            if idx.size < 3:
+                continue
+            idx = idx[np.argsort(x[idx], kind="stable")]
+            rows.extend((idx[p], idx[a], idx[b]) for p in range(idx.size) for a, b in _reference_pairs(p, idx.size))
+        i, j, k = np.array(rows, dtype=int).reshape(-1, 3).T
+        super().__init__(i, j, k, x)
+        self.first = np.r_[True, i[1:] != i[:-1]] if i.size else np.zeros(0, dtype=bool)
+        self.points = i[self.first]
+        start = np.flatnonzero(self.first)
+        count = np.diff(np.r_[start, i.size])
+        width = int(count.max()) if count.size else 0
+        slot = np.arange(width)
+        self.slots = np.where(slot < count[:, None], start[:, None] + slot, -1)
+
+
 def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each kept point against the lines (in ln F) through two of its own seating's neighbouring steps
     (``off_line``): against its two nearest neighbours, and the smallest (in size) over the ``_reference_pairs`` —
     which a single bad neighbour cannot inflate, as it moves its lines, not all of them. NaN where a seating has
     fewer than three kept points."""
-    y, x, runs = data.ln_stiffness, np.log(data.load_n), data.run_ids()
+    y = data.ln_stiffness
+    hoods = data.design_memo(("neighbourhoods", keep.tobytes()), lambda: _Neighbourhoods(data, keep))
     nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
-    for run in np.unique(runs):
-        idx = np.flatnonzero((runs == run) & keep)
-        if idx.size < 3:
-            continue
-        idx = idx[np.argsort(x[idx], kind="stable")]
-        pos, a, b = np.array([(p, a, b) for p in range(idx.size) for a, b in _reference_pairs(p, idx.size)]).T
-        e = off_line(x, y, idx[pos], idx[a], idx[b])
-        first = np.r_[True, pos[1:] != pos[:-1]]  # each point's nearest pair comes first
-        nearest[idx] = e[first]
-        order = np.lexsort((np.abs(e), pos))  # by point, then by size: the first of each point is its least
-        least[idx] = e[order][np.r_[True, pos[order][1:] != pos[order][:-1]]]
+    if hoods.points.size == 0:
+        return nearest, least
+    e = hoods.off(y)
+    nearest[hoods.points] = e[hoods.first]
+    size = np.where(hoods.slots >= 0, np.abs(e)[hoods.slots], np.inf)
+    least[hoods.points] = e[hoods.slots[np.arange(hoods.points.size), np.argmin(size, axis=1)]]
     return nearest, least
 
 
@@ -92,22 +124,21 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     ok = np.flatnonzero(np.isfinite(eps))
     if ok.size < 2 * band_dof:
         return []
-    x = np.log(data.load_per_length_n_per_m)
-    bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // band_dof)))
+    bands, end = data.design_memo(("screen", keep.tobytes(), band_dof, max_bands),
+                                  lambda: _bands_and_ends(data, keep, ok, band_dof, max_bands))
     scale = _band_scale(eps, bands)
     ratio, firm = _ratio(eps, scale), _ratio(least, scale)
     off = _ratio(across, _band_scale(across, bands))
     runs, ln_f = data.run_ids(), np.log(data.load_n)
     z, z_end = outlier_z(int(ok.size)), outlier_z(2 * int(ok.size))
-    end = np.zeros(eps.size, dtype=bool)
-    for run in np.unique(runs[keep]):
-        idx = np.flatnonzero((runs == run) & keep)
-        end[idx[[np.argmin(ln_f[idx]), np.argmax(ln_f[idx])]]] = True
+    suspect = keep & ((firm > z) | (end & (off > z_end) & (firm > SMOOTH_Z)))
+    if not np.any(suspect):
+        return []
     out = []
     for g in groups:
         g = g[keep[g]]
         smooth = g[ratio[g] <= SMOOTH_Z]
-        for i in g[(firm[g] > z) | (end[g] & (off[g] > z_end) & (firm[g] > SMOOTH_Z))]:
+        for i in g[suspect[g]]:
             if g.size > 1 and smooth.size == 0:
                 continue  # every repetition shares it: the contact's own shape
             same = np.flatnonzero((runs == runs[i]) & keep)
@@ -115,6 +146,19 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
             if (firm[i] >= firm[near].max()) if firm[i] > z else (off[i] >= off[g].max()):
                 out.append(int(i))
     return out
+
+
+def _bands_and_ends(data: Dataset, keep: np.ndarray, ok: np.ndarray, band_dof: int, max_bands: int
+                    ) -> tuple[list[np.ndarray], np.ndarray]:
+    """The load bands of the points judged (``ok``), and which kept points end their seating: the design alone."""
+    x = np.log(data.load_per_length_n_per_m)
+    bands = np.array_split(ok[np.argsort(x[ok])], max(1, min(max_bands, ok.size // band_dof)))
+    runs, ln_f = data.run_ids(), np.log(data.load_n)
+    end = np.zeros(keep.size, dtype=bool)
+    for run in np.unique(runs[keep]):
+        idx = np.flatnonzero((runs == run) & keep)
+        end[idx[[np.argmin(ln_f[idx]), np.argmax(ln_f[idx])]]] = True
+    return bands, end
 
 
 def _band_scale(e: np.ndarray, bands: list[np.ndarray]) -> np.ndarray:
