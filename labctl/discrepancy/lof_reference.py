@@ -8,7 +8,9 @@ campaigns simulated from the estimated model (Gaussian point noise of σ(F) at e
 σ_seat per seating, the same design; the cell means do not enter the statistic), each statistic taken against the
 true mean, and a scaled F, c·F(df, d), is fitted to the draws by maximum likelihood (``scipy.stats.f.fit``, df fixed
 to the saturated model's number of cells): the reference every lack-of-fit test on these data is read against, with
-the model's own df_lack. Fixed draws: the same data always give the same p-value.
+the model's own df_lack. Fixed draws: the same data always give the same p-value. The draws share the campaign's
+design (``Dataset.with_ln_stiffness``): what the loads and seatings alone decide in the noise estimate is worked out
+once (``Dataset.design_memo``; ``python bench/lof_reference_speed.py``: about 2.5 times faster than anew per draw).
 """
 
 from __future__ import annotations
