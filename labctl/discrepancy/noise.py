@@ -327,6 +327,7 @@ class _Seatings:
 
 
 def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarray) -> _Seatings:
+    """Which points σ_seat is estimated from when only ``keep`` are kept (``_Seatings``)."""
     runs = data.run_ids()
     repetition = np.concatenate([c.repetition for c in data.cases])
     steps: list[np.ndarray] = []
@@ -340,9 +341,8 @@ def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarr
         seats = np.unique(runs[pts[repetition[pts] >= 0]])
         if seats.size < 2:
             continue
+        case_of_run.update((int(r), len(steps)) for r in seats)  # numbered by the case's first step, made compact below
         steps.extend(case_steps)
-        case = len(set(case_of_run.values()))
-        case_of_run.update((int(r), case) for r in seats)
     if not steps:
         empty = np.zeros(0, dtype=int)
         return _Seatings(empty, empty, empty, empty, empty)
@@ -351,7 +351,7 @@ def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarr
     run_list = np.array(sorted(case_of_run))
     return _Seatings(points, np.repeat(np.arange(len(steps)), [g.size for g in steps]), seated,
                      np.searchsorted(run_list, runs[points[seated]]),
-                     np.array([case_of_run[int(r)] for r in run_list]))
+                     np.unique([case_of_run[int(r)] for r in run_list], return_inverse=True)[1])
 
 
 def _seating_sigma(data: Dataset, floor: NoiseFloor, seatings: _Seatings) -> tuple[float, int]:
