@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from labctl.discrepancy import build_dataset, run_discrepancy
@@ -50,6 +52,26 @@ def test_an_offset_beyond_its_range_is_said_to_be_pinned():
     check = term_check(with_offset(world(), lambda case: -120.0), seed=45)
     assert check.at_bound and not check.passed
     assert "end of its range" in check.describe()
+
+
+@pytest.mark.parametrize("truth_n, stopped_at", [(-120.0, 0.0), (-120.0, 1e-9), (-120.0, 6.6e-6), (-120.0, 5e-4),
+                                                 (15.0, None)])
+def test_pinned_or_not_does_not_hang_on_where_the_optimiser_stopped(truth_n, stopped_at):
+    # an offset beyond the range's lower end: the joint fit stops at the end, or 1e-9 or 6.6e-6 (seen on a blind
+    # world, where it turned a load offset's probability over) or 5e-4 inside it; the data pull it beyond every time.
+    # An offset inside the range, at its own optimum, is not pinned.
+    data = build_dataset(synthesize(with_offset(world(), lambda case: truth_n), noise=GENERATOR_NOISE, seed=45))
+    noise = estimate_noise(data)
+    fit = fit_model(data, ModelSpec().with_effects("load_offset"), sigma=noise.sigma_at(data),
+                    seating_sigma=noise.seating_sigma)
+    j = int(fit.spec.fits_depth)
+    if stopped_at is not None:
+        assert fit.x[j] < 1e-6  # the fit ends at the range's lower end
+        x = fit.x.copy()
+        x[j] = stopped_at
+        fit = dataclasses.replace(fit, x=x)
+    (check,) = check_instrument(data, fit, noise)
+    assert check.at_bound == (stopped_at is not None)
 
 
 def interlayer(compliance_m2_per_n, thickness_m):

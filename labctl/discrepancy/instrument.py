@@ -13,6 +13,7 @@ end of its range is no instrument error either: it is being stretched to another
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,8 +30,8 @@ CONSISTENCY_LEVEL = 0.01
 """A rig-level term whose per-roller-type values differ at this level is not an instrument or rig error."""
 MIN_GEOMETRIES = 3
 """Roller geometries needed to compare (with fewer, the test is not made and nothing is ruled out)."""
-BOUND_TOLERANCE = 1e-6
-"""How near an end of its range (in the [0, 1] scale) a joint-fit value counts as pinned there."""
+PIN_WINDOW = 0.01
+"""How near an end of its range (in the [0, 1] scale) a joint-fit value is asked whether the data pull it beyond."""
 _STEP = 1e-6
 """Forward-difference step (in the parameter's [0, 1] scale) for the Gauss–Newton steps and each value's standard
 error."""
@@ -88,9 +89,9 @@ class InstrumentCheck:
                 "description": self.describe()}
 
 
-def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, float]:
-    """Parameter ``j`` of ``fit`` (in its [0, 1] scale) refitted on ``sub`` alone (Gauss–Newton from the joint
-    fit's value, held in [0, 1]), and its Fisher information there."""
+def _whitened(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> Callable[[float], np.ndarray]:
+    """The whitened residuals on ``sub`` as a function of parameter ``j`` of ``fit`` (its [0, 1] scale), the other
+    parameters held at the joint fit."""
     spec, sigma = fit.spec, noise.sigma_at(sub)
 
     def white(u: float) -> np.ndarray:
@@ -98,23 +99,45 @@ def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, fl
         x[j] = u
         return noise.whiten(sub, residuals_at(sub, spec, x, sub.ln_stiffness), sigma)
 
+    return white
+
+
+def _newton(white: Callable[[float], np.ndarray], u: float) -> tuple[float, float]:
+    """One Gauss–Newton step from ``u``, unbounded: where it lands, and the Fisher information at ``u`` (0: the
+    residuals do not depend on the parameter, and it stays)."""
+    h = _STEP if u + _STEP <= 1.0 else -_STEP
+    r = white(u)
+    jac = (white(u + h) - r) / h
+    info = float(jac @ jac)
+    return (u - float(jac @ r) / info if info > 0 else u), info
+
+
+def _refit(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> tuple[float, float]:
+    """Parameter ``j`` of ``fit`` (in its [0, 1] scale) refitted on ``sub`` alone (Gauss–Newton from the joint
+    fit's value, held in [0, 1]), and its Fisher information there."""
+    white = _whitened(sub, fit, j, noise)
     u = float(fit.x[j])
     for _ in range(NEWTON_STEPS):
-        h = _STEP if u + _STEP <= 1.0 else -_STEP
-        r = white(u)
-        jac = (white(u + h) - r) / h
-        info = float(jac @ jac)
+        target, info = _newton(white, u)
         if info <= 0:
             return u, 0.0
-        step = -float(jac @ r) / info
-        u_next = min(1.0, max(0.0, u + step))
+        u_next = min(1.0, max(0.0, target))
         done = abs(u_next - u) < NEWTON_TOLERANCE
         u = u_next
         if done:
             break
-    h = _STEP if u + _STEP <= 1.0 else -_STEP
-    jac = (white(u + h) - white(u)) / h
-    return u, float(jac @ jac)
+    return u, _newton(white, u)[1]
+
+
+def _pinned(data: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> bool:
+    """Parameter ``j`` of the joint fit sits at an end of its range because the data pull it beyond: within
+    ``PIN_WINDOW`` of the end, a Gauss–Newton step (the other parameters held) lands outside the range — the bound
+    is active. Where the optimiser stopped, 1e-9 or 1e-5 from the end, does not decide it."""
+    u = float(fit.x[j])
+    if min(u, 1.0 - u) > PIN_WINDOW:
+        return False
+    target, info = _newton(_whitened(data, fit, j, noise), u)
+    return info > 0 and not 0.0 <= target <= 1.0
 
 
 def _same_curve(data: Dataset, fit: Fit, noise: NoiseFloor, term: str, at_bound: bool) -> InstrumentCheck:
@@ -197,7 +220,7 @@ def check_instrument(data: Dataset, fit: Fit, noise: NoiseFloor) -> list[Instrum
         if not rig_level(term):
             continue
         j = int(spec.fits_depth) + slot
-        at_bound = bool(min(fit.x[j], 1.0 - fit.x[j]) < BOUND_TOLERANCE)
+        at_bound = _pinned(data, fit, j, noise)
         out.append(_per_geometry(data, fit, noise, term, parameter, j, lo, hi, at_bound) if term in MEASUREMENT
                    else _same_curve(data, fit, noise, term, at_bound))
     return out
