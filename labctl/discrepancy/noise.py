@@ -332,6 +332,7 @@ def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarr
     repetition = np.concatenate([c.repetition for c in data.cases])
     steps: list[np.ndarray] = []
     case_of_run: dict[int, int] = {}
+    n_cases = 0
     for c, cg, sl in zip(data.cases, case_groups, data.case_slices(), strict=True):
         reps = np.unique(c.repetition[keep[sl]])
         case_steps = [g for g in (g[keep[sl][g]] + sl.start for g in cg) if g.size > 1]
@@ -341,7 +342,8 @@ def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarr
         seats = np.unique(runs[pts[repetition[pts] >= 0]])
         if seats.size < 2:
             continue
-        case_of_run.update((int(r), len(steps)) for r in seats)  # numbered by the case's first step, made compact below
+        case_of_run.update((int(r), n_cases) for r in seats)
+        n_cases += 1
         steps.extend(case_steps)
     if not steps:
         empty = np.zeros(0, dtype=int)
@@ -351,7 +353,7 @@ def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarr
     run_list = np.array(sorted(case_of_run))
     return _Seatings(points, np.repeat(np.arange(len(steps)), [g.size for g in steps]), seated,
                      np.searchsorted(run_list, runs[points[seated]]),
-                     np.unique([case_of_run[int(r)] for r in run_list], return_inverse=True)[1])
+                     np.array([case_of_run[int(r)] for r in run_list]))
 
 
 def _seating_sigma(data: Dataset, floor: NoiseFloor, seatings: _Seatings) -> tuple[float, int]:

@@ -80,13 +80,11 @@ class _Neighbourhoods(_Lines):
             rows.extend((idx[p], idx[a], idx[b]) for p in range(idx.size) for a, b in _reference_pairs(p, idx.size))
         i, j, k = np.array(rows, dtype=int).reshape(-1, 3).T
         super().__init__(i, j, k, x)
-        self.first = np.r_[True, i[1:] != i[:-1]] if i.size else np.zeros(0, dtype=bool)
-        self.points = i[self.first]
-        start = np.flatnonzero(self.first)
+        start = np.flatnonzero(np.r_[True, i[1:] != i[:-1]]) if i.size else np.zeros(0, dtype=int)
+        self.points = i[start]
         count = np.diff(np.r_[start, i.size])
-        width = int(count.max()) if count.size else 0
-        slot = np.arange(width)
-        self.slots = np.where(slot < count[:, None], start[:, None] + slot, -1)
+        slot = np.arange(int(count.max()) if count.size else 0)
+        self.slots = np.where(slot < count[:, None], start[:, None] + slot, -1)  # a point's nearest pair first
 
 
 def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +98,7 @@ def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, n
     if hoods.points.size == 0:
         return nearest, least
     e = hoods.off(y)
-    nearest[hoods.points] = e[hoods.first]
+    nearest[hoods.points] = e[hoods.slots[:, 0]]
     size = np.where(hoods.slots >= 0, np.abs(e)[hoods.slots], np.inf)
     least[hoods.points] = e[hoods.slots[np.arange(hoods.points.size), np.argmin(size, axis=1)]]
     return nearest, least
