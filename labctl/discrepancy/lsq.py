@@ -5,11 +5,12 @@ The discrepancy fits have one to five parameters and a few hundred residuals: sc
 cost more than the residuals it differenced (its argument checks, bound preparation and wrappers run at every
 iteration). This does the same arithmetic — the step turned back or shortened at a bound, the same columns in the
 same memory layout — at about half the CPU. The step is not scipy's relative one (``diff_step``: ``rel_step``·|x|):
-the fits' parameters live in a unit box whose lower end is a physical zero (no shape departure, no offset), and
-least squares moves a start on a bound 10⁻¹⁰ inside it, where a relative step of 10⁻¹⁶ changes residuals of order
-one by less than their rounding. That column came out zero or noise, so whether a parameter started at its end
-ever left it hung on the data's last digits (a yield term's roughness exponent stayed at 0 or went to its optimum
-0.04 as the stiffnesses moved by 10⁻⁹, its probability 0.73 or 0.93: ``bench/discrepancy_stability.py``).
+the fits' term parameters are scaled to a unit box (the depth, log10 of metres, has |x| ≥ 1 and keeps its step),
+fits often start on its ends (the shape doubt starts the yield term's roughness exponent at 0), and least squares
+moves such a start 10⁻¹⁰ inside, where a relative step of 10⁻¹⁶ changes residuals of order one by less than their
+rounding. That column came out zero or noise, so whether the parameter ever left its end hung on the data's last
+digits (the roughness exponent stayed at 0 or went to its optimum 0.04 as the stiffnesses moved by 10⁻⁹, the yield
+term's probability 0.73 or 0.93: ``bench/discrepancy_stability.py``).
 """
 
 from __future__ import annotations
