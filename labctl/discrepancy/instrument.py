@@ -21,6 +21,7 @@ import numpy as np
 from scipy.special import chdtrc, fdtrc
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.lsq import forward_steps
 from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.model import Fit, depth_column, residuals_at
 from labctl.discrepancy.noise import NoiseFloor
@@ -34,7 +35,8 @@ PIN_WINDOW = 0.01
 """How near an end of its range (in the [0, 1] scale) a joint-fit value is asked whether the data pull it beyond."""
 _STEP = 1e-6
 """Forward-difference step (in the parameter's [0, 1] scale) for the Gauss–Newton steps and each value's standard
-error."""
+error, taken as the fits take theirs (``forward_steps``: turned back at the range's upper end)."""
+_UNIT = (np.zeros(1), np.ones(1))
 RIG_CURVE_DEGREE = 2
 """Degree in ln F of the compliance curve every roller shares when a rig property is compared across roller types."""
 NEWTON_STEPS = 8
@@ -105,7 +107,7 @@ def _whitened(sub: Dataset, fit: Fit, j: int, noise: NoiseFloor) -> Callable[[fl
 def _newton(white: Callable[[float], np.ndarray], u: float) -> tuple[float, float]:
     """One Gauss–Newton step from ``u``, unbounded: where it lands, and the Fisher information at ``u`` (0: the
     residuals do not depend on the parameter, and it stays)."""
-    h = _STEP if u + _STEP <= 1.0 else -_STEP
+    h = float(forward_steps(np.array([u]), *_UNIT, _STEP)[0])
     r = white(u)
     jac = (white(u + h) - r) / h
     info = float(jac @ jac)
