@@ -104,23 +104,29 @@ def test_gate_drift_prompt_and_browser_are_readable_at_100x30(tmp_path: Path):
                 keys(session, "x")
                 pane = wait_until(session, lambda now: "ABORTED" in now)
                 break
+            if "JUDGE THE BLOW" not in pane and "WAITING FOR YOU" not in pane:
+                continue
+            # Judge what is asked on a whole frame, by the dialog's own text: a frame caught mid-redraw can show a
+            # header before its dialog's text, and "drifted" stays in the log long after its prompt was answered.
+            pane = settled(session)
+            asked = "\n".join(dialog_lines(pane))
             if "JUDGE THE BLOW" in pane and "accept (y)" in pane:
                 if "gate" not in shots:  # the whole dialog drawn, its footer too
                     pane = shots["gate"] = settled(session, "JUDGE THE BLOW", "accept (y)", "y accept  r reject")
                 key = "y"
             elif "JUDGE THE BLOW" in pane and "reject (r)" in pane:
                 key = "r"
-            elif "drifted" in pane and "WAITING FOR YOU" in pane:
+            elif "drifted" in asked and "WAITING FOR YOU" in pane:
                 if "drift" not in shots:
                     pane = shots["drift"] = settled(session, "drifted", "WAITING FOR YOU", "1 continue")
                 key = "1"
-            elif "WAITING FOR YOU" in pane:
+            elif "WAITING FOR YOU" in pane and asked:
                 key = "Enter"
             else:
                 continue
             keys(session, key)  # then wait for the screen to take it: that dialog gone (another may be up)
-            asked = dialog_lines(pane)
-            wait_until(session, lambda now, asked=asked: dialog_lines(now) != asked, timeout_s=10)
+            shown = dialog_lines(pane)
+            wait_until(session, lambda now, shown=shown: dialog_lines(now) != shown, timeout_s=10)
         assert "COMPLETE" in pane or "ABORTED" in pane, pane
         # as a technician would: the finished screen whole, its footer offering the browser, before the key
         settled(session, "o open", "COMPLETE" if "COMPLETE" in pane else "ABORTED")
