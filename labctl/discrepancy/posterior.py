@@ -54,9 +54,6 @@ INSTRUMENT_CHECK_FROM = 1e-3
 """A candidate with a rig-level term (a measurement-side one, or the rig's own compliance) has its instrument check
 (``labctl.discrepancy.instrument``) once its probability reaches this; the probabilities are then worked out again
 without those that fail, until none is due."""
-RESTART_FROM = 1e-3
-"""A candidate whose probability reaches this is refitted at its discrepancy scale from its terms' start grid too,
-not from its plain fit alone (that objective can have more than one basin); the better refit is kept."""
 SHAPE_DOUBT = 1.0 / 3.0
 """Prior probability that a term's shape (``FIT_ONLY_BOUNDS``) is not the library's: the library's law is taken as
 twice as likely as the departure (each of its shape parameters freed alone), so where it fits exactly a candidate
@@ -234,15 +231,14 @@ class Evidence:
             out[t] = self.form.case_log_marginals(z, t, tau)
         return out
 
-    def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation], restart: bool = False) -> Scored:
-        """Refit at the discrepancy scale the first fit favours (from the first fit, and with ``restart`` from the
-        start grid as well), then the evidence of the best refit (each term's bend integrated out with the per-case
-        discrepancy)."""
-        best, tau = self.form.log_marginal(fit.z)
+    def score(self, expl: Explanation, fit: Fit, candidates: list[Explanation]) -> Scored:
+        """Refit at the discrepancy scale the first fit favours, then the evidence of the refit (each term's
+        bend integrated out with the per-case discrepancy)."""
+        first, tau = self.form.log_marginal(fit.z)
         if fit.spec.n_params() > 0:
-            for refit in [self.fit(fit.spec, warm=fit, tau=tau)] + ([self.fit(fit.spec, tau=tau)] if restart else []):
-                if (value := self.form.log_marginal(refit.z)[0]) > best:
-                    fit, best = refit, value
+            refit = self.fit(fit.spec, warm=fit, tau=tau)
+            if self.form.log_marginal(refit.z)[0] > first:
+                fit = refit
         bend = self.bend(fit)
         k = fit.spec.n_params()
         evidence = self.form_evidence(fit.z, bend)
@@ -264,7 +260,7 @@ class Evidence:
         base, k0 = self.reference
         return base[t] - 0.5 * k0 * math.log(self.n) + log_bayes_factor(2.0 * (log_fit - base[t]), k - k0)
 
-    def shape_doubt(self, library: Scored, candidates: list[Explanation], restart: bool = False) -> Scored:
+    def shape_doubt(self, library: Scored, candidates: list[Explanation]) -> Scored:
         """A term with a shape parameter (``FIT_ONLY_BOUNDS``: the tilt law's rounded closing, the yield term's
         roughness exponent, the end term's half-width and radius shares, the asperities' load exponent) has its form
         in doubt too: the evidence averaged over the library's law and the law with one shape parameter of each term
@@ -280,7 +276,7 @@ class Evidence:
             for name, parameter in variant:
                 spec = spec.with_free_shape(name, parameter)
             freed.append(self.score(library.explanation, self.fit(spec, warm=fit, guess={
-                n: {**values[n], p: SHAPE_STARTS[n][p]} for n, p in variant}), candidates, restart))
+                n: {**values[n], p: SHAPE_STARTS[n][p]} for n, p in variant}), candidates))
         best = max([library, *freed], key=lambda c: c.log_evidence)
         each = math.log(SHAPE_DOUBT / len(freed))
 
@@ -364,17 +360,8 @@ class Evidence:
             scored.append(self.shape_doubt(self.score(expl, fits[key], candidates), candidates))
         lof_p = base.lack_of_fit_p(self.data, self.noise)
         not_instrument: list[str] = []
-        restarted: set[int] = set()
         while True:
             posterior(scored, rejected=rejected_explanations(lof_p, not_instrument))
-            again = [i for i, s in enumerate(scored) if i not in restarted and s.fit is not None and s.fit.spec.terms
-                     and s.probability >= RESTART_FROM]
-            for i in again:
-                expl = scored[i].explanation
-                scored[i] = self.shape_doubt(self.score(expl, fits[expl.terms], candidates, True), candidates, True)
-                restarted.add(i)
-            if again:
-                continue
             due = [s for s in scored if s.fit is not None and any(rig_level(t) for t in s.explanation.terms) and
                    "instrument" not in s.extra and s.probability >= INSTRUMENT_CHECK_FROM]
             if not due:
