@@ -9,7 +9,7 @@ import pytest
 
 from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.data import build_dataset
-from labctl.discrepancy.design import design_limits, unseparated
+from labctl.discrepancy.design import AT_ITS_SOURCE, decide, design_limits, unseparated
 from labctl.discrepancy.posterior import Explanation
 from labctl.discrepancy.questions import TEMPERATURE
 from labctl.discrepancy.synthetic import synthesize
@@ -43,7 +43,19 @@ def test_one_rail_holds_back_every_pair_with_roughness(explanation):
                                          pair("material_hardness", measurement=("load_offset",)),
                                          Explanation(unlisted=True), Explanation()], ids=lambda e: e.name)
 def test_one_rail_leaves_single_terms_and_pairs_without_roughness_alone(explanation):
-    assert unseparated(explanation, limits_of(rails=(0.2e-6,))) is None
+    assert unseparated(explanation, limits_of(rails=(0.2e-6,))) in (None, AT_ITS_SOURCE)  # a calibration term's own
+
+
+@pytest.mark.parametrize("explanation", [pair(measurement=("load_offset",)), pair(measurement=("modulus_scale",)),
+                                         pair(measurement=("load_gain",)),
+                                         pair("end_effects", measurement=("load_offset",))], ids=lambda e: e.name)
+def test_a_calibration_or_input_error_is_never_named_from_stiffnesses_whatever_the_design(explanation):
+    """A hard coating fading as the contact widens gives a load offset's signature; the load cell read at no load
+    tells them apart, the stiffnesses do not: on the blind judges a measurement-side name at ≥ 0.9 was right 13
+    times in 20 (docs/discrepancy.md, Method item 9)."""
+    assert unseparated(explanation, limits_of()) is AT_ITS_SOURCE
+    assert unseparated(pair("end_effects"), limits_of()) is None
+    assert decide(explanation, 0.999, limits_of()) == "likely"
 
 
 def test_two_geometries_hold_back_pairs_with_a_length_scaling_term():

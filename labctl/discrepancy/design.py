@@ -3,7 +3,9 @@
 Each limit says in words what the data cannot tell apart and which library terms it leaves without the dependence
 that sets them apart from the rest. A two-term explanation with such a term is not named, whatever its probability:
 the design cannot separate the pair from one effect that the other candidates (or a look-alike outside the library)
-would also give, so the verdict says which terms and why instead of naming the pair.
+would also give, so the verdict says which terms and why instead of naming the pair. Nor is a calibration or input
+error (a measurement-side term, alone or with a physical one) named from stiffnesses alone: its source confirms it
+(``AT_ITS_SOURCE``).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.measurement import MEASUREMENT
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, Explanation
 
 LENGTH_SCALING = frozenset({"end_effects", "misalignment"})
@@ -50,6 +53,14 @@ class DesignLimit:
         return self.terms is None or bool(self.terms & set(explanation.terms))
 
 
+AT_ITS_SOURCE = DesignLimit(
+    "a calibration or input error: confirmed at its source, not by stiffnesses alone (read the load cell at no load "
+    "and against a reference load; check the Young's moduli given for roller and rail)", frozenset(MEASUREMENT))
+"""Why a measurement-side term is held at "likely" whatever its probability: what imitates it in the stiffness (a
+hard coating fading as the contact widens, a layer the library lacks) a direct check of the instrument or the
+catalogue rules out, and an error named from the stiffness alone would be corrected into every later result."""
+
+
 def design_limits(data: Dataset) -> list[DesignLimit]:
     """Why the data's design may not separate candidates (few geometries, one rail roughness, few loads)."""
     out = []
@@ -72,13 +83,18 @@ def design_limits(data: Dataset) -> list[DesignLimit]:
 
 
 def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> DesignLimit | None:
-    """The first design limit that keeps a two-term explanation from being named, if any."""
-    return next((limit for limit in limits if limit.covers(explanation)), None)
+    """What keeps the explanation from being named, if anything: the first design limit that leaves a term of its
+    pair unseparated, else a measurement-side term (``AT_ITS_SOURCE``)."""
+    held = next((limit for limit in limits if limit.covers(explanation)), None)
+    if held is None and AT_ITS_SOURCE.terms and AT_ITS_SOURCE.terms & set(explanation.terms):
+        return AT_ITS_SOURCE
+    return held
 
 
 def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]) -> str:
     """What the verdict does with the most probable explanation: ``named`` at ≥ 0.9 unless a design limit holds
-    its pair back (``unseparated``), ``likely`` from 0.5 (a held pair too), else ``none``."""
+    its pair back or it has a measurement-side term (``unseparated``), ``likely`` from 0.5 (a held one too), else
+    ``none``."""
     if not explanation.terms or probability < LIKELY_AT:
         return "none"
     if probability >= NAME_AT and unseparated(explanation, limits) is None:

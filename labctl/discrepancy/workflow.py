@@ -19,7 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
-from labctl.discrepancy.design import DesignLimit, decide, design_limits, unseparated
+from labctl.discrepancy.design import AT_ITS_SOURCE, DesignLimit, decide, design_limits, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -77,8 +77,8 @@ class DiscrepancyResult:
     scored: tuple[Scored, ...] = ()
     """Every candidate explanation with its posterior probability, most probable first."""
     likely: Scored | None = None
-    """The most probable explanation when it is not named: its probability is 0.5-0.9, or the design cannot
-    separate its two terms (``held_by``)."""
+    """The most probable explanation when it is not named: its probability is 0.5-0.9, or it is held back
+    (``held_by``: the design cannot separate its two terms, or it has a measurement-side term)."""
     limits: tuple[DesignLimit, ...] = ()
     """What in the data's design limits which candidates can be told apart."""
     absorbed: tuple[str, ...] = ()
@@ -91,14 +91,15 @@ class DiscrepancyResult:
 
     @property
     def held_by(self) -> DesignLimit | None:
-        """The design limit that kept a two-term explanation of probability ≥ 0.9 from being named, if any."""
+        """What kept an explanation of probability ≥ 0.9 from being named (a design limit on its pair, or
+        ``AT_ITS_SOURCE``), if anything."""
         if self.likely is None or self.likely.probability < NAME_AT:
             return None
         return unseparated(self.likely.explanation, self.limits)
 
     @property
     def not_named(self) -> str:
-        """The limit that held the most probable pair back, in a few words ("one rail roughness"), or ""."""
+        """What held the most probable explanation back, in a few words ("one rail roughness"), or ""."""
         return "" if self.held_by is None else self.held_by.text.partition(":")[0]
 
     @property
@@ -155,7 +156,9 @@ class DiscrepancyResult:
                              f"{residual}")
         else:
             if self.likely is not None:
-                why = (f"not named: {self.not_named}, so this design cannot separate its two terms (below)"
+                what, _, source = AT_ITS_SOURCE.text.partition(": ")
+                why = (f"not named: {what} is {source}" if self.held_by is AT_ITS_SOURCE else
+                       f"not named: {self.not_named}, so this design cannot separate its two terms (below)"
                        if self.not_named else f"below the {NAME_AT:g} needed to name it")
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
                              f"{why}); candidates: {self._top()}")
