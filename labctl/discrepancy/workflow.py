@@ -157,7 +157,9 @@ class DiscrepancyResult:
         else:
             if self.likely is not None:
                 what, _, source = AT_ITS_SOURCE.text.partition(": ")
-                why = (f"not named: {what} is {source}" if self.held_by is AT_ITS_SOURCE else
+                fitted = "".join(f"{k} {v:.4g}; " for term in self._likely_parameters().values()
+                                 for k, v in term.items())
+                why = (f"{fitted}not named: {what} is {source}" if self.held_by is AT_ITS_SOURCE else
                        f"not named: {self.not_named}, so this design cannot separate its two terms (below)"
                        if self.not_named else f"below the {NAME_AT:g} needed to name it")
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
@@ -215,6 +217,11 @@ class DiscrepancyResult:
                 out.append(f"{s.explanation.name} ({', '.join(c['description'] for c in s.failed_instrument)})")
         return out
 
+    def _likely_parameters(self) -> dict[str, dict[str, float]]:
+        """The likely explanation's measurement-side parameters (SI): what to check at their source."""
+        fit = None if self.likely is None else self.likely.fit
+        return {} if fit is None else fit.measurement_parameters()
+
     def _step_doc(self, s: Step) -> dict[str, Any]:
         params = {**self.final.effect_parameters(), **self.final.measurement_parameters()}
         return {"name": s.name, "parameters": params[s.name], "evidence": s.evidence,
@@ -250,7 +257,8 @@ class DiscrepancyResult:
             "decision": {"named_at": NAME_AT, "likely_at": LIKELY_AT, "temperature": TEMPERATURE,
                          "resampled_over_cases": resampled_over(len(self.data.cases)),
                          "top": self.scored[0].to_dict() if self.scored else None,
-                         "likely": None if self.likely is None else self.likely.to_dict(),
+                         "likely": None if self.likely is None else
+                         {**self.likely.to_dict(), "measurement_parameters": self._likely_parameters()},
                          "not_named_because": self.not_named or None,
                          "design_limits": [limit.to_dict() for limit in self.limits],
                          "identifiability": [*self.reasons, *self.absorbed]},
