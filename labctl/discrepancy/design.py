@@ -91,6 +91,18 @@ def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> Desi
     return held
 
 
+def not_named_words(explanation: Explanation, design: DesignLimit | None, fitted: dict[str, dict[str, float]]) -> str:
+    """Why a likely explanation is not named, in words: the design limit on its pair, and for a measurement-side
+    term the check at its source with its ``fitted`` value ("" when only its probability keeps it from a name)."""
+    why = [] if design is None else [f"{design.text.partition(':')[0]}, so this design cannot separate its two "
+                                     "terms (below)"]
+    if AT_ITS_SOURCE.terms and AT_ITS_SOURCE.terms & set(explanation.terms):
+        what, _, source = AT_ITS_SOURCE.text.partition(": ")
+        values = ", ".join(f"{k} {v:.4g}" for term in fitted.values() for k, v in term.items())
+        why.append(f"{what} is {source}" + (f"; fitted {values}" if values else ""))
+    return "; ".join(why)
+
+
 def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]) -> str:
     """What the verdict does with the most probable explanation: ``named`` at ≥ 0.9 unless a design limit holds
     its pair back or it has a measurement-side term (``unseparated``), ``likely`` from 0.5 (a held one too), else

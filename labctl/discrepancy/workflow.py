@@ -19,7 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
-from labctl.discrepancy.design import AT_ITS_SOURCE, DesignLimit, decide, design_limits, unseparated
+from labctl.discrepancy.design import AT_ITS_SOURCE, DesignLimit, decide, design_limits, not_named_words, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -156,12 +156,9 @@ class DiscrepancyResult:
                              f"{residual}")
         else:
             if self.likely is not None:
-                what, _, source = AT_ITS_SOURCE.text.partition(": ")
-                fitted = "".join(f"{k} {v:.4g}; " for term in self._likely_parameters().values()
-                                 for k, v in term.items())
-                why = (f"{fitted}not named: {what} is {source}" if self.held_by is AT_ITS_SOURCE else
-                       f"not named: {self.not_named}, so this design cannot separate its two terms (below)"
-                       if self.not_named else f"below the {NAME_AT:g} needed to name it")
+                why = not_named_words(self.likely.explanation, None if self.held_by is AT_ITS_SOURCE else
+                                      self.held_by, self._likely_parameters())
+                why = f"not named: {why}" if why else f"below the {NAME_AT:g} needed to name it"
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
                              f"{why}); candidates: {self._top()}")
             elif top is not None and top.explanation.unlisted and top.probability >= LIKELY_AT:
