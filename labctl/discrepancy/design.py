@@ -36,6 +36,14 @@ class DesignLimit:
 
     text: str
     terms: frozenset[str] | None
+    pairs_only: bool = True
+    """A design limit holds back pairs only (a single term is named, the limit said); ``AT_ITS_SOURCE`` every
+    explanation with one of its terms."""
+
+    @property
+    def short(self) -> str:
+        """The limit in a few words ("one rail roughness")."""
+        return self.text.partition(":")[0]
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form (``decision.design_limits``); a bench stores it to decide again as the workflow does."""
@@ -47,15 +55,16 @@ class DesignLimit:
         return cls(doc["text"], None if doc["terms"] is None else frozenset(doc["terms"]))
 
     def covers(self, explanation: Explanation) -> bool:
-        """Whether a two-term explanation rests on a term this limit leaves unseparated."""
-        if len(explanation.terms) < 2:
+        """Whether the explanation (a two-term one, for a design limit) rests on a term this limit holds back."""
+        if len(explanation.terms) < (2 if self.pairs_only else 1):
             return False
         return self.terms is None or bool(self.terms & set(explanation.terms))
 
 
 AT_ITS_SOURCE = DesignLimit(
     "a calibration or input error: confirmed at its source, not by stiffnesses alone (read the load cell at no load "
-    "and against a reference load; check the Young's moduli given for roller and rail)", frozenset(MEASUREMENT))
+    "and against a reference load; check the Young's moduli given for roller and rail)", frozenset(MEASUREMENT),
+    pairs_only=False)
 """Why a measurement-side term is held at "likely" whatever its probability: what imitates it in the stiffness (a
 hard coating fading as the contact widens, a layer the library lacks) a direct check of the instrument or the
 catalogue rules out, and an error named from the stiffness alone would be corrected into every later result."""
@@ -85,18 +94,16 @@ def design_limits(data: Dataset) -> list[DesignLimit]:
 def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> DesignLimit | None:
     """What keeps the explanation from being named, if anything: the first design limit that leaves a term of its
     pair unseparated, else a measurement-side term (``AT_ITS_SOURCE``)."""
-    held = next((limit for limit in limits if limit.covers(explanation)), None)
-    if held is None and AT_ITS_SOURCE.terms and AT_ITS_SOURCE.terms & set(explanation.terms):
-        return AT_ITS_SOURCE
-    return held
+    return next((limit for limit in [*limits, AT_ITS_SOURCE] if limit.covers(explanation)), None)
 
 
-def not_named_words(explanation: Explanation, design: DesignLimit | None, fitted: dict[str, dict[str, float]]) -> str:
-    """Why a likely explanation is not named, in words: the design limit on its pair, and for a measurement-side
-    term the check at its source with its ``fitted`` value ("" when only its probability keeps it from a name)."""
-    why = [] if design is None else [f"{design.text.partition(':')[0]}, so this design cannot separate its two "
-                                     "terms (below)"]
-    if AT_ITS_SOURCE.terms and AT_ITS_SOURCE.terms & set(explanation.terms):
+def not_named_words(explanation: Explanation, held: DesignLimit | None, fitted: dict[str, dict[str, float]]) -> str:
+    """Why a likely explanation is not named, in words: the design limit that ``held`` its pair back, and for a
+    measurement-side term the check at its source with its ``fitted`` value ("" when only its probability keeps it
+    from a name)."""
+    why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot separate its two terms "
+                                                     "(below)"]
+    if AT_ITS_SOURCE.covers(explanation):
         what, _, source = AT_ITS_SOURCE.text.partition(": ")
         values = ", ".join(f"{k} {v:.4g}" for term in fitted.values() for k, v in term.items())
         why.append(f"{what} is {source}" + (f"; fitted {values}" if values else ""))

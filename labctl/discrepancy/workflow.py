@@ -19,7 +19,7 @@ import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
-from labctl.discrepancy.design import AT_ITS_SOURCE, DesignLimit, decide, design_limits, not_named_words, unseparated
+from labctl.discrepancy.design import DesignLimit, decide, design_limits, not_named_words, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
@@ -100,7 +100,7 @@ class DiscrepancyResult:
     @property
     def not_named(self) -> str:
         """What held the most probable explanation back, in a few words ("one rail roughness"), or ""."""
-        return "" if self.held_by is None else self.held_by.text.partition(":")[0]
+        return "" if self.held_by is None else self.held_by.short
 
     @property
     def consistent(self) -> bool:
@@ -156,8 +156,7 @@ class DiscrepancyResult:
                              f"{residual}")
         else:
             if self.likely is not None:
-                why = not_named_words(self.likely.explanation, None if self.held_by is AT_ITS_SOURCE else
-                                      self.held_by, self._likely_parameters())
+                why = not_named_words(self.likely.explanation, self.held_by, self._likely_parameters())
                 why = f"not named: {why}" if why else f"below the {NAME_AT:g} needed to name it"
                 parts.append(f"likely {self.likely.explanation.name} (probability {self.likely.probability:.2f}, "
                              f"{why}); candidates: {self._top()}")
