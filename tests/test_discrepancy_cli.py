@@ -32,12 +32,13 @@ def eq5_tables(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def rough_tables(tmp_path_factory):
-    """The twin's roughness (asperity scale 1.5 on Tripp at 1.5 mm) for types 1-7 over two files."""
+    """The twin's roughness (asperity scale 1.5 on Tripp at 1.5 mm) for types 1-7 on two rails, a file each (on
+    one rail roughness cannot be told from a rig joint that closes with load, and is not named)."""
     folder = tmp_path_factory.mktemp("rough")
-    points = synthesize(world(SurfaceRoughness(1.5), depth_m=1.5e-3), noise=NoiseModel(0.03, 0.01), seed=21)
-    first, second = folder / "types_1_3.csv", folder / "types_4_7.csv"
-    write_stiffness_table(first, [p for p in points if p.roller_type <= 3])
-    write_stiffness_table(second, [p for p in points if p.roller_type > 3])
+    truth = world(SurfaceRoughness(1.5), depth_m=1.5e-3)
+    first, second = folder / "rail_ra_0.2.csv", folder / "rail_ra_0.03.csv"
+    write_stiffness_table(first, synthesize(truth, noise=NoiseModel(0.03, 0.01), seed=21))
+    write_stiffness_table(second, synthesize(truth, rail_ra_m=0.03e-6, noise=NoiseModel(0.03, 0.01), seed=22))
     return first, second
 
 
@@ -45,7 +46,7 @@ def test_json_names_roughness_and_reports_the_gap_per_step(rough_tables, tmp_pat
     report = tmp_path / "report"
     out = labctl_json("discrepancy", *map(str, rough_tables), "--report", str(report))
     assert {"baseline", "gap_before", "gap_after", "noise_floor", "effects", "regions"} <= out.keys()
-    assert out["baseline"] == "tripp" and out["n_points"] == 231 and out["n_cases"] == 7
+    assert out["baseline"] == "tripp" and out["n_points"] == 462 and out["n_cases"] == 14
     assert [e["name"] for e in out["effects"]] == ["surface_roughness"]
     step = out["effects"][0]
     assert {"name", "parameters", "evidence", "gap_before", "gap_after"} <= step.keys()

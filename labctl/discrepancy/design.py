@@ -1,10 +1,10 @@
 """What a campaign's design leaves untested: too few roller geometries, one rail roughness, too few load steps.
 
 Each limit says in words what the data cannot tell apart and which library terms it leaves without the dependence
-that sets them apart from the rest. A two-term explanation with such a term is not named, whatever its probability:
-the design cannot separate the pair from one effect that the other candidates (or a look-alike outside the library)
-would also give, so the verdict says which terms and why instead of naming the pair. Nor is a calibration or input
-error (a measurement-side term, alone or with a physical one) named from stiffnesses alone: its source confirms it
+that sets them apart from the rest. An explanation with such a term, alone or in a pair, is not named, whatever its
+probability: the design cannot tell it from what the other candidates (or a look-alike outside the library) would
+also give, so the verdict says which terms and why instead of naming them. Nor is a calibration or input error (a
+measurement-side term, alone or with a physical one) named from stiffnesses alone: its source confirms it
 (``AT_ITS_SOURCE``).
 """
 
@@ -36,9 +36,9 @@ class DesignLimit:
 
     text: str
     terms: frozenset[str] | None
-    pairs_only: bool = True
-    """A design limit holds back pairs only (a single term is named, the limit said); ``AT_ITS_SOURCE`` every
-    explanation with one of its terms."""
+    pairs_only: bool = False
+    """Holds back only pairs with one of its terms: a single term is still told from the others by its load law
+    (the geometries' limit); the others hold back every explanation with one of their terms."""
 
     @property
     def short(self) -> str:
@@ -47,15 +47,19 @@ class DesignLimit:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form (``decision.design_limits``); a bench stores it to decide again as the workflow does."""
-        return {"text": self.text, "terms": None if self.terms is None else sorted(self.terms)}
+        return {"text": self.text, "terms": None if self.terms is None else sorted(self.terms),
+                "pairs_only": self.pairs_only}
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any]) -> DesignLimit:
-        """The limit a ``to_dict`` document holds."""
-        return cls(doc["text"], None if doc["terms"] is None else frozenset(doc["terms"]))
+        """The limit a ``to_dict`` document holds (one written before ``pairs_only`` was stored: the geometries'
+        limit, whose terms are the length-scaling ones, holds back pairs only, as it does now)."""
+        terms = None if doc["terms"] is None else frozenset(doc["terms"])
+        return cls(doc["text"], terms, doc.get("pairs_only", terms == LENGTH_SCALING))
 
     def covers(self, explanation: Explanation) -> bool:
-        """Whether the explanation (a two-term one, for a design limit) rests on a term this limit holds back."""
+        """Whether the explanation (a pair, where the limit holds back pairs only) rests on a term this limit holds
+        back."""
         if len(explanation.terms) < (2 if self.pairs_only else 1):
             return False
         return self.terms is None or bool(self.terms & set(explanation.terms))
@@ -63,8 +67,7 @@ class DesignLimit:
 
 AT_ITS_SOURCE = DesignLimit(
     "a calibration or input error: confirmed at its source, not by stiffnesses alone (read the load cell at no load "
-    "and against a reference load; check the Young's moduli given for roller and rail)", frozenset(MEASUREMENT),
-    pairs_only=False)
+    "and against a reference load; check the Young's moduli given for roller and rail)", frozenset(MEASUREMENT))
 """Why a measurement-side term is held at "likely" whatever its probability: what imitates it in the stiffness (a
 hard coating fading as the contact widens, a layer the library lacks) a direct check of the instrument or the
 catalogue rules out, and an error named from the stiffness alone would be corrected into every later result."""
@@ -78,7 +81,7 @@ def design_limits(data: Dataset) -> list[DesignLimit]:
         out.append(DesignLimit(
             f"{geometries} roller geometr{'y' if geometries == 1 else 'ies'}: terms that differ by how they scale "
             "with length and diameter (end_effects, misalignment) cannot be told from load-only ones",
-            LENGTH_SCALING))
+            LENGTH_SCALING, pairs_only=True))
     if len({round(c.case.rail_ra_m * 1e9) for c in data.cases}) < MIN_RAILS:
         out.append(DesignLimit(
             "one rail roughness: a term's dependence on Ra (surface_roughness, material_hardness) is not tested, "
@@ -92,8 +95,8 @@ def design_limits(data: Dataset) -> list[DesignLimit]:
 
 
 def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> DesignLimit | None:
-    """What keeps the explanation from being named, if anything: the first design limit that leaves a term of its
-    pair unseparated, else a measurement-side term (``AT_ITS_SOURCE``)."""
+    """What keeps the explanation from being named, if anything: the first design limit that leaves one of its
+    terms unseparated, else a measurement-side term (``AT_ITS_SOURCE``)."""
     return next((limit for limit in [*limits, AT_ITS_SOURCE] if limit.covers(explanation)), None)
 
 
@@ -101,8 +104,9 @@ def not_named_words(explanation: Explanation, held: DesignLimit | None, fitted: 
     """Why a likely explanation is not named, in words: the design limit that ``held`` its pair back, and for a
     measurement-side term the check at its source with its ``fitted`` value ("" when only its probability keeps it
     from a name)."""
-    why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot separate its two terms "
-                                                     "(below)"]
+    what = "separate its two terms" if len(explanation.terms) == 2 else \
+        f"tell {explanation.name} from what acts like it outside the library"
+    why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot {what} (below)"]
     if AT_ITS_SOURCE.covers(explanation):
         what, _, source = AT_ITS_SOURCE.text.partition(": ")
         values = ", ".join(f"{k} {v:.4g}" for term in fitted.values() for k, v in term.items())
@@ -112,8 +116,8 @@ def not_named_words(explanation: Explanation, held: DesignLimit | None, fitted: 
 
 def decide(explanation: Explanation, probability: float, limits: Sequence[DesignLimit]) -> str:
     """What the verdict does with the most probable explanation: ``named`` at ≥ 0.9 unless a design limit holds
-    its pair back or it has a measurement-side term (``unseparated``), ``likely`` from 0.5 (a held one too), else
-    ``none``."""
+    one of its terms back or it has a measurement-side term (``unseparated``), ``likely`` from 0.5 (a held one too),
+    else ``none``."""
     if not explanation.terms or probability < LIKELY_AT:
         return "none"
     if probability >= NAME_AT and unseparated(explanation, limits) is None:
