@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points, truth_name, visible_size
-from discrepancy_features import features_by_truth
+from discrepancy_features import features_by_truth, unlisted_leads
 from discrepancy_scores import (
     calibrate,
     detail,
@@ -197,6 +197,7 @@ def run_blind(task: Task) -> dict[str, Any]:
             "outliers": len(result.screening.outliers), "lack_of_fit_p": result.to_dict()["lack_of_fit_p"],
             "design_limits": [limit.to_dict() for limit in result.limits],
             "baseline_lof_p": result.baseline_lack_of_fit_p,
+            "closest": None if result.closest is None else result.closest.name,
             "not_instrument": [c.explanation.name for c in result.scored if c.failed_instrument],
             "n_points": result.data.n_points,
             "candidates": [{"explanation": c.explanation.name, "log_prior": c.log_prior, "chi2": c.chi2,
@@ -335,7 +336,7 @@ def main() -> None:
                      f"\n\nevery bin with ≥ 30 cases within 0.05: {'yes' if holds else 'NO'}")
         parts.append("The same, by the kind of top explanation\n\n" + reliability_by_kind(blind))
         parts.append("What the unlisted stand-in's features carry, by the truth (a library term's quantity or not)\n\n"
-                     + features_by_truth(blind))
+                     + features_by_truth(blind) + "\n\n" + unlisted_leads(blind) + "\n" + unlisted_leads(blind, 0.9))
         if calibrating:
             table, best, cautious = calibrate(blind, TEMPERATURES)
             parts.append("Temperature calibration\n\n" + table + f"\n\nlowest log loss at T = {best:g}; the largest T "

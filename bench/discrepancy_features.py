@@ -1,4 +1,5 @@
-"""Which physical quantities the "unlisted" stand-in's features carry, by the blind truth.
+"""Which physical quantities the "unlisted" stand-in's features carry, by the blind truth; and what the truth was
+where "unlisted" led, beside the library term the verdict called closest.
 
 The stand-in for an effect outside the library is the baseline plus up to three features of the empirical basis
 (``labctl.discrepancy.empirical.BASIS``). Some features carry a quantity a library term is named for: the composite
@@ -6,6 +7,10 @@ roughness Ra (surface_roughness, and material_hardness's conformity), the peak p
 (material_hardness), the roller's contact length (end_effects, misalignment). If outside-library effects were
 described without them and library effects with them, "unlisted" could be read as a library term in a foreign
 form; this table shows whether the blind worlds allow that. Used by ``bench/discrepancy_eval.py``.
+
+Where "unlisted" leads the verdict names the single library term that alone takes up most of the misfit
+(``labctl.discrepancy.caveats``) and says the lead may be that term in another law: ``unlisted_leads`` counts how
+often the truth was a library effect, and how often that term was one of its terms.
 """
 
 from __future__ import annotations
@@ -52,3 +57,15 @@ def features_by_truth(results: list[dict[str, Any]]) -> str:
         c = counts[k]
         lines.append(f"| {k} | {sum(c.values())} | " + " | ".join(str(c[col]) for col in COLUMNS) + " |")
     return "\n".join(lines)
+
+
+def unlisted_leads(results: list[dict[str, Any]], at: float = 0.5) -> str:
+    """Where "unlisted" is the top explanation at ≥ ``at``: library truths (the closest term one of the truth's),
+    effects outside the library, and the closest term most often named for each (stored as ``closest``)."""
+    led = [r for r in results if r["top"] == "unlisted" and r["top_probability"] >= at and "closest" in r]
+    lib = [r for r in led if not r["outside_library"]]
+    hit = sum(r["closest"] in [*r["truth_effects"], *r["truth_measurement"]] for r in lib)
+    common = Counter(f"{r['scenario']} → {r['closest']}" for r in led if r["outside_library"]).most_common(4)
+    return (f"\"unlisted\" top at ≥ {at:g}: {len(led)} datasets; a library truth {len(lib)} (the closest library "
+            f"term one of its terms in {hit}), an effect outside the library {len(led) - len(lib)} (closest: "
+            + (", ".join(f"{k} {v}" for k, v in common) or "-") + ")")

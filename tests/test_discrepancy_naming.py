@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -203,3 +205,20 @@ def test_ends_whose_zone_scales_with_the_roller_radius_are_end_effects_alone():
     assert top.explanation.name == "end_effects" and top.probability >= 0.5
     assert top.fit.effect_parameters()["end_effects"]["radius_share"] == pytest.approx(0.1, abs=0.02)
     assert "material_hardness" not in [e["name"] for e in result.to_dict()["effects"]]
+
+
+@pytest.mark.parametrize(("scenario", "seed", "noise", "closest"),
+                         [("surface_roughness", 2001, 1.0, "surface_roughness"),
+                          ("outside_rate_dependence", 2000, 0.5, "end_effects")])
+def test_an_unlisted_lead_names_the_library_term_closest_to_the_data(scenario, seed, noise, closest):
+    """On the blind judge "unlisted" led as often for a library effect in a law unlike the library's (a roughness
+    whose asperity heights fall off exponentially) as for an effect outside it (a rate dependence); the verdict
+    says which library term is closest, and that the lead may be that term, in either case."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from discrepancy_blind import blind_worlds, csv_points
+
+    result = run_discrepancy(csv_points(blind_worlds().generate(scenario, seed, noise).rows))
+    assert result.scored[0].explanation.unlisted and result.scored[0].probability >= 0.9
+    assert result.verdict == "unexplained" and result.closest.name == closest
+    assert (f"\"unlisted\" may also be {closest} in a law unlike the library's (the library term closest to the "
+            f"data: alone it takes up {result.closest.share:.0%} of the misfit)") in result.verdict_text()

@@ -18,12 +18,13 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
+from labctl.discrepancy.caveats import caveats
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
 from labctl.discrepancy.design import DesignLimit, decide, design_limits, not_named_words, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
 from labctl.discrepancy.locate import locate, trends
 from labctl.discrepancy.measurement import MEASUREMENT, TRIPP_DEPTH_RANGE_M
-from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec, term_class
+from labctl.discrepancy.model import DEPTH_BOUNDS_M, Fit, ModelSpec
 from labctl.discrepancy.noise import CONSISTENT_P, NoiseFloor
 from labctl.discrepancy.posterior import LIKELY_AT, NAME_AT, Evidence, Scored
 from labctl.discrepancy.questions import TEMPERATURE, resampled_over
@@ -40,18 +41,6 @@ MAX_TERMS = len(EFFECTS) + len(MEASUREMENT)
 PINNED_DEPTH_BIC = 10.0
 """A pinned depth is called a sign of a measurement-side error only when freeing it gains this much BIC (Kass &
 Raftery's "very strong"); below, the warning says the evidence is weak."""
-
-
-READ_PROBABILITIES = ("the probabilities are the method's own: on worlds written blind to it, those from 0.7 up were "
-                      "right less often than stated (docs/discrepancy.md, Evaluation); before acting on a name, "
-                      "`labctl plan` on the same files recommends the measurements that would best tell the "
-                      "candidates apart")
-"""What every verdict that states an effect says about its probabilities, and what to do before acting on them."""
-PAIR_MAY_BE_ONE = ("a pair can be one effect whose law the library lacks, its second term mending the first one's "
-                   "form: on worlds written blind to the method with repetitions scattering under about 1 %, single "
-                   "effects were named as pairs (docs/discrepancy.md, Limits); read it as one effect until the "
-                   "measurements `labctl plan` recommends separate the two terms")
-"""What a verdict that states two terms adds."""
 
 
 @dataclass(frozen=True)
@@ -182,12 +171,7 @@ class DiscrepancyResult:
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
         if self.verdict != "consistent":
-            parts.append(READ_PROBABILITIES)
-            if top is not None and top.explanation.kind == "pair" and top.probability >= LIKELY_AT:
-                parts.append(PAIR_MAY_BE_ONE)
-            if top is not None and top.probability >= LIKELY_AT:
-                parts += [f"{t} may also be {term_class(t).LOOK_ALIKE}" for t in top.explanation.terms
-                          if term_class(t).LOOK_ALIKE]
+            parts += caveats(top, self.closest)
         if self.reasons or self.absorbed:
             parts.append("what this campaign's design cannot test, whatever the probabilities above: "
                          + "; ".join(self.reasons + self.absorbed))
