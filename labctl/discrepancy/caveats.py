@@ -21,7 +21,7 @@ PAIR_MAY_BE_ONE = ("a pair can be one effect whose law the library lacks, its se
                    "measurements `labctl plan` recommends separate the two terms")
 """What a verdict that states two terms adds."""
 UNLISTED_MAY_BE = ("on worlds written blind to the method, where \"unlisted\" led the truth was often a library "
-                   "effect in a law unlike the library's, most often the closest term (docs/discrepancy.md, "
+                   "effect in a law unlike the library's, and often the closest term (docs/discrepancy.md, "
                    "Evaluation)")
 """Why an "unlisted" lead names the library term closest to the data."""
 
