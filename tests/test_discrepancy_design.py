@@ -120,7 +120,8 @@ def test_roughness_alone_is_named_on_two_rails_and_likely_on_one():
     assert names(held) == [] and held.verdict == "likely"
     assert held.to_dict()["decision"]["not_named_because"] == "one rail roughness"
     assert ("not named: one rail roughness, so this design cannot tell surface_roughness from what acts like it "
-            "outside the library") in held.verdict_text()
+            "(below)") in held.verdict_text()
+    assert "cannot be told from a joint in the rig's load path whose compliance falls with load" in held.verdict_text()
 
 
 def test_the_benchs_rescoring_decides_as_the_workflow_does():

@@ -101,11 +101,11 @@ def unseparated(explanation: Explanation, limits: Sequence[DesignLimit]) -> Desi
 
 
 def not_named_words(explanation: Explanation, held: DesignLimit | None, fitted: dict[str, dict[str, float]]) -> str:
-    """Why a likely explanation is not named, in words: the design limit that ``held`` its pair back, and for a
+    """Why a likely explanation is not named, in words: the design limit that ``held`` it back, and for a
     measurement-side term the check at its source with its ``fitted`` value ("" when only its probability keeps it
     from a name)."""
     what = "separate its two terms" if len(explanation.terms) == 2 else \
-        f"tell {explanation.name} from what acts like it outside the library"
+        f"tell {explanation.name} from what acts like it"
     why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot {what} (below)"]
     if AT_ITS_SOURCE.covers(explanation):
         what, _, source = AT_ITS_SOURCE.text.partition(": ")

@@ -80,7 +80,7 @@ class DiscrepancyResult:
 
     @property
     def held_by(self) -> DesignLimit | None:
-        """What kept an explanation of probability ≥ 0.9 from being named (a design limit on its pair, or
+        """What kept an explanation of probability ≥ 0.9 from being named (a design limit on one of its terms, or
         ``AT_ITS_SOURCE``), if anything."""
         if self.likely is None or self.likely.probability < NAME_AT:
             return None
