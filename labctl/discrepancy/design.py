@@ -104,13 +104,13 @@ def not_named_words(explanation: Explanation, held: DesignLimit | None, fitted: 
     """Why a likely explanation is not named, in words: the design limit that ``held`` it back, and for a
     measurement-side term the check at its source with its ``fitted`` value ("" when only its probability keeps it
     from a name)."""
-    what = "separate its two terms" if len(explanation.terms) == 2 else \
+    cannot = "separate its two terms" if len(explanation.terms) == 2 else \
         f"tell {explanation.name} from what acts like it"
-    why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot {what} (below)"]
+    why = [] if held in (None, AT_ITS_SOURCE) else [f"{held.short}, so this design cannot {cannot} (below)"]
     if AT_ITS_SOURCE.covers(explanation):
-        what, _, source = AT_ITS_SOURCE.text.partition(": ")
+        error, _, source = AT_ITS_SOURCE.text.partition(": ")
         values = ", ".join(f"{k} {v:.4g}" for term in fitted.values() for k, v in term.items())
-        why.append(f"{what} is {source}" + (f"; fitted {values}" if values else ""))
+        why.append(f"{error} is {source}" + (f"; fitted {values}" if values else ""))
     return "; ".join(why)
 
 
