@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from discrepancy_worlds import CALIBRATION
+from intervals import wilson
 
 from labctl.discrepancy.design import DesignLimit, decide
 from labctl.discrepancy.noise import lack_of_fit_rejects
@@ -162,16 +163,6 @@ CALIBRATED_DRAWS = 4000
 """Draws of a calibrated forecaster's outcomes behind the reliability table's chance column."""
 
 
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of a share k/n (95 %), clipped to [0, 1]."""
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
 def n_cases(r: dict[str, Any]) -> int:
     """The roller cases of a stored result (0 if it stored no per-case parts)."""
     parts = r["candidates"][0].get("case_log_lik_by_temperature") or {}
@@ -258,7 +249,7 @@ def reliability(results: list[dict[str, Any]], temperature: float | None = None)
             continue
         n, k = int(inside.sum()), int(right[inside].sum())
         mean_p = float(p_all[inside].mean())
-        a, b = wilson(k, n)
+        _, a, b = wilson(k, n)
         holds = abs(mean_p - k / n) <= 0.05
         ok = ok and holds_within(mean_p, k / n, n)
         drawn_gap = np.abs(right_draws[:, inside].mean(axis=1) - mean_p)

@@ -21,7 +21,7 @@ at its mode (Gauss-Newton on the seating Gaussian; the effects keep their 3 mm T
 integrate more than the best mode; treat the generator's clipping of an amplitude to its range (~2 % of effects)
 other than as density; be exact where the posterior is far from Gaussian.
 
-    python bench/oracle_ceiling.py --seeds 3 --noise 0.5,1,2 --workers 2 [--validate 6] [--free-depth]
+    python bench/oracle_ceiling.py --seeds 3 --noise 0.5,1,2 --workers 2 [--validate 6] [--free-depth] [--out F]
 """
 
 from __future__ import annotations
@@ -75,8 +75,7 @@ State = namedtuple("State", "rollers stack ln_tripp var norm point_norm smed bet
 """What the true loads fix: rollers (per type, stacked), ln k_tripp, point variances, their norms, σ_med1, and β:
 Tripp's compliance at depth t·e^δ is c·(1 + β·δ) (only the rail's ln(2t/a) term holds t)."""
 DEPTH_SPAN = (np.log(0.7 / 3.0), np.log(10.0 / 3.0))
-"""``--free-depth``: ln(t / 3 mm) with a flat prior over 0.7–10 mm, what a method must assume without the
-generator's depth."""
+"""``--free-depth``: ln(t / 3 mm), flat over 0.7–10 mm, what a method must assume without the generator's depth."""
 
 
 def logsumexp(v: np.ndarray | list[float]) -> float:
@@ -382,6 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--validate", type=int, default=0, help="also redo K worlds (noise 1, seed 0) finely")
     ap.add_argument("--free-depth", action="store_true",
                     help="Tripp's depth unknown (flat in ln t over 0.7-10 mm), as it is to any method")
+    ap.add_argument("--out", type=Path, help="also write every world's result (posterior included) as JSON")
     args = ap.parse_args(argv)
     t0, scales = time.perf_counter(), [float(v) for v in args.noise.split(",")]
     tasks = [(sc, s, x, False, args.free_depth) for x in scales for sc in W.SCENARIOS for s in range(args.seeds)]
@@ -389,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     checks = [(sc, 0, 1.0, fine, args.free_depth) for fine in (False, True) for sc in picks]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run_world, tasks + checks, chunksize=1))
-    report(results[:len(tasks)], scales if tasks else [], W.SCENARIOS)
+    report(results[:len(tasks)], scales if tasks else [], W.SCENARIOS, args.out)
     if checks:
         validate(results[len(tasks):len(tasks) + len(checks) // 2], results[len(tasks) + len(checks) // 2:])
     print(f"{len(tasks) + len(checks)} worlds on {args.workers} workers in {time.perf_counter() - t0:.0f} s")

@@ -1,24 +1,35 @@
-"""What the oracle ceiling (``bench/oracle_ceiling.py``) prints: its top-1 per noise scale, read for the whole truth
-and per effect, the misses, and how far a finer integral moves the ranking."""
+"""What the oracle ceiling (``bench/oracle_ceiling.py``) prints: its top-1 per noise scale with 95 % Wilson intervals,
+read for the whole truth and per effect, the misses, its own stated probabilities against its share right, and how far
+a finer integral moves the ranking."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+from intervals import wilson
 from scipy.special import logsumexp
 
+BINS = ((0.0, 0.5), (0.5, 0.7), (0.7, 0.9), (0.9, 0.97), (0.97, 1.0001))
+"""Stated-probability bins of the oracle's reliability lines (the evaluation's, its top two merged)."""
 
-def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequence[str]) -> None:
-    """Top-1 accuracy per noise scale: library truths ≥ 3σ, all worlds, per scenario; the misses (confusions)."""
+
+def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequence[str], out: Path | None = None
+           ) -> None:
+    """Top-1 accuracy per noise scale: library truths ≥ 3σ, all worlds, per scenario; the misses (confusions), the
+    oracle's reliability; with ``out``, every world's result (its posterior included) written there as JSON."""
+    if out:
+        out.write_text(json.dumps(results))
     for scale in scales:
         rs = [r for r in results if r["scale"] == scale]
         lib = [r for r in rs if r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0]
         n_lib, n_all = sum(r["top"] == r["truth"] for r in lib), sum(r["top"] == r["truth"] for r in rs)
         n_seen = sum(r["top"] in (r["truth"], r["seen"]) for r in lib)  # a term under 3σ need not be named
-        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {n_lib / max(len(lib), 1):.2f};"
-              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {n_seen / max(len(lib), 1):.2f};"
+        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {_share(n_lib, len(lib))};"
+              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {_share(n_seen, len(lib))};"
               f"  all worlds {n_all}/{len(rs)} = {n_all / max(len(rs), 1):.2f}"
               f"  ({np.median([r['seconds'] for r in rs]):.1f} s per world, median)")
         cells = [f"{sc} {sum(r['top'] == r['truth'] for r in rs if r['scenario'] == sc)}/"
@@ -28,6 +39,34 @@ def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequen
             odds, rank = r["post"][r["top"]] - r["post"][r["truth"]], list(r["post"]).index(r["truth"]) + 1
             print(f"  miss {r['scenario']}/{r['seed']} ({r['size']:.1f} sigma): {r['truth']} -> {r['top']}  "
                   f"(truth rank {rank}, ln odds {odds:.1f})")
+        print(reliability(rs))
+
+
+def _share(k: int, n: int) -> str:
+    """A share with its 95 % Wilson interval."""
+    if n == 0:
+        return "-"
+    p, lo, hi = wilson(k, n)
+    return f"{p:.2f} ({lo:.2f}-{hi:.2f})"
+
+
+def stated(r: dict[str, Any]) -> float:
+    """The oracle's own probability of its top class: its posterior over the truth classes, normalised."""
+    post = np.array(list(r["post"].values()))
+    return float(np.exp(post.max() - logsumexp(post)))
+
+
+def reliability(rs: list[dict[str, Any]]) -> str:
+    """The oracle's stated probability of its top class against how often that class is the truth, per bin: with
+    the judge's own families and priors a forecaster can be reliable; this says how near the oracle's integral is."""
+    p, right = np.array([stated(r) for r in rs]), np.array([r["top"] == r["truth"] for r in rs])
+    cells = []
+    for lo, hi in BINS:
+        inside = (p >= lo) & (p < hi)
+        if inside.any():
+            cells.append(f"{lo:g}-{min(hi, 1):g}: stated {p[inside].mean():.2f}, right "
+                         f"{_share(int(right[inside].sum()), int(inside.sum()))} of {int(inside.sum())}")
+    return "  oracle reliability: " + "; ".join(cells)
 
 
 def validate(std: list[dict[str, Any]], fine: list[dict[str, Any]]) -> None:
