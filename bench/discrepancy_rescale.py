@@ -17,6 +17,13 @@ inflation T of the grid) and decides every dataset again under each rule, withou
 - ``prior``: ``classes`` (the workflow's ``PRIOR_MASS``), ``equal-single`` (every single-term explanation,
   physical or measurement-side, the same prior: the classes' 0.35 + 0.10 split over their 8 members) or
   ``unlisted=X`` or ``pair=X`` (that class's mass X instead of its 0.10, the other classes as they are);
+  ``judge-mix`` is a diagnostic no method may use: every candidate's prior is the share of the file's worlds whose
+  truth it is (10⁻⁴ for one that is no world's truth), the judge's own mix of worlds. If the stated probabilities
+  are still unreliable with it, what makes them so is the evidence (the library's laws against the judge's), not
+  the prior;
+- ``unlisted-T``: "unlisted"'s gain over "none" counted at that many times the inflation every other candidate is
+  decided at (its evidence and each roller case's part of it, from the stored grid): the stand-in picks its
+  features on the data, so its wins may be the overconfident ones;
 - ``ε``: the probabilities mixed with the prior afterwards, (1 − ε)·p + ε·prior (the prior renormalised over the
   candidates not ruled out): a recalibration map that keeps the ranking and pulls every probability toward it;
 - ``cases``: ``resampled`` (the question "which effect?" resampled over roller cases, as the workflow asks it with
@@ -44,6 +51,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
@@ -75,11 +83,14 @@ Rule = Callable[[dict[str, Any]], list[tuple[str, float]]]
 _KIND = {e.name: e.kind for e in explanations()}
 
 
-def log_priors(r: dict[str, Any], prior: str) -> np.ndarray:
-    """The stored priors, or every single-term explanation's prior made equal (``equal-single``)."""
+def log_priors(r: dict[str, Any], prior: str, world_mix: dict[str, float] | None = None) -> np.ndarray:
+    """The stored priors, every single-term explanation's prior made equal (``equal-single``), one class's mass
+    changed, or the judge's mix of worlds (``judge-mix``: ``world_mix``, each truth's share of the file)."""
     stored = np.array([x["log_prior"] for x in r["candidates"]])
     if prior == "classes":
         return stored
+    if prior == "judge-mix":
+        return np.log([max((world_mix or {}).get(x["explanation"], 0.0), 1e-4) for x in r["candidates"]])
     if "=" in prior:  # one class's mass changed, the others as they are
         kind, mass = prior.split("=")
         shift = math.log(float(mass) / PRIOR_MASS[kind])
@@ -98,17 +109,36 @@ def c_hat_temperature(r: dict[str, Any]) -> float:
     return min(TEMPERATURES, key=lambda t: abs(math.log(t / c_hat)))
 
 
+def unlisted_at(r: dict[str, Any], temperature: float, factor: float) -> dict[str, Any]:
+    """``r`` with "unlisted"'s stored evidence (and each case's part) at ``temperature`` replaced by that of "none"
+    there plus the stand-in's gain over "none" at ``factor`` times it."""
+    def moved(c: dict[str, Any], none: dict[str, Any], key: str) -> dict[str, Any]:
+        at, far = f"{temperature:g}", f"{factor * temperature:g}"
+        gain = np.asarray(c[key][far]) - np.asarray(none[key][far])
+        return {**c[key], at: (np.asarray(none[key][at]) + gain).tolist()}
+
+    none = next(c for c in r["candidates"] if c["explanation"] == "none")
+    keys = [k for k in ("log_evidence_by_temperature", "case_log_lik_by_temperature") if k in none]
+    cands = [{**c, **{k: moved(c, none, k) for k in keys}} if c["explanation"] == "unlisted" else c
+             for c in r["candidates"]]
+    return {**r, "candidates": cands}
+
+
 def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled",
-         mix: float = 0.0, concentration: float = 1.0) -> Rule:
+         mix: float = 0.0, concentration: float = 1.0, world_mix: dict[str, float] | None = None,
+         unlisted_t: float = 1.0) -> Rule:
     """The decision's two questions (``labctl.discrepancy.questions.probabilities``) under another rule; ``t``:
     a fixed T, or ``c-hat`` (each dataset's own, ``c_hat_temperature``); ``mix``: ε of the map toward the prior;
-    ``concentration``: the resampling's."""
+    ``concentration``: the resampling's; ``world_mix``: the file's truths' shares (``judge-mix``); ``unlisted_t``:
+    the factor on the inflation "unlisted"'s gain is counted at."""
     def decide(r: dict[str, Any]) -> list[tuple[str, float]]:
         def evidence(temp: float) -> np.ndarray:  # the presence question takes the rule's Occam factor either way
             return log_evidence(r, temp, occam if scope == "all" or temp == PRESENCE_TEMPERATURE else "hyper-g")
 
         temperature = c_hat_temperature(r) if t == "c-hat" else float(t)
-        priors = log_priors(r, prior)
+        if unlisted_t != 1.0:
+            r = unlisted_at(r, temperature, unlisted_t)
+        priors = log_priors(r, prior, world_mix)
         probs = tempered(r, temperature, priors, evidence, lam, resample=cases == "resampled",
                          concentration=concentration)
         if not mix:
@@ -134,6 +164,11 @@ def isotonic(decide: Rule, results: list[dict[str, Any]]) -> Rule:
         rest = (1.0 - new) / (1.0 - top) if top < 1.0 else 0.0
         return sorted([(probs[0][0], new), *((n, p * rest) for n, p in probs[1:])], key=lambda item: -item[1])
     return mapped
+
+
+def world_mix(results: list[dict[str, Any]]) -> dict[str, float]:
+    """Each truth's share of a file's worlds: the judge's own mix (``judge-mix``)."""
+    return {k: v / len(results) for k, v in Counter(r["truth_name"] for r in results).items()}
 
 
 def score(results: list[dict[str, Any]], decide: Rule) -> str:
@@ -175,7 +210,8 @@ def main() -> None:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
     workflow: dict[str, Any] = {"occam": "hyper-g", "scope": "all", "t": TEMPERATURE, "lam": 1.0,
-                                "prior": "classes", "cases": "resampled", "mix": 0.0, "concentration": 1.0}
+                                "prior": "classes", "cases": "resampled", "mix": 0.0, "concentration": 1.0,
+                                "unlisted_t": 1.0}
     changes: list[dict[str, Any]] = [{}]
     changes += [{"t": t} for t in (2.0, 8.0, 32.0, "c-hat")]
     changes += [{"cases": "pooled", "t": t} for t in (TEMPERATURE, 8.0, 32.0)]
@@ -183,6 +219,7 @@ def main() -> None:
                 {"cases": "pooled", "occam": "bic", "t": 2.0}]
     changes += [{"prior": prior} for prior in ("equal-single", "unlisted=0.05", "unlisted=0.025", "pair=0.2",
                                                "pair=0.05")]
+    changes += [{"prior": "judge-mix"}, {"unlisted_t": 2.0}, {"unlisted_t": 4.0}]
     changes += [{"mix": eps} for eps in (0.1, 0.2)]  # the workflow's rule, mapped toward the prior
     changes += [{"concentration": a} for a in (0.5, 0.25, 0.1)]
     changes += [{"map": "isotonic"}, {"map": "isotonic", "concentration": 0.25}]
@@ -192,12 +229,14 @@ def main() -> None:
     for change in changes:
         row = {**workflow, **change}
         recalibration = row.pop("map", "none")
-        decide = rule(**row)
-        if recalibration == "isotonic":  # fitted on the first file, judged on the others
-            decide = isotonic(decide, runs[0][1])
         t = row["t"]
         shown = t if isinstance(t, str) else f"{t:g}"
+        if row["unlisted_t"] != 1.0:
+            shown += f", unlisted ×{row['unlisted_t']:g}"
+        if recalibration == "isotonic":  # fitted on the first file, judged on the others
+            fitted = isotonic(rule(**row, world_mix=world_mix(runs[0][1])), runs[0][1])
         for path, results in runs:
+            decide = fitted if recalibration == "isotonic" else rule(**row, world_mix=world_mix(results))
             print(f"| {row['occam']} | {row['scope']} | {shown} | {row['lam']:g} | {row['prior']} | {row['cases']} | "
                   f"{row['mix']:g} | {row['concentration']:g} | {recalibration} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
