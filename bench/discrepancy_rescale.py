@@ -40,8 +40,9 @@ Per file: top explanation = truth, log loss of the truth's probability, expected
 reliability bins, whether every bin with ≥ 30 cases is within 0.05, names that are exactly the truth (both terms
 of a pair; library or measurement-side truths of size ≥ 3σ: stricter than the evaluation's top-1, which counts
 the first term named), wrong names (an effect outside the library named counts), top probabilities ≥ 0.5, and how
-often an effect (named or unlisted) stated at ≥ 0.9 is the truth. Last, the reliability table of the workflow's own
-rule (the stated probabilities the files hold) pooled over all the files.
+often an effect (named or unlisted) stated at ≥ 0.9 is the truth. Then what ``judge-mix`` states wrongly at ≥ 0.97,
+and last the reliability table of the workflow's own rule (the stated probabilities the files hold) pooled over all
+the files.
 
     python bench/discrepancy_rescale.py CAL.json EVAL.json [BLIND2.json …]
 """
@@ -171,6 +172,13 @@ def world_mix(results: list[dict[str, Any]]) -> dict[str, float]:
     return {k: v / len(results) for k, v in Counter(r["truth_name"] for r in results).items()}
 
 
+def confident_misses(results: list[dict[str, Any]], decide: Rule, at: float = 0.97) -> str:
+    """The wrong tops a rule states at ≥ ``at``, counted by (top, truth), most common first."""
+    misses = Counter((top, r["truth_name"]) for r in results for top, p in [decide(r)[0]]
+                     if p >= at and top != r["truth_name"])
+    return f"{sum(misses.values())}: " + ", ".join(f"{t} for {w} {n}" for (t, w), n in misses.most_common(6))
+
+
 def score(results: list[dict[str, Any]], decide: Rule) -> str:
     stated, loss, named_right, big, wrong, effects, sure = [], 0.0, 0, 0, 0, 0, []
     for r in results:
@@ -240,6 +248,10 @@ def main() -> None:
             print(f"| {row['occam']} | {row['scope']} | {shown} | {row['lam']:g} | {row['prior']} | {row['cases']} | "
                   f"{row['mix']:g} | {row['concentration']:g} | {recalibration} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
+    print("\nWrong at ≥ 0.97 with the judge's own mix as the prior (judge-mix), per file:")
+    for path, results in runs:
+        judged = rule(**{**workflow, "prior": "judge-mix"}, world_mix=world_mix(results))
+        print(f"- {path.rsplit('/', 1)[-1]}: {confident_misses(results, judged)}")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
     print(reliability(pooled)[0])
