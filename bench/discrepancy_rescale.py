@@ -172,6 +172,17 @@ def world_mix(results: list[dict[str, Any]]) -> dict[str, float]:
     return {k: v / len(results) for k, v in Counter(r["truth_name"] for r in results).items()}
 
 
+def remembered(decide: Rule) -> Rule:
+    """``decide`` with each dataset's decision kept, so a second look at the same results costs nothing."""
+    seen: dict[int, list[tuple[str, float]]] = {}
+
+    def again(r: dict[str, Any]) -> list[tuple[str, float]]:
+        if id(r) not in seen:
+            seen[id(r)] = decide(r)
+        return seen[id(r)]
+    return again
+
+
 def confident_misses(results: list[dict[str, Any]], decide: Rule, at: float = 0.97) -> str:
     """The wrong tops a rule states at ≥ ``at``, counted by (top, truth), most common first."""
     misses = Counter((top, r["truth_name"]) for r in results for top, p in [decide(r)[0]]
@@ -234,6 +245,7 @@ def main() -> None:
     print("| occam | scope | T | λ | prior | cases | ε | a | map | file | top = truth | log loss | ECE | "
           "bins ≥ 30 within 0.05 | named = truth (≥ 3σ) | wrong names | top ≥ 0.5 | effect at ≥ 0.9 right |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    judged: list[Rule] = []  # the judge-mix row's decisions, one per file
     for change in changes:
         row = {**workflow, **change}
         recalibration = row.pop("map", "none")
@@ -245,13 +257,15 @@ def main() -> None:
             fitted = isotonic(rule(**row, world_mix=world_mix(runs[0][1])), runs[0][1])
         for path, results in runs:
             decide = fitted if recalibration == "isotonic" else rule(**row, world_mix=world_mix(results))
+            if change == {"prior": "judge-mix"}:  # its decisions kept for the list of its confident misses
+                decide = remembered(decide)
+                judged.append(decide)
             print(f"| {row['occam']} | {row['scope']} | {shown} | {row['lam']:g} | {row['prior']} | {row['cases']} | "
                   f"{row['mix']:g} | {row['concentration']:g} | {recalibration} | {path.rsplit('/', 1)[-1]} | "
                   f"{score(results, decide)} |")
     print("\nWrong at ≥ 0.97 with the judge's own mix as the prior (judge-mix), per file:")
-    for path, results in runs:
-        judged = rule(**{**workflow, "prior": "judge-mix"}, world_mix=world_mix(results))
-        print(f"- {path.rsplit('/', 1)[-1]}: {confident_misses(results, judged)}")
+    for (path, results), decide in zip(runs, judged, strict=True):
+        print(f"- {path.rsplit('/', 1)[-1]}: {confident_misses(results, decide)}")
     pooled = [r for _, results in runs for r in results]
     print(f"\nThe workflow's rule, pooled over the {len(runs)} files ({len(pooled)} datasets)\n")
     print(reliability(pooled)[0])

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 from discrepancy_worlds import CALIBRATION
-from intervals import wilson
+from intervals import RELIABILITY_BINS, wilson
 
 from labctl.discrepancy.design import DesignLimit, decide
 from labctl.discrepancy.noise import lack_of_fit_rejects
@@ -157,8 +157,6 @@ def detail(results: list[dict[str, Any]]) -> str:
 
 # --- blind worlds: acceptance numbers and the reliability of the stated probabilities -------------------------
 
-BINS = ((0.0, 0.5), (0.5, 0.7), (0.7, 0.9), (0.9, 0.97), (0.97, 0.995), (0.995, 1.0001))
-"""Stated-probability bins of the reliability table."""
 CALIBRATED_DRAWS = 4000
 """Draws of a calibrated forecaster's outcomes behind the reliability table's chance column."""
 
@@ -218,9 +216,10 @@ def retemper(r: dict[str, Any], temperature: float) -> dict[str, Any]:
 
 
 def binned(stated: list[tuple[float, bool]]) -> list[tuple[float, float, np.ndarray]]:
-    """Each reliability bin (``BINS``) with the mask of the stated (probability, right) pairs inside it."""
+    """Each reliability bin (``intervals.RELIABILITY_BINS``) with the mask of the stated (probability, right) pairs
+    inside it."""
     p = np.array([x for x, _ in stated])
-    return [(lo, hi, (p >= lo) & (p < hi)) for lo, hi in BINS]
+    return [(lo, hi, (p >= lo) & (p < hi)) for lo, hi in RELIABILITY_BINS]
 
 
 def holds_within(mean_stated: float, share_right: float, n: int) -> bool:
@@ -277,7 +276,7 @@ def reliability_by_kind(results: list[dict[str, Any]]) -> str:
              ("unlisted", lambda r: r["top"] == "unlisted"))
     for kind, is_kind in kinds:
         mine = [r for r in results if is_kind(r)]
-        for lo, hi in BINS:
+        for lo, hi in RELIABILITY_BINS:
             inside = [r for r in mine if lo <= r["top_probability"] < hi]
             if not inside:
                 continue

@@ -7,6 +7,8 @@ import math
 import numpy as np
 
 RNG = np.random.default_rng(12345)
+RELIABILITY_BINS = ((0.0, 0.5), (0.5, 0.7), (0.7, 0.9), (0.9, 0.97), (0.97, 0.995), (0.995, 1.0001))
+"""Stated-probability bins of the reliability tables (the discrepancy evaluation's and the oracle's)."""
 
 
 def boot(stat, *arrays, n: int = 1000) -> tuple[float, float]:

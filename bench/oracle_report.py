@@ -10,11 +10,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from intervals import wilson
+from intervals import RELIABILITY_BINS, wilson
 from scipy.special import logsumexp
 
-BINS = ((0.0, 0.5), (0.5, 0.7), (0.7, 0.9), (0.9, 0.97), (0.97, 1.0001))
-"""Stated-probability bins of the oracle's reliability lines (the evaluation's, its top two merged)."""
+BINS = (*RELIABILITY_BINS[:4], (RELIABILITY_BINS[4][0], RELIABILITY_BINS[5][1]))
+"""Stated-probability bins of the oracle's reliability lines: the evaluation's, its top two merged (fewer worlds)."""
 
 
 def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequence[str], out: Path | None = None
