@@ -28,8 +28,8 @@ def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequen
         lib = [r for r in rs if r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0]
         n_lib, n_all = sum(r["top"] == r["truth"] for r in lib), sum(r["top"] == r["truth"] for r in rs)
         n_seen = sum(r["top"] in (r["truth"], r["seen"]) for r in lib)  # a term under 3σ need not be named
-        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {_share(n_lib, len(lib))};"
-              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {_share(n_seen, len(lib))};"
+        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {share(n_lib, len(lib))};"
+              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {share(n_seen, len(lib))};"
               f"  all worlds {n_all}/{len(rs)} = {n_all / max(len(rs), 1):.2f}"
               f"  ({np.median([r['seconds'] for r in rs]):.1f} s per world, median)")
         cells = [f"{sc} {sum(r['top'] == r['truth'] for r in rs if r['scenario'] == sc)}/"
@@ -42,7 +42,7 @@ def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequen
         print(reliability(rs))
 
 
-def _share(k: int, n: int) -> str:
+def share(k: int, n: int) -> str:
     """A share with its 95 % Wilson interval."""
     if n == 0:
         return "-"
@@ -65,7 +65,7 @@ def reliability(rs: list[dict[str, Any]]) -> str:
         inside = (p >= lo) & (p < hi)
         if inside.any():
             cells.append(f"{lo:g}-{min(hi, 1):g}: stated {p[inside].mean():.2f}, right "
-                         f"{_share(int(right[inside].sum()), int(inside.sum()))} of {int(inside.sum())}")
+                         f"{share(int(right[inside].sum()), int(inside.sum()))} of {int(inside.sum())}")
     return "  oracle reliability: " + "; ".join(cells)
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 from oracle_ceiling import W, World, evidence, hypotheses, label, logsumexp
-from oracle_report import _share, reliability
+from oracle_report import reliability, share
 
 
 def sub_evidence(rows: list[dict[str, Any]], noise: dict[str, float]) -> list[tuple[str, list[str], float, float]]:
@@ -77,8 +77,8 @@ def summary(rs: list[dict[str, Any]], which: str) -> str:
     whole, per = sum(r[top] == r["truth"] for r in lib), sum(r[top] in (r["truth"], r["seen"]) for r in lib)
     every = sum(r[top] == r["truth"] for r in rs)
     outside = [r for r in rs if r["truth"] == "unlisted"]
-    return (f"  law {which:6s}: library truths >= 3 sigma {whole}/{len(lib)} = {_share(whole, len(lib))}; per effect "
-            f"{per}/{len(lib)} = {_share(per, len(lib))}; all worlds {every}/{len(rs)} = {_share(every, len(rs))}; "
+    return (f"  law {which:6s}: library truths >= 3 sigma {whole}/{len(lib)} = {share(whole, len(lib))}; per effect "
+            f"{per}/{len(lib)} = {share(per, len(lib))}; all worlds {every}/{len(rs)} = {share(every, len(rs))}; "
             f"outside effects ranked unlisted {sum(r[top] == 'unlisted' for r in outside)}/{len(outside)}")
 
 
