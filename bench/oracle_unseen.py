@@ -7,8 +7,10 @@ library's*. This bench asks the oracle the same question with the world's own la
 that uses a family of the world's truth (a library effect's family, or the outside effect's) is dropped, and each
 class keeps its prior mass, spread over the laws that are left (the other two or three families of the same effect;
 for an outside effect, the other three outside laws stand for "an effect outside the library"). That is a method
-which knows every law of the judge except the one at work, so it holds laws closer to the truth's than a library
-written without the judge: its top-1 is a ceiling for a method whose laws differ from the truth's, not a floor.
+which knows every law of the judge except the one at work, laws more like the truth's than a library written without
+the judge. It is not a strict ceiling: exact evidence on a sibling law has no room for the form's doubt, and a method
+with a discrepancy term or a law nearer the truth's can do better. It measures how much the oracle's top-1 and its
+reliability stand on holding the world's own law.
 
 Each world's sub-hypothesis evidences are computed once, in the oracle's own order (so the known-law posterior is the
 oracle's, bit for bit), and both posteriors are printed: top-1 with 95 % Wilson intervals for the library truths
