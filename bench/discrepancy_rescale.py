@@ -125,6 +125,12 @@ def unlisted_at(r: dict[str, Any], temperature: float, factor: float) -> dict[st
     return {**r, "candidates": cands}
 
 
+WORKFLOW_RULE: dict[str, Any] = {"occam": "hyper-g", "scope": "all", "t": TEMPERATURE, "lam": 1.0,
+                                 "prior": "classes", "cases": "resampled", "mix": 0.0, "concentration": 1.0,
+                                 "unlisted_t": 1.0}
+"""The workflow's own decision rule, as ``rule``'s settings: every other rule is a change of some of them."""
+
+
 def rule(occam: str, scope: str, t: float | str, lam: float, prior: str = "classes", cases: str = "resampled",
          mix: float = 0.0, concentration: float = 1.0, world_mix: dict[str, float] | None = None,
          unlisted_t: float = 1.0) -> Rule:
@@ -228,9 +234,6 @@ def main() -> None:
     for path in args.files:
         with open(path, encoding="utf-8") as fh:
             runs.append((path, json.load(fh)))
-    workflow: dict[str, Any] = {"occam": "hyper-g", "scope": "all", "t": TEMPERATURE, "lam": 1.0,
-                                "prior": "classes", "cases": "resampled", "mix": 0.0, "concentration": 1.0,
-                                "unlisted_t": 1.0}
     changes: list[dict[str, Any]] = [{}]
     changes += [{"t": t} for t in (2.0, 8.0, 32.0, "c-hat")]
     changes += [{"cases": "pooled", "t": t} for t in (TEMPERATURE, 8.0, 32.0)]
@@ -247,7 +250,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     judged: list[Rule] = []  # the judge-mix row's decisions, one per file
     for change in changes:
-        row = {**workflow, **change}
+        row = {**WORKFLOW_RULE, **change}
         recalibration = row.pop("map", "none")
         t = row["t"]
         shown = t if isinstance(t, str) else f"{t:g}"

@@ -20,20 +20,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from discrepancy_rescale import rule
-from oracle_report import share
-
-from labctl.discrepancy.questions import TEMPERATURE
+from discrepancy_rescale import WORKFLOW_RULE, rule
+from oracle_report import count_share, library_big
+from scipy.special import softmax
 
 LEVEL = 0.9
 """The credible set's stated mass."""
-WORKFLOW = {"occam": "hyper-g", "scope": "all", "t": TEMPERATURE, "lam": 1.0}
-"""The workflow's own decision rule (``discrepancy_rescale.rule``'s other settings at their defaults)."""
 
 Ranked = list[tuple[str, float]]
 
@@ -51,15 +47,8 @@ def credible_set(probs: Ranked, level: float = LEVEL) -> list[str]:
 
 def from_log_posterior(post: dict[str, float]) -> Ranked:
     """Class probabilities, most probable first, from an unnormalised ln posterior."""
-    top = max(post.values())
-    weights = {k: math.exp(v - top) for k, v in post.items()}
-    total = sum(weights.values())
-    return sorted(((k, w / total) for k, w in weights.items()), key=lambda kv: -kv[1])
-
-
-def _share(k: int, n: int) -> str:
-    """k/n with its 95 % Wilson interval."""
-    return f"{k}/{n} = {share(k, n)}"
+    probs = softmax(list(post.values()))
+    return sorted(zip(post, map(float, probs), strict=True), key=lambda kv: -kv[1])
 
 
 def line(label: str, cases: Iterable[tuple[Ranked, str]]) -> str:
@@ -71,7 +60,8 @@ def line(label: str, cases: Iterable[tuple[Ranked, str]]) -> str:
     sets = [credible_set(probs) for probs, _ in cases]
     held = sum(truth in s for s, (_, truth) in zip(sets, cases, strict=True))
     size = sum(len(s) for s in sets) / n if n else float("nan")
-    return f"| {label} | {n} | {_share(first, n)} | {_share(three, n)} | {_share(held, n)} | {size:.1f} |"
+    shares = " | ".join(count_share(k, n) for k in (first, three, held))
+    return f"| {label} | {n} | {shares} | {size:.1f} |"
 
 
 def groups(rows: list[tuple[Ranked, str, bool, bool]]) -> list[tuple[str, list[tuple[Ranked, str]]]]:
@@ -83,15 +73,14 @@ def groups(rows: list[tuple[Ranked, str, bool, bool]]) -> list[tuple[str, list[t
 
 def workflow_rows(results: list[dict[str, Any]]) -> list[tuple[Ranked, str, bool, bool]]:
     """Each dataset decided by the workflow's rule on its stored evidence."""
-    decide = rule(**WORKFLOW)
+    decide = rule(**WORKFLOW_RULE)
     return [(decide(r), r["truth_name"], r["truth_name"] not in ("none", "unlisted") and r["size_sigma"] >= 3,
              r["truth_name"] == "unlisted") for r in results]
 
 
 def oracle_rows(results: list[dict[str, Any]], key: str) -> list[tuple[Ranked, str, bool, bool]]:
     """Each world's oracle posterior (``post`` or ``post_unseen``) as probabilities."""
-    return [(from_log_posterior(r[key]), r["truth"], r["truth"] not in ("none", "unlisted") and r["size"] >= 3,
-             r["truth"] == "unlisted") for r in results]
+    return [(from_log_posterior(r[key]), r["truth"], library_big(r), r["truth"] == "unlisted") for r in results]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -43,10 +43,8 @@ from scipy.optimize import minimize, minimize_scalar  # noqa: E402
 from scipy.special import expit, log_ndtr, ndtr  # noqa: E402
 from scipy.stats import multivariate_t, qmc  # noqa: E402
 
-from labctl.physics import EFFECTS  # noqa: E402  (the effects' order only, to label truths as the bench does)
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from oracle_report import report, validate  # noqa: E402
+from oracle_report import label, report, truth_classes, validate  # noqa: E402
 
 BLIND = Path(__file__).resolve().parent / "blind"
 sys.path.insert(0, str(BLIND))
@@ -82,11 +80,6 @@ def logsumexp(v: np.ndarray | list[float]) -> float:
     """ln Σ exp(v), stable (scipy's is slow on small arrays)."""
     m = float(np.max(v := np.asarray(v, float)))
     return m if not np.isfinite(m) else m + float(np.log(np.sum(np.exp(v - m))))
-
-
-def label(effects: list[str], calibration: list[str]) -> str:
-    """A class as ``truth_name`` (bench/discrepancy_blind.py, which imports the workflow) names a library truth."""
-    return " + ".join([n for n in EFFECTS if n in effects] + list(calibration)) or "none"
 
 
 def _ln_outlier(x: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -364,11 +357,8 @@ def run_world(task: tuple[str, int, float, bool, bool]) -> dict[str, Any]:
     (scenario, seed, scale, fine, free_depth), t0 = task, time.perf_counter()
     ds = W.generate(scenario, seed, scale)
     post = classify(ds.rows, ds.truth["noise"], fine, free_depth)
-    truth = "unlisted" if ds.truth["outside_library"] else label(ds.truth["effects"], ds.truth["measurement_effects"])
-    by = ds.truth.get("size_sigma_by_effect") or {}
-    seen = [[n for n in ds.truth[k] if by.get(n, 0.0) >= 3.0] for k in ("effects", "measurement_effects")]
-    return {"scenario": scenario, "seed": seed, "scale": scale, "truth": truth, "top": next(iter(post)),
-            "seen": label(*seen) if any(seen) and truth != "unlisted" else truth,
+    truth, seen = truth_classes(ds.truth)
+    return {"scenario": scenario, "seed": seed, "scale": scale, "truth": truth, "top": next(iter(post)), "seen": seen,
             "size": float(ds.truth["size_sigma"]), "post": post, "seconds": time.perf_counter() - t0}
 
 

@@ -1,6 +1,6 @@
 """What the oracle ceiling (``bench/oracle_ceiling.py``) prints: its top-1 per noise scale with 95 % Wilson intervals,
 read for the whole truth and per effect, the misses, its own stated probabilities against its share right, and how far
-a finer integral moves the ranking."""
+a finer integral moves the ranking; and how a world's truth is labelled, as the discrepancy bench labels it."""
 
 from __future__ import annotations
 
@@ -13,8 +13,28 @@ import numpy as np
 from intervals import RELIABILITY_BINS, wilson
 from scipy.special import logsumexp
 
+from labctl.physics import EFFECTS  # the effects' order only, to label truths as the bench does
+
 BINS = (*RELIABILITY_BINS[:4], (RELIABILITY_BINS[4][0], RELIABILITY_BINS[5][1]))
 """Stated-probability bins of the oracle's reliability lines: the evaluation's, its top two merged (fewer worlds)."""
+
+
+def label(effects: list[str], calibration: list[str]) -> str:
+    """A class as ``truth_name`` (bench/discrepancy_blind.py, which imports the workflow) names a library truth."""
+    return " + ".join([n for n in EFFECTS if n in effects] + list(calibration)) or "none"
+
+
+def truth_classes(truth: dict[str, Any]) -> tuple[str, str]:
+    """A world's truth class, and the class of its terms of size ≥ 3σ (what the per-effect reading counts)."""
+    name = "unlisted" if truth["outside_library"] else label(truth["effects"], truth["measurement_effects"])
+    by = truth.get("size_sigma_by_effect") or {}
+    seen = [[n for n in truth[k] if by.get(n, 0.0) >= 3.0] for k in ("effects", "measurement_effects")]
+    return name, label(*seen) if any(seen) and name != "unlisted" else name
+
+
+def library_big(r: dict[str, Any]) -> bool:
+    """A world whose truth is a library explanation (not none, not unlisted) of size ≥ 3σ."""
+    return r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0
 
 
 def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequence[str], out: Path | None = None
@@ -25,11 +45,11 @@ def report(results: list[dict[str, Any]], scales: list[float], scenarios: Sequen
         out.write_text(json.dumps(results))
     for scale in scales:
         rs = [r for r in results if r["scale"] == scale]
-        lib = [r for r in rs if r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0]
+        lib = [r for r in rs if library_big(r)]
         n_lib, n_all = sum(r["top"] == r["truth"] for r in lib), sum(r["top"] == r["truth"] for r in rs)
         n_seen = sum(r["top"] in (r["truth"], r["seen"]) for r in lib)  # a term under 3σ need not be named
-        print(f"noise {scale:g}: library truths >= 3 sigma {n_lib}/{len(lib)} = {share(n_lib, len(lib))};"
-              f"  its terms >= 3 sigma {n_seen}/{len(lib)} = {share(n_seen, len(lib))};"
+        print(f"noise {scale:g}: library truths >= 3 sigma {count_share(n_lib, len(lib))};"
+              f"  its terms >= 3 sigma {count_share(n_seen, len(lib))};"
               f"  all worlds {n_all}/{len(rs)} = {n_all / max(len(rs), 1):.2f}"
               f"  ({np.median([r['seconds'] for r in rs]):.1f} s per world, median)")
         cells = [f"{sc} {sum(r['top'] == r['truth'] for r in rs if r['scenario'] == sc)}/"
@@ -48,6 +68,11 @@ def share(k: int, n: int) -> str:
         return "-"
     p, lo, hi = wilson(k, n)
     return f"{p:.2f} ({lo:.2f}-{hi:.2f})"
+
+
+def count_share(k: int, n: int) -> str:
+    """k/n = the share with its 95 % Wilson interval."""
+    return f"{k}/{n} = {share(k, n)}"
 
 
 def stated(r: dict[str, Any]) -> float:

@@ -24,13 +24,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from oracle_ceiling import W, World, evidence, hypotheses, label, logsumexp
-from oracle_report import reliability, share
+from oracle_ceiling import W, World, evidence, hypotheses, logsumexp
+from oracle_report import count_share, library_big, reliability, truth_classes
 
 
 def sub_evidence(rows: list[dict[str, Any]], noise: dict[str, float]) -> list[tuple[str, list[str], float, float]]:
@@ -55,32 +56,32 @@ def posterior(subs: list[tuple[str, list[str], float, float]], unseen: frozenset
     return dict(sorted(post.items(), key=lambda kv: -kv[1]))
 
 
+def decided(r: dict[str, Any]) -> dict[str, Any]:
+    """A world's result with both posteriors and their tops worked out from its sub-hypotheses."""
+    subs = [tuple(s) for s in r["subs"]]
+    known, blind = posterior(subs), posterior(subs, frozenset(r["unseen_families"]))
+    return {**r, "post": known, "top": next(iter(known)), "post_unseen": blind, "top_unseen": next(iter(blind))}
+
+
 def run_world(task: tuple[str, int, float]) -> dict[str, Any]:
     """Generate one world; its class posterior with every law known and with its own law unseen."""
     (scenario, seed, scale), t0 = task, time.perf_counter()
     ds = W.generate(scenario, seed, scale)
-    subs = sub_evidence(ds.rows, ds.truth["noise"])
-    truth = "unlisted" if ds.truth["outside_library"] else label(ds.truth["effects"], ds.truth["measurement_effects"])
-    by = ds.truth.get("size_sigma_by_effect") or {}
-    seen = [[n for n in ds.truth[k] if by.get(n, 0.0) >= 3.0] for k in ("effects", "measurement_effects")]
-    unseen = frozenset(ds.truth["family"].values())
-    known, blind = posterior(subs), posterior(subs, unseen)
-    return {"scenario": scenario, "seed": seed, "scale": scale, "truth": truth,
-            "seen": label(*seen) if any(seen) and truth != "unlisted" else truth,
-            "size": float(ds.truth["size_sigma"]), "unseen_families": sorted(unseen),
-            "post": known, "top": next(iter(known)), "post_unseen": blind, "top_unseen": next(iter(blind)),
-            "subs": subs, "seconds": time.perf_counter() - t0}
+    truth, seen = truth_classes(ds.truth)
+    return decided({"scenario": scenario, "seed": seed, "scale": scale, "truth": truth, "seen": seen,
+                    "size": float(ds.truth["size_sigma"]), "unseen_families": sorted(set(ds.truth["family"].values())),
+                    "subs": sub_evidence(ds.rows, ds.truth["noise"]), "seconds": time.perf_counter() - t0})
 
 
 def summary(rs: list[dict[str, Any]], which: str) -> str:
     """Top-1 of one posterior: library truths ≥ 3σ (whole, per effect), all worlds."""
     top = "top" if which == "known" else "top_unseen"
-    lib = [r for r in rs if r["truth"] not in ("none", "unlisted") and r["size"] >= 3.0]
+    lib = [r for r in rs if library_big(r)]
     whole, per = sum(r[top] == r["truth"] for r in lib), sum(r[top] in (r["truth"], r["seen"]) for r in lib)
     every = sum(r[top] == r["truth"] for r in rs)
     outside = [r for r in rs if r["truth"] == "unlisted"]
-    return (f"  law {which:6s}: library truths >= 3 sigma {whole}/{len(lib)} = {share(whole, len(lib))}; per effect "
-            f"{per}/{len(lib)} = {share(per, len(lib))}; all worlds {every}/{len(rs)} = {share(every, len(rs))}; "
+    return (f"  law {which:6s}: library truths >= 3 sigma {count_share(whole, len(lib))}; per effect "
+            f"{count_share(per, len(lib))}; all worlds {count_share(every, len(rs))}; "
             f"outside effects ranked unlisted {sum(r[top] == 'unlisted' for r in outside)}/{len(outside)}")
 
 
@@ -98,12 +99,9 @@ def report(results: list[dict[str, Any]]) -> None:
         print(summary(rs, "unseen"))
         print(reliability(rs).replace("oracle reliability", "law known "))
         print(reliability([as_unseen(r) for r in rs]).replace("oracle reliability", "law unseen"))
-        moved: dict[str, int] = {}
-        for r in rs:
-            if r["top"] == r["truth"] != r["top_unseen"]:
-                key = f"{r['truth']} ({'/'.join(r['unseen_families'])}) -> {r['top_unseen']}"
-                moved[key] = moved.get(key, 0) + 1
-        for key, n in sorted(moved.items(), key=lambda kv: -kv[1]):
+        moved = Counter(f"{r['truth']} ({'/'.join(r['unseen_families'])}) -> {r['top_unseen']}"
+                        for r in rs if r["top"] == r["truth"] != r["top_unseen"])
+        for key, n in moved.most_common():
             print(f"    right with the law known, not unseen: {key} x{n}")
 
 
@@ -118,11 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.rescore:
-        results = json.loads(args.rescore.read_text())
-        for r in results:
-            subs = [tuple(s) for s in r["subs"]]
-            r["post"], r["post_unseen"] = posterior(subs), posterior(subs, frozenset(r["unseen_families"]))
-            r["top"], r["top_unseen"] = next(iter(r["post"])), next(iter(r["post_unseen"]))
+        results = [decided(r) for r in json.loads(args.rescore.read_text())]
     else:
         tasks = [(sc, s, float(x)) for x in args.noise.split(",") for sc in W.SCENARIOS for s in range(args.seeds)]
         with ProcessPoolExecutor(args.workers) as pool:
