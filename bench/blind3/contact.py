@@ -131,4 +131,4 @@ class LengthLaw:
         return np.interp(np.log(np.maximum(p, self.p[0])), self._lnp, self.delta)
 
 
-P_GRID = np.geomspace(50.0, 3e6, 160)  # N/m: below every preload per length, above every top load per length
+P_GRID = np.geomspace(50.0, 3e7, 200)  # N/m: below every preload per length, above every top load per length
