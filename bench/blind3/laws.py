@@ -89,7 +89,7 @@ def draw_params(family: str, rng: np.random.Generator, seats: list[int], top_n: 
         "abbott_closure": {"alpha": u(2.5, 4.0), "z0": u(1.5, 2.5), "q": u(0.6, 1.2)},
         "two_scale": {"q": u(0.8, 1.3), "p_r_pa": u(0.2e9, 0.6e9), "lam_m": u(15e-6, 40e-6), "w": u(0.3, 1.0)},
         "log_crown": {"h_m": u(0.5e-6, 4e-6)},
-        "dub_off": {"r_d_m": u(1e-3, 10e-3)},
+        "dub_off": {"r_d_m": u(0.1e-3, 1.5e-3)},
         "plane_stress_ends": {},
         "tabor_cube_root": {"theta": u(0.5, 0.8)},
         "ludwik_layer": {"theta": u(0.5, 0.8), "n": u(0.3, 0.6)},
