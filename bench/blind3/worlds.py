@@ -299,9 +299,12 @@ def generate(scenario: str, seed: int, noise_scale: float) -> BlindDataset:
         if with_std:
             row["stiffness_std_n_per_m"] = round(float(k_meas[i] * s * fit[i]), 1)
         rows.append(row)
+    row_of = {int(i): n for n, i in enumerate(np.flatnonzero(keep))}
+    outlier_rows = [row_of[i] for i in outlier_idx]
     if "duplicate_row" in faults:
         j = min(dup, len(rows) - 1)
         rows.insert(j + 1, dict(rows[j]))
+        outlier_rows = [r + 1 if r > j else r for r in outlier_rows]
     truth = {
         "scenario": scenario, "seed": seed, "noise_scale": noise_scale,
         "effects": [lab for lab in eff if lab not in laws.MEASUREMENT],
@@ -311,7 +314,7 @@ def generate(scenario: str, seed: int, noise_scale: float) -> BlindDataset:
         "params": {lab: prm for lab, (_, prm) in eff.items()},
         "size_sigma": round(size, 3), "size_sigma_by_effect": by_effect,
         "target_size_sigma_at_noise_1": {lab: round(t, 3) for lab, t in targets.items()},
-        "faults": faults, "outlier_points": outlier_idx,
+        "faults": faults, "outlier_rows": outlier_rows,
         "design": {"units": camp.design, "points": int(keep.sum()), "missing": [int(i) for i in np.flatnonzero(~keep)],
                    "order": "units one after another, seatings in turn, loads ascending"},
         "noise": {"sigma_f_hz": noise.sigma_f_hz * s, "seating_rel": noise.seat_rel * s,
