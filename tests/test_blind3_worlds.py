@@ -89,3 +89,33 @@ def test_cli_writes_csv_and_truth(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert set(REQUIRED) <= set(rows[0])
     assert json.loads((tmp_path / "null_s0_n1.truth.json").read_text())["scenario"] == "null"
     assert "share ≥3σ" in capsys.readouterr().out
+
+
+def test_baseline_is_labctl_tripp() -> None:
+    """The judge's Tripp equals labctl's TrippContact (the baseline the lab believes)."""
+    from labctl.physics import TrippContact, material, roller
+
+    for t in (1, 2, 4, 8, 9):
+        r = ROLLERS[t]
+        loads = np.array([30.0, 300.0, 3000.0])
+        ref = TrippContact(roller(t), material("1.3505")).stiffness_n_per_m(loads)
+        assert np.allclose(tripp_k(loads, r, MATERIALS[r.material], MATERIALS["1.3505"]), ref, rtol=1e-12)
+
+
+def test_every_family_gives_a_finite_positive_stiffness() -> None:
+    """Each family at the geometric middle of its amplitude range yields finite positive k on short and long rollers."""
+    from bench.blind3.model import Unit, rig_processing, roller_k, unit_law
+
+    rng = np.random.default_rng(0)
+    units = [Unit(0, ROLLERS[2], MATERIALS["1.3505"], MATERIALS["1.3505"], 0.2),
+             Unit(1, ROLLERS[4], MATERIALS["1.3505"], MATERIALS["1.3505"], 0.03)]
+    loads, rep = np.array([30.0, 100.0, 1000.0]), np.array([1, 2, 3])
+    for label, fams in laws.FAMILIES.items():
+        for fam in fams:
+            prm = laws.draw_params(fam, rng, [3, 3], 1000.0)
+            prm["amp"] = float(np.sqrt(np.prod(laws.AMP_RANGE[fam])))
+            prm["material"] = "1.3505"
+            eff = {label: (fam, prm)}
+            for u in units:
+                k = rig_processing(roller_k(u, unit_law(u, eff), eff, loads, rep), loads, eff)
+                assert np.all(np.isfinite(k)) and np.all(k > 0), (label, fam)
