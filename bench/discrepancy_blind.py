@@ -1,6 +1,6 @@
-"""The blind judges of the discrepancy workflow (``bench/blind/``, ``bench/blind2/``): loading a judge, its truth
-as the workflow names explanations, its rows through the CSV contract, and how much of a world Tripp's depth
-cannot absorb. Used by ``bench/discrepancy_eval.py``."""
+"""The blind judges of the discrepancy workflow (``bench/blind/``, ``bench/blind2/``, ``bench/blind3/``): loading a
+judge, its truth as the workflow names explanations, its rows through the CSV contract, and how much of a world
+Tripp's depth cannot absorb. Used by ``bench/discrepancy_eval.py``."""
 
 from __future__ import annotations
 
@@ -22,18 +22,24 @@ BLIND_DIR = Path(__file__).resolve().parent / "blind"
 """Worlds written blind to the workflow (their brief: ``bench/blind/discrepancy_brief.md``)."""
 BLIND2_DIR = Path(__file__).resolve().parent / "blind2"
 """A second judge written blind to the workflow and to the first (``bench/blind2/brief.md``): never tuned on."""
+BLIND3_DIR = Path(__file__).resolve().parent / "blind3"
+"""A third, blind to the workflow and to both (``bench/blind3/brief.md``): it varies the campaign's structure
+(types, repetitions, uneven steps) and the noise (drift, load-cell noise, a stated σ too small); never tuned on."""
+JUDGES: dict[str, tuple[Path, str]] = {"blind": (BLIND_DIR, "discrepancy_worlds.py"),
+                                       "blind2": (BLIND2_DIR, "worlds.py"), "blind3": (BLIND3_DIR, "worlds.py")}
+"""Each judge's folder and generator file."""
 CALIBRATION_SEEDS = 100_000
 """The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
 _MODULES: dict[str, Any] = {}
 
 
 def blind_worlds(suite: str = "blind") -> Any:
-    """The blind generator of ``suite`` (``blind`` or ``blind2``), imported under its own name (its siblings on
-    the path)."""
+    """The blind generator of ``suite`` (a key of ``JUDGES``), imported under its own name (its siblings on the
+    path)."""
     if suite in _MODULES:
         return _MODULES[suite]
-    where, file = (BLIND2_DIR, "worlds.py") if suite == "blind2" else (BLIND_DIR, "discrepancy_worlds.py")
-    for folder in (where, where.parents[1]):  # blind2 imports its siblings as ``bench.blind2.*``
+    where, file = JUDGES[suite]
+    for folder in (where, where.parents[1]):  # a judge may import its siblings as ``bench.blindN.*``
         if str(folder) not in sys.path:
             sys.path.insert(0, str(folder))
     spec = importlib.util.spec_from_file_location(f"{suite}_discrepancy_worlds", where / file)

@@ -183,7 +183,7 @@ def run_blind(task: Task) -> dict[str, Any]:
                 "refused": str(exc), "truth_name": truth_name(truth)}
     cpu = time.process_time() - start
     physical, chain = _named(result)
-    visible = float(truth["size_sigma"]) if task.variant == "blind2" else visible_size(task.truth, task.seed, truth)
+    visible = visible_size(task.truth, task.seed, truth) if not task.variant else float(truth["size_sigma"])
     return {"suite": "blind", "judge": task.variant or "blind", "scenario": task.truth, "seed": task.seed,
             "noise_scale": task.noise_scale, "truth_name": truth_name(truth),
             "truth_effects": list(truth.get("effects", [])),
@@ -253,11 +253,11 @@ def tasks_for(suite: str, seeds: int, scales: list[float], seed: int) -> list[Ta
                              f"{CALIBRATION_SEEDS}")
         for scenario in blind_worlds().SCENARIOS:
             out += [Task("blind", scenario, first + j, scale) for scale in scales for j in range(seeds)]
-    if suite == "blind2":  # the held-out judge: evaluation seeds only, never used to calibrate
+    if suite in ("blind2", "blind3"):  # the held-out judges: evaluation seeds only, never used to calibrate
         if seed * 1000 + seeds > CALIBRATION_SEEDS:
             raise SystemExit(f"--seed/--seeds reach beyond the evaluation seeds 0-{CALIBRATION_SEEDS - 1}")
-        for scenario in blind_worlds("blind2").SCENARIOS:
-            out += [Task("blind", scenario, seed * 1000 + j, scale, variant="blind2") for scale in scales
+        for scenario in blind_worlds(suite).SCENARIOS:
+            out += [Task("blind", scenario, seed * 1000 + j, scale, variant=suite) for scale in scales
                     for j in range(seeds)]
     if suite in ("robust", "acceptance"):
         for i, variant in enumerate(("duplicate", "outliers", "units")):
@@ -271,7 +271,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suite", default="acceptance",
                         choices=("acceptance", "independent", "twin", "calibration", "crowned", "robust", "blind",
-                                 "blind-calibrate", "blind2"))
+                                 "blind-calibrate", "blind2", "blind3"))
     parser.add_argument("--seeds", type=int, default=20, help="datasets per scenario and noise scale (default 20)")
     parser.add_argument("--noise", default="0.5,1,2", help="noise scales (default 0.5,1,2)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
@@ -327,7 +327,8 @@ def main() -> None:
     blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
     if blind:
         calibrating = min(r["seed"] for r in blind) >= CALIBRATION_SEEDS
-        judge = "second judge, bench/blind2" if blind[0].get("judge") == "blind2" else "bench/blind"
+        judge = {"blind2": "second judge, bench/blind2", "blind3": "third judge, bench/blind3"}.get(
+            blind[0].get("judge") or "blind", "bench/blind")
         parts.append(f"Blind worlds ({judge}; {'calibration' if calibrating else 'evaluation'} seeds "
                      f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; {len(blind)} datasets; "
                      f"temperature {args.temperature:g})\n\n" + summarize_blind(blind))

@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from discrepancy_blind import blind_worlds, csv_points  # noqa: E402
+from discrepancy_blind import JUDGES, blind_worlds, csv_points  # noqa: E402
 
 from labctl.discrepancy import run_discrepancy  # noqa: E402
 
@@ -62,7 +62,7 @@ def both(world: World) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--judge", default="blind", choices=("blind", "blind2"))
+    parser.add_argument("--judge", default="blind", choices=tuple(JUDGES))
     parser.add_argument("--seeds", default="100000,100001", help="comma-separated world seeds")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
