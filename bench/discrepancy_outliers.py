@@ -17,6 +17,7 @@ outliers are also run through the whole workflow: the acceptance "consistent, th
     python bench/discrepancy_outliers.py [--seeds 8] [--calibration] [--verdicts]
     python bench/discrepancy_outliers.py --own    # two outliers in null data of the project's own generator
     python bench/discrepancy_outliers.py --scenarios none --seeds 100    # the null worlds alone, more of them
+    python bench/discrepancy_outliers.py --third --seeds 30    # the third judge's null worlds with outliers
 
 Run by hand (not a test); about 20 s for the default 384 worlds, a few minutes more with ``--verdicts``.
 """
@@ -142,6 +143,35 @@ def null_table(rows: list[tuple[float, int, str]]) -> None:
             print(f"- smaller outlier {size:.1f} σ, {n}/2 reported: {v}")
 
 
+def third_judge_nulls(seeds: int) -> None:
+    """The third judge's null worlds with two outliers (``bench/blind3``: ±8–15 % each, on the first two seatings of
+    one step after the first of one roller case, whose seatings number 2–4): the acceptance "consistent, the
+    outliers reported", per noise scale, and each world that is not consistent with where its outliers sit."""
+    judge = blind_worlds("blind3")
+    table: dict[float, list[tuple[int, str]]] = {}
+    for name, world in worlds(judge, range(seeds), ["null_outliers"]):
+        rows = world.rows
+        bad = {_key(int(rows[i]["roller_type"]), int(rows[i]["repetition"]), rows[i]["load_n"])
+               for i in world.truth["outlier_rows"]}
+        result = run_discrepancy(csv_points(rows))
+        found = keys(result.data, result.screening.outliers)
+        table.setdefault(world.truth["noise_scale"], []).append((len(found & bad), result.verdict))
+        if result.verdict != "consistent":
+            first = rows[world.truth["outlier_rows"][0]]
+            seating = sorted(r["load_n"] for r in rows if (r["roller_type"], r["rail_ra_um"], r["repetition"]) ==
+                             (first["roller_type"], first["rail_ra_um"], first["repetition"]))
+            seatings = {r["repetition"] for r in rows if (r["roller_type"], r["rail_ra_um"]) ==
+                        (first["roller_type"], first["rail_ra_um"])}
+            print(f"- {name}: {result.verdict} ({result.scored[0].explanation.name}), {len(found & bad)}/2 reported, "
+                  f"{len(found - bad)} clean set aside; step {seating.index(first['load_n']) + 1} of {len(seating)}, "
+                  f"{len(seatings)} seatings")
+    print(f"\nthird judge, null worlds with two injected outliers, seeds 0-{seeds - 1}\n")
+    print("| noise | worlds | consistent | both reported | one | neither |\n|---|---|---|---|---|---|")
+    for scale, got in table.items():
+        print(f"| {scale:g}× | {len(got)} | {sum(v == 'consistent' for _, v in got)} | {sum(n == 2 for n, _ in got)} | "
+              f"{sum(n == 1 for n, _ in got)} | {sum(n == 0 for n, _ in got)} |")
+
+
 def own_probes() -> None:
     """Two outliers in one load step of null data from the project's own generator (2 % point noise at the
     preload, a third of it at the top): roller types 1, 3, 5, the lowest and the highest step, four pairs of
@@ -175,9 +205,13 @@ def main() -> int:
                     help="also run the whole workflow on each world with outliers, with and without them")
     ap.add_argument("--own", action="store_true", help="only the probes on the project's own generator")
     ap.add_argument("--scenarios", nargs="+", help="only these of the judge's scenarios (e.g. none)")
+    ap.add_argument("--third", action="store_true", help="only the third judge's null worlds with outliers")
     args = ap.parse_args()
     if args.own:
         own_probes()
+        return 0
+    if args.third:
+        third_judge_nulls(args.seeds)
         return 0
     first = CALIBRATION_SEEDS if args.calibration else 0
     sizes: list[tuple[float, bool]] = []
