@@ -194,12 +194,59 @@ def test_a_gross_outlier_at_a_seatings_lowest_step_is_set_aside(null_points, rol
     assert result.verdict == "consistent"
 
 
-def test_a_deviation_every_repetition_shares_is_no_outlier(null_points):
-    points = [dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * 1.1)
-              if p.roller_type == 3 and p.load_n == sorted(q.load_n for q in null_points if q.roller_type == 3
-                                                            and q.repetition == p.repetition)[5] else p
-              for p in null_points]
-    assert run_discrepancy(points).screening.outliers == []
+def _shared_step(points, roller_type, rank, factor):
+    """Every repetition of one roller type at its load step of ``rank`` (0 the lowest, -1 the highest) off by
+    ``factor`` (or by ``factor[repetition]``); the points moved, as (repetition, load)."""
+    own = {r: sorted(p.load_n for p in points if p.roller_type == roller_type and p.repetition == r)
+           for r in {p.repetition for p in points}}
+    hit = [p.roller_type == roller_type and p.load_n == own[p.repetition][rank] for p in points]
+    by = factor if isinstance(factor, dict) else dict.fromkeys(own, factor)
+    moved = [dataclasses.replace(p, stiffness_n_per_m=p.stiffness_n_per_m * by[p.repetition]) if h else p
+             for p, h in zip(points, hit, strict=True)]
+    return moved, sorted((p.repetition, p.load_n) for p, h in zip(points, hit, strict=True) if h)
+
+
+@pytest.mark.parametrize("factor", [1.1, 0.9])
+def test_an_inner_step_every_repetition_leaves_the_same_way_is_the_steps_fault(null_points, factor):
+    # one step inside type 3's load range 10 % off in all three seatings, the steps below and above it in line:
+    # no smooth contact law does that (a load set or read wrong does); it was kept as the contact's shape and made
+    # null data "NOT consistent"
+    points, bad = _shared_step(null_points, 3, 5, factor)
+    result = run_discrepancy(points)
+    assert sorted((o["repetition"], o["load_n"]) for o in result.screening.outliers) == bad
+    assert result.verdict == "consistent"
+
+
+@pytest.mark.parametrize(("rank", "factor"), [(4, 1.1), (7, 0.9)])
+def test_two_seatings_whose_two_points_of_one_step_are_off_stay_consistent(null_points, rank, factor):
+    # a campaign of two seatings: two bad points of one step are every repetition it has, and no clean one is left
+    # to keep (the third blind judge's null worlds with outliers were "unexplained" so)
+    points, bad = _shared_step([p for p in null_points if p.repetition in (1, 2)], 5, rank, factor)
+    result = run_discrepancy(points)
+    assert sorted((o["repetition"], o["load_n"]) for o in result.screening.outliers) == bad
+    assert result.verdict == "consistent"
+
+
+def test_two_seatings_whose_two_points_of_one_step_leave_opposite_ways_are_both_reported(null_points):
+    # the step's mean stays and its spread swells the pure error: "consistent", but with a noise floor the two
+    # points set and neither reported; there is no clean repetition to keep
+    points, bad = _shared_step([p for p in null_points if p.repetition in (1, 2)], 5, 6, {1: 1.1, 2: 0.9})
+    result = run_discrepancy(points)
+    assert sorted((o["repetition"], o["load_n"]) for o in result.screening.outliers) == bad
+    assert result.verdict == "consistent"
+
+
+def test_a_seatings_last_step_every_repetition_leaves_the_same_way_is_not_set_aside(null_points):
+    # the highest step of type 5 off by 10 % in every seating: where a yield sets in, it may be the contact's, and the
+    # data cannot tell; the verdict says that one step alone departs, and what to do
+    points, bad = _shared_step(null_points, 5, -1, 0.9)
+    result = run_discrepancy(points)
+    assert result.screening.outliers == [] and result.verdict != "consistent"
+    [note] = result.to_dict()["input_checks"]["end_steps"]
+    assert note["step"] == "last" and note["load_n"] == sorted(load for _, load in bad)
+    assert note["off_rel"] == pytest.approx(-0.1, abs=0.03)
+    assert "the last step of type 5" in result.verdict_text() and "re-measure that step" in result.verdict_text()
+    assert run_discrepancy(null_points).to_dict()["input_checks"]["end_steps"] == []
 
 
 def test_every_candidate_has_a_probability_and_a_name_needs_nine_tenths(null_points):

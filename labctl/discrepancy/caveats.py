@@ -1,10 +1,13 @@
 """How far to read a verdict: what every verdict that states an effect adds after it.
 
 The probabilities' own record on worlds written blind to the method, a pair that may be one effect, what else
-acts like a term the verdict states, and which library term an "unlisted" lead may be in a law unlike the library's.
+acts like a term the verdict states, which library term an "unlisted" lead may be in a law unlike the library's,
+and a seating's end step that alone departs from the baseline.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from labctl.discrepancy.model import term_class
 from labctl.discrepancy.posterior import LIKELY_AT, Scored
@@ -39,3 +42,15 @@ def caveats(top: Scored | None, closest: Candidate | None) -> list[str]:
         parts.append(f"\"unlisted\" may also be {closest.name} in a law unlike the library's (the library term "
                      f"closest to the data: alone it takes up {closest.share:.0%} of the misfit); {UNLISTED_MAY_BE}")
     return parts
+
+
+def end_step_words(note: dict[str, Any]) -> str:
+    """What a seating's first or last step that every repetition leaves the same way, while every other step follows
+    a fit, adds to a verdict (``note``: ``Screening.end_steps``'s record): it is kept, and why to check it."""
+    loads = note["load_n"]
+    cause = "a tilt bedding in after it" if note["step"] == "first" else "a yield setting in there"
+    beyond = "below" if note["step"] == "first" else "above"
+    return (f"the {note['step']} step of {note['case']}, at {loads[0]:.4g}-{loads[-1]:.4g} N, is off by "
+            f"{note['off_rel'] * 100:+.1f} % in every seating while every other step follows {note['against']}: "
+            f"{cause}, or a fault at that step (a load set or read wrong); the data cannot tell, so it is kept — "
+            f"re-measure that step, or add one {beyond} it, before acting on the verdict")

@@ -34,10 +34,25 @@ class Screening:
     outliers: list[dict[str, Any]] = field(default_factory=list)
     drifted: list[dict[str, Any]] = field(default_factory=list)
     """Points measured while the load drifted (flag ``load_drift``): set aside, their load is not known."""
+    end_steps: list[dict[str, Any]] = field(default_factory=list)
+    """A seating's first or last step that every repetition leaves the same way while every other step follows the
+    fit: kept (a tilt bedding in, a yield setting in, would look the same), but the misfit is that step's alone."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"duplicates": self.duplicates, "conflicting_rows": self.conflicting_rows, "outliers": self.outliers,
-                "drifted": self.drifted}
+                "drifted": self.drifted, "end_steps": self.end_steps}
+
+    def note_end_step(self, data: Dataset, indices: Sequence[int], residuals: np.ndarray, against: str) -> None:
+        """Record the end step at ``indices`` (``residuals`` = ln(k_model/k_measured) of the fit it departs from,
+        ``against`` that fit's name), once per case and step."""
+        labels = [(c, i) for c in data.cases for i in range(c.load_n.size)]
+        case = labels[indices[0]][0]
+        loads = sorted(float(labels[k][0].load_n[labels[k][1]]) for k in indices)
+        position = "last" if loads[0] > float(np.median(case.load_n)) else "first"
+        note = {"case": case.label, "step": position, "load_n": loads, "against": against,
+                "off_rel": float(np.median(np.expm1(-residuals[list(indices)])))}
+        if not any(n["case"] == note["case"] and n["load_n"] == loads for n in self.end_steps):
+            self.end_steps.append(note)
 
     @property
     def any(self) -> bool:

@@ -35,14 +35,17 @@ def set_aside_outliers(data: Dataset, screening: Screening) -> tuple[Dataset, No
 
 
 def set_aside_step(data: Dataset, noise: NoiseFloor, spec: ModelSpec, screening: Screening,
-                   warm: Fit | None = None) -> tuple[Dataset, NoiseFloor]:
+                   warm: Fit | None = None, against: str = "the baseline") -> tuple[Dataset, NoiseFloor]:
     """The repetitions of one load step out of line with the model ``spec`` set aside (reported): a step whose mean
     is out of line (``step_out_of_line``) when the model then agrees with the rest within the noise; else a step
     whose spread is out of line (``step_too_spread``) unless the model agreed with the data before and not after
     (then the spread decided the verdict, and the noise model cannot tell it from two bad points). Else the data
-    as they were. ``warm``: a fit of ``spec`` already at hand, to start from."""
+    as they were. ``warm``: a fit of ``spec`` already at hand, to start from; ``against``: what ``spec`` is, in
+    the words of a seating's end step that alone departs from it (noted, not set aside)."""
     fit = Search(data, noise).fit(spec, warm=warm)
-    bad = step_out_of_line(data, noise, fit.residuals, fit.sigma, spec.n_params())
+    bad, end = step_out_of_line(data, noise, fit.residuals, fit.sigma, spec.n_params())
+    if end:
+        screening.note_end_step(data, end, fit.residuals, against)
     spread = [] if bad else step_too_spread(data, noise, fit.residuals, fit.sigma)
     if not bad and not spread:
         return data, noise

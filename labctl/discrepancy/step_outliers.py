@@ -9,14 +9,20 @@ over every step, rejects — and the most significant one is set aside only if, 
 at ``CONSISTENT_P``: the misfit is that step's alone, not an effect's, which shows at many steps and roller cases.
 Of that step only the repetitions far off the baseline (beyond ``SMOOTH_Z``, on the side of the shift) go, and
 only when one repetition stays close to it and they differ from it beyond the noise (their contrast at
-``OUTLIER_ALPHA``, shared among the ways to part the step in two): a shift every repetition shares is the
-contact's, and a clean repetition is never set aside.
+``OUTLIER_ALPHA``, shared among the ways to part the step in two): a clean repetition is never set aside. When
+every repetition is that far off the same way, the step goes whole if it lies inside its case's load range:
+a contact's stiffness is smooth in load, so one step off while the steps below and above it follow the fit is
+that step's fault (a load set or read wrong, a mode crossing at that load); a campaign with two seatings holds
+two bad points of one step so. At a seating's first or last step such a shift stays the contact's (a tilt
+bedding in, a yield setting in).
 
 Two bad repetitions in opposite directions leave the step's mean where it was and swell the pure error instead,
 which can hide an effect's lack of fit; they show as the step's spread (``step_too_spread``, Cochran's test).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from scipy.special import betaincc, fdtrc, ndtri  # Beta and F survival functions, the normal quantile
@@ -26,14 +32,23 @@ from labctl.discrepancy.noise import NoiseFloor, lack_of_fit_rejects
 from labctl.discrepancy.outliers import OUTLIER_ALPHA, SMOOTH_Z
 
 
+class StepFinding(NamedTuple):
+    """What the mean-shift test found: the repetitions to set aside, and a seating's first or last step that every
+    repetition leaves the same way while the rest follows the fit (kept as the contact's, but said)."""
+
+    set_aside: list[int]
+    end_step: list[int]
+
+
 def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray,
-                     n_params: int) -> list[int]:
-    """Indices of the repetitions of the one load step whose mean is out of line with this fit (``residuals`` =
+                     n_params: int) -> StepFinding:
+    """The repetitions of the one load step whose mean is out of line with this fit (``residuals`` =
     ln(k_model/k_measured), σ, ``n_params``) and without which the fit passes the lack-of-fit test (see the module
-    doc); [] when there is none, or when the misfit is not one step's."""
+    doc); none when there is none, or when the misfit is not one step's."""
+    none = StepFinding([], [])
     test = noise.lack_of_fit(data, residuals, sigma, n_params)
     if noise.method != "repetitions" or test is None or test.df_lack < 2:
-        return []  # without repetitions there are no steps to judge
+        return none  # without repetitions there are no steps to judge
     e = noise.whiten(data, residuals, sigma)
     lx = noise.cells(data, sigma)
     along = lx.T @ e
@@ -43,20 +58,31 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     j = int(np.argmax(gain))
     pure = test.pure_mean_square
     if len(noise.groups) * fdtrc(1, test.df_pure, gain[j] / pure) >= OUTLIER_ALPHA:
-        return []
+        return none
     rest = max(0.0, float(e @ e) - gain[j] - pure * test.df_pure) / (test.df_lack - 1) / pure
     if lack_of_fit_rejects(noise.p_value(data, rest, test.df_lack - 1, test.df_pure)):
-        return []
+        return none
     step = noise.groups[j]
     z = e[step] * np.sign(along[j])
     bad, kept = z > SMOOTH_Z, np.abs(z) <= SMOOTH_Z
+    if np.all(bad):  # every repetition off the same way: inside the load range the step's fault, at an end unclear
+        return StepFinding([int(i) for i in step], []) if _inner_step(data, step) else StepFinding([], list(step))
     if not np.any(kept) or not np.any(bad):
-        return []
+        return none
     contrast = (z[bad].mean() - z[kept].mean()) / np.sqrt(pure * (1 / bad.sum() + 1 / kept.sum()))
     splits = 2 ** (step.size - 1) - 1  # the ways to part the step's repetitions in two
     if contrast <= ndtri(1.0 - OUTLIER_ALPHA / (2.0 * splits)):
-        return []
-    return [int(i) for i in step[bad]]
+        return none
+    return StepFinding([int(i) for i in step[bad]], [])
+
+
+def _inner_step(data: Dataset, step: np.ndarray) -> bool:
+    """The step has loads of its own roller case below and above it: neither a seating's first step (where a
+    tilt beds in) nor its last (where a yield sets in)."""
+    sl = next(sl for sl in data.case_slices() if sl.start <= step[0] < sl.stop)
+    load = np.concatenate([c.load_n for c in data.cases])
+    others = np.setdiff1d(np.arange(sl.start, sl.stop), step)
+    return bool(np.any(load[others] < load[step].min()) and np.any(load[others] > load[step].max()))
 
 
 def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray) -> list[int]:
@@ -65,7 +91,9 @@ def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sig
     ``OUTLIER_ALPHA``; not made when the noise model has one load band, whose σ cannot follow the noise's rise at
     low loads), beyond ``SMOOTH_Z`` of this fit on either side, where the step's median repetition stays within it:
     two bad points in opposite directions, which leave the step's mean and swell the pure error. A fit that misses
-    the step shows as its median off it, and then nothing is set aside."""
+    the step shows as its median off it, and then nothing is set aside — unless every repetition is off, some above
+    and some below the fit (two seatings with one bad point each way): the fit misses none of them, and none is
+    clean to keep."""
     if noise.method != "repetitions" or len(noise.band_ln_p) < 2:
         return []  # one load band: a step's spread cannot be told from the noise's own rise at low loads
     pure = noise.pure_residuals(data, residuals, sigma)
@@ -81,6 +109,8 @@ def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sig
     step = noise.groups[j]
     z = noise.whiten(data, residuals, sigma)[step]
     bad = np.abs(z) > SMOOTH_Z
+    if np.all(bad) and z.min() < 0 < z.max():
+        return [int(i) for i in step]  # every repetition off, some above and some below: none to keep
     middle = np.argsort(z)[(z.size - 1) // 2 : z.size // 2 + 1]  # the step's median repetition(s)
     if not np.any(bad) or np.any(bad[middle]):
         return []

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from labctl.discrepancy.absorbed import absorbed_reasons
-from labctl.discrepancy.caveats import caveats
+from labctl.discrepancy.caveats import caveats, end_step_words
 from labctl.discrepancy.data import Dataset, campaign_setup_stiffness, load_points
 from labctl.discrepancy.design import DesignLimit, decide, design_limits, not_named_words, unseparated
 from labctl.discrepancy.empirical import EmpiricalTerm, propose
@@ -170,6 +170,7 @@ class DiscrepancyResult:
                     f"held-out check weak: left out {held['by']}s, not roller types"
                 parts.append(f"unnamed empirical term {self.empirical.formula} closes the gap "
                              f"{self.empirical.gap_before:.4f} -> {self.empirical.gap_after:.4f} ({gen})")
+        parts += [end_step_words(note) for note in self.screening.end_steps]
         if self.verdict != "consistent":
             parts += caveats(top, self.closest)
         if self.reasons or self.absorbed:
@@ -340,7 +341,8 @@ def run_discrepancy(points: Sequence[StiffnessPoint], baseline: str = "tripp", *
     search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
     top = scored[0]
     if top.fit is not None and top.explanation.terms and not top.explanation.unlisted:
-        fewer, less = set_aside_step(data, noise, top.fit.spec, screening, warm=top.fit)  # against the best one
+        fewer, less = set_aside_step(data, noise, top.fit.spec, screening, warm=top.fit,  # against the best one
+                                     against=top.explanation.name)
         if fewer is not data:
             data, noise = fewer, less
             search, evidence, base, scored = _scored(data, noise, spec, temperatures, max_effects)
