@@ -17,6 +17,7 @@ from labctl.discrepancy.form import TAU_GRID, FormPrior
 from labctl.discrepancy.model import FIT_ONLY_BOUNDS, ModelSpec
 from labctl.discrepancy.occam import HYPER_A, log_bayes_factor
 from labctl.discrepancy.posterior import PRIOR_MASS, explanations, log_prior
+from labctl.discrepancy.report import summary_text
 from labctl.discrepancy.synthetic import NoiseModel, synthesize
 from labctl.errors import InputError
 from labctl.physics import ContactLaw, EndEffects, Misalignment
@@ -246,6 +247,7 @@ def test_a_seatings_last_step_every_repetition_leaves_the_same_way_is_not_set_as
     assert note["step"] == "last" and note["load_n"] == sorted(load for _, load in bad)
     assert note["off_rel"] == pytest.approx(-0.1, abs=0.03)
     assert "the last step of type 5" in result.verdict_text() and "re-measure that step" in result.verdict_text()
+    assert "input: 1 first or last step(s) off in every seating, kept" in summary_text(result.to_dict())
     assert run_discrepancy(null_points).to_dict()["input_checks"]["end_steps"] == []
 
 

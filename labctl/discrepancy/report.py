@@ -142,7 +142,8 @@ def summary_text(doc: dict[str, Any]) -> str:
     checks = doc.get("input_checks", {})
     for key, what in (("duplicates", "duplicated rows dropped"), ("conflicting_rows", "conflicting duplicate rows "
                       "dropped"), ("outliers", "gross outliers set aside"),
-                      ("drifted", "points measured while the load drifted set aside")):
+                      ("drifted", "points measured while the load drifted set aside"),
+                      ("end_steps", "first or last step(s) off in every seating, kept (see the verdict)")):
         if checks.get(key):
             lines.append(f"input: {len(checks[key])} {what}")
     verdict = "consistent with the noise" if doc["consistent_with_noise"] else "NOT consistent with the noise"

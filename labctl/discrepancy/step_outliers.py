@@ -66,7 +66,8 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     z = e[step] * np.sign(along[j])
     bad, kept = z > SMOOTH_Z, np.abs(z) <= SMOOTH_Z
     if np.all(bad):  # every repetition off the same way: inside the load range the step's fault, at an end unclear
-        return StepFinding([int(i) for i in step], []) if _inner_step(data, step) else StepFinding([], list(step))
+        every = [int(i) for i in step]
+        return StepFinding(every, []) if _inner_step(data, step) else StepFinding([], every)
     if not np.any(kept) or not np.any(bad):
         return none
     contrast = (z[bad].mean() - z[kept].mean()) / np.sqrt(pure * (1 / bad.sum() + 1 / kept.sum()))
