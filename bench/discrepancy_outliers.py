@@ -146,7 +146,8 @@ def null_table(rows: list[tuple[float, int, str]]) -> None:
 def third_judge_nulls(seeds: int) -> None:
     """The third judge's null worlds with two outliers (``bench/blind3``: ±8–15 % each, on the first two seatings of
     one step after the first of one roller case, whose seatings number 2–4): the acceptance "consistent, the
-    outliers reported", per noise scale, and each world that is not consistent with where its outliers sit."""
+    outliers reported", per noise scale, and each world that is not consistent with where its outliers sit; and,
+    in its other worlds, the clean points the screen sets aside, by the tails of the point noise."""
     judge = blind_worlds("blind3")
     table: dict[float, list[tuple[int, str]]] = {}
     for name, world in worlds(judge, range(seeds), ["null_outliers"]):
@@ -165,6 +166,14 @@ def third_judge_nulls(seeds: int) -> None:
             print(f"- {name}: {result.verdict} ({result.scored[0].explanation.name}), {len(found & bad)}/2 reported, "
                   f"{len(found - bad)} clean set aside; step {seating.index(first['load_n']) + 1} of {len(seating)}, "
                   f"{len(seatings)} seatings")
+    clean: dict[str, list[int]] = {"Gaussian": [], "Student-t": []}
+    for _, world in worlds(judge, range(seeds), [s for s in judge.SCENARIOS if s != "null_outliers"]):
+        tails = "Student-t" if world.truth["noise"]["student_t_nu"] else "Gaussian"
+        clean[tails].append(len(set_aside(world.rows)))  # the screen alone; these worlds have no injected outlier
+    print("\nthird judge, worlds without injected outliers: clean points the screen sets aside\n")
+    print("| point noise | worlds | clean points set aside (mean per world) | worlds with any |\n|---|---|---|---|")
+    for tails, found in clean.items():
+        print(f"| {tails} | {len(found)} | {np.mean(found):.3f} | {np.mean(np.array(found) > 0):.3f} |")
     print(f"\nthird judge, null worlds with two injected outliers, seeds 0-{seeds - 1}\n")
     print("| noise | worlds | consistent | both reported | one | neither |\n|---|---|---|---|---|---|")
     for scale, got in table.items():
