@@ -109,8 +109,10 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
     band's, from the residuals against the nearest neighbours) off every line through its own seating's
     neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
-    another repetition passes smoothly. A deviation every repetition shares is the contact's (a kink), not an
-    outlier; two bad points of one step never outvote the clean repetition; a bad point's neighbours, off the
+    another repetition passes smoothly and which is off those repetitions by more than ``SMOOTH_Z`` (``across``,
+    below: where its lines miss the curve, across a gap in the loads, its fellow repetitions agree with it). A
+    deviation every repetition shares is the contact's (a kink), not an outlier; two bad points of one step never
+    outvote the clean repetition; a bad point's neighbours, off the
     lines through it but not off the others, are not taken for it (at the end of a seating above all, where the
     end point extrapolated from two neighbours moves with its neighbour's error as much as the neighbour does).
     So a seating's end point, which its lines only extrapolate to (with √6 times the noise), is also set aside
@@ -141,6 +143,8 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
                 continue  # every repetition shares it: the contact's own shape
             same = np.flatnonzero((runs == runs[i]) & keep)
             near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
+            if g.size > 1 and off[i] <= SMOOTH_Z:
+                continue  # its step's other repetitions agree with it: its lines miss the curve, not the point
             if (firm[i] >= firm[near].max()) if firm[i] > z else (off[i] >= off[g].max()):
                 out.append(int(i))
     return out
