@@ -25,9 +25,11 @@ BLIND2_DIR = Path(__file__).resolve().parent / "blind2"
 BLIND3_DIR = Path(__file__).resolve().parent / "blind3"
 """A third, blind to the workflow and to both (``bench/blind3/brief.md``): it varies the campaign's structure
 (types, repetitions, uneven steps) and the noise (drift, load-cell noise, a stated σ too small); never tuned on."""
-JUDGES: dict[str, tuple[Path, str]] = {"blind": (BLIND_DIR, "discrepancy_worlds.py"),
-                                       "blind2": (BLIND2_DIR, "worlds.py"), "blind3": (BLIND3_DIR, "worlds.py")}
-"""Each judge's folder and generator file."""
+JUDGES: dict[str, tuple[Path, str, str]] = {
+    "blind": (BLIND_DIR, "discrepancy_worlds.py", "bench/blind"),
+    "blind2": (BLIND2_DIR, "worlds.py", "second judge, bench/blind2"),
+    "blind3": (BLIND3_DIR, "worlds.py", "third judge, bench/blind3")}
+"""Each judge's folder, generator file and name in a printout."""
 CALIBRATION_SEEDS = 100_000
 """The blind worlds' seeds from here on calibrate the temperature; evaluation seeds stay below it."""
 _MODULES: dict[str, Any] = {}
@@ -38,7 +40,7 @@ def blind_worlds(suite: str = "blind") -> Any:
     path)."""
     if suite in _MODULES:
         return _MODULES[suite]
-    where, file = JUDGES[suite]
+    where, file, _ = JUDGES[suite]
     for folder in (where, where.parents[1]):  # a judge may import its siblings as ``bench.blindN.*``
         if str(folder) not in sys.path:
             sys.path.insert(0, str(folder))

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from discrepancy_blind import CALIBRATION_SEEDS, blind_worlds, csv_points, truth_name, visible_size
+from discrepancy_blind import CALIBRATION_SEEDS, JUDGES, blind_worlds, csv_points, truth_name, visible_size
 from discrepancy_features import features_by_truth, unlisted_leads
 from discrepancy_scores import (
     calibrate,
@@ -327,8 +327,7 @@ def main() -> None:
     blind = [r for r in results if r["suite"] == "blind" and "refused" not in r]
     if blind:
         calibrating = min(r["seed"] for r in blind) >= CALIBRATION_SEEDS
-        judge = {"blind2": "second judge, bench/blind2", "blind3": "third judge, bench/blind3"}.get(
-            blind[0].get("judge") or "blind", "bench/blind")
+        judge = JUDGES[blind[0].get("judge") or "blind"][2]
         parts.append(f"Blind worlds ({judge}; {'calibration' if calibrating else 'evaluation'} seeds "
                      f"{min(r['seed'] for r in blind)}-{max(r['seed'] for r in blind)}; {len(blind)} datasets; "
                      f"temperature {args.temperature:g})\n\n" + summarize_blind(blind))

@@ -100,6 +100,10 @@ class Dataset:
             start += c.load_n.size
         return out
 
+    def case_of(self, point: int) -> int:
+        """The case (its position in ``cases``) of point ``point``, an index into the concatenated vectors."""
+        return next(i for i, sl in enumerate(self.case_slices()) if sl.start <= point < sl.stop)
+
     def subset(self, keep: Iterable[int]) -> Dataset:
         return Dataset(tuple(self.cases[i] for i in keep))
 

@@ -45,11 +45,10 @@ class Screening:
     def note_end_step(self, data: Dataset, indices: Sequence[int], residuals: np.ndarray, against: str) -> None:
         """Record the end step at ``indices`` (``residuals`` = ln(k_model/k_measured) of the fit it departs from,
         ``against`` that fit's name), once per case and step."""
-        labels = [(c, i) for c in data.cases for i in range(c.load_n.size)]
-        case = labels[indices[0]][0]
-        loads = sorted(float(labels[k][0].load_n[labels[k][1]]) for k in indices)
-        position = "last" if loads[0] > float(np.median(case.load_n)) else "first"
-        note = {"case": case.label, "step": position, "load_n": loads, "against": against,
+        case = data.case_of(int(indices[0]))
+        loads = sorted(float(data.load_n[k]) for k in indices)
+        position = "first" if loads[0] <= float(data.cases[case].load_n.min()) else "last"
+        note = {"case": data.cases[case].label, "step": position, "load_n": loads, "against": against,
                 "off_rel": float(np.median(np.expm1(-residuals[list(indices)])))}
         if not any(n["case"] == note["case"] and n["load_n"] == loads for n in self.end_steps):
             self.end_steps.append(note)

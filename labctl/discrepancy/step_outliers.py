@@ -80,10 +80,9 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
 def _inner_step(data: Dataset, step: np.ndarray) -> bool:
     """The step has loads of its own roller case below and above it: neither a seating's first step (where a
     tilt beds in) nor its last (where a yield sets in)."""
-    sl = next(sl for sl in data.case_slices() if sl.start <= step[0] < sl.stop)
-    load = np.concatenate([c.load_n for c in data.cases])
-    others = np.setdiff1d(np.arange(sl.start, sl.stop), step)
-    return bool(np.any(load[others] < load[step].min()) and np.any(load[others] > load[step].max()))
+    sl = data.case_slices()[data.case_of(int(step[0]))]
+    others = data.load_n[np.setdiff1d(np.arange(sl.start, sl.stop), step)]
+    return bool(np.any(others < data.load_n[step].min()) and np.any(others > data.load_n[step].max()))
 
 
 def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray) -> list[int]:
