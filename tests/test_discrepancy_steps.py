@@ -8,7 +8,7 @@ import pytest
 from labctl.discrepancy import run_discrepancy
 from labctl.discrepancy.data import build_dataset
 from labctl.discrepancy.noise import estimate_noise
-from labctl.discrepancy.steps import _align, case_groups_of, within_columns
+from labctl.discrepancy.steps import _align, case_groups_of, level_to_steps
 from labctl.discrepancy.synthetic import case_for, protocol_loads
 from labctl.physics import ContactLaw
 from labctl.stiffness_table import StiffnessPoint
@@ -88,14 +88,15 @@ def test_a_blow_not_taken_leaves_a_gap_in_its_seating():
     assert _align(b, b) == [0, 1, 2, 3, 4]
 
 
-def test_the_within_step_columns_carry_only_the_load_inside_each_step():
-    x = np.log([100.0, 104.0, 200.0, 196.0, 400.0, 412.0, 800.0, 800.0])
-    groups = [np.array([0, 1]), np.array([2, 3]), np.array([4, 5]), np.array([6, 7])]
-    w = within_columns(x, groups)
-    assert w.shape == (8, 1)  # three steps with a load spread: one term
+def test_a_point_is_brought_to_its_steps_load_along_the_curve_of_the_step_means():
+    # ln k = 0.1 ln F + 0.02 (ln F)^2 exactly: each point moved to its step's mean load by the curve's slope there,
+    # which the steps' means give; the load read within a step is not trusted for the slope (its noise would
+    # flatten it)
+    x = np.log(np.array([100.0, 104.0, 97.0, 200.0, 190.0, 400.0, 412.0, 800.0, 790.0]))
+    y = 0.1 * x + 0.02 * x**2
+    groups = [np.array([0, 1, 2]), np.array([3, 4]), np.array([5, 6]), np.array([7, 8])]
+    level = level_to_steps(x, y, groups)
     for g in groups:
-        assert w[g, 0].sum() == pytest.approx(0.0, abs=1e-12)  # a step's mean is its own column's, not the slope's
-    assert np.all(w[6:] == 0.0) and np.abs(w).max() == pytest.approx(1.0)
-    assert within_columns(np.log([100.0, 100.0, 200.0, 200.0]), groups[:2]).shape == (4, 0)
-    # loads 0.4 % apart: as likely the load cell's reading noise, which k does not follow; no slope term is paid for
-    assert within_columns(np.log([100.0, 100.4, 200.0, 199.2, 400.0, 401.6]), groups[:3]).shape == (6, 0)
+        assert np.ptp(level[g]) < 0.02 * np.ptp(y[g])  # the second order of a 4 % spread is left
+        assert level[g].mean() == pytest.approx(y[g].mean(), abs=2e-5)
+    assert np.array_equal(level_to_steps(x, y, groups[:1]), y)  # one step: no curve to follow

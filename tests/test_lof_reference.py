@@ -91,7 +91,7 @@ def test_the_reference_is_a_scaled_f_and_the_same_every_time():
 def test_a_null_campaign_the_plain_f_test_rejects_is_consistent_with_the_noise():
     # the plain F reference ignores that σ(F) and σ_seat were estimated from the same repetitions; on this null
     # campaign it rejected the exact baseline at 0.01 and the workflow said "unexplained"
-    points = campaign(seed=246)
+    points = campaign(seed=166)
     assert baseline_test(points, simulated=False)[2].p < 0.01
     assert baseline_test(points)[2].p >= 0.01
     assert run_discrepancy(points).verdict == "consistent"

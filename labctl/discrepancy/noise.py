@@ -1,21 +1,20 @@
 """The statistical model of the measurement: how ln k scatters about the truth, as the data are taken.
 
-Every roller case is measured in repetitions; each repetition seats the roller anew, so its points share a
-**seating offset** (a random effect of σ_seat, the same for every load of that seating) on top of the
-**point noise** σ(F), which falls with load. Both are estimated from the repetitions with a two-way layout per
-case (load step × seating; steps matched across seatings and the load's slope within a step as in
-``labctl.discrepancy.steps``): the residuals of "step means + within-step slope + seating offsets" are pure point
-noise, pooled in up to four bands of load per length (gross outliers screened out first with a robust MAD scale);
-what the seating offsets explain beyond the point noise gives σ_seat² (``labctl.discrepancy.seating``). Without
-repetitions each point's distance from the line through its two neighbours (in ln F) stands in for the point noise
-(no seating term).
+Every roller case is measured in repetitions; each repetition seats the roller anew, so its points share a **seating
+offset** (a random effect of σ_seat, the same for every load of that seating) on top of the **point noise** σ(F),
+which falls with load. Both are estimated from the repetitions with a two-way layout per case (load step × seating;
+steps matched across seatings, and each ln k brought to its step's mean load, as in ``labctl.discrepancy.steps``):
+the residuals of "step means + seating offsets" are pure point noise, pooled in up to four bands of load per length
+(gross outliers screened out first with a robust MAD scale); what the seating offsets explain beyond the point noise
+gives σ_seat² (``labctl.discrepancy.seating``). Without repetitions each point's distance from the line through its
+two neighbours (in ln F) stands in for the point noise (no seating term).
 
-Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened with this model: within one
-seating, r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by
-σ_i. "Consistent with the noise" is the lack-of-fit F test of generalised least squares at level
-``CONSISTENT_P``: the model's whitened misfit beyond the saturated model (one mean per load step and case, and the
-within-step slope) against the pure error, read against its null distribution simulated under the estimated noise model
-(``labctl.discrepancy.lof_reference``: the estimate itself makes the plain F reference reject too often).
+Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened with this model: within one seating,
+r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by σ_i.
+"Consistent with the noise" is the lack-of-fit F test of generalised least squares at level ``CONSISTENT_P``: the
+model's whitened misfit beyond the saturated model (one mean per load step and case) against the pure error, read
+against its null distribution simulated under the estimated noise model (``labctl.discrepancy.lof_reference``: the
+estimate itself makes the plain F reference reject too often).
 """
 
 from __future__ import annotations
@@ -31,7 +30,7 @@ from labctl.discrepancy.data import Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
 from labctl.discrepancy.seating import SeatingCase, seating_sigma
-from labctl.discrepancy.steps import ReplicateSets, block_diagonal, replicate_sets, within_columns
+from labctl.discrepancy.steps import ReplicateSets, level_to_steps, replicate_sets
 from labctl.errors import InputError
 
 CONSISTENT_P = 0.01
@@ -66,8 +65,6 @@ class NoiseFloor:
     method: str
     groups: tuple[np.ndarray, ...]
     """Replicate sets (load steps of a case) as index arrays into the dataset's points (singletons included)."""
-    within: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    """The saturated model's within-step slope columns (``labctl.discrepancy.steps``; points × terms)."""
     band_ln_p: tuple[float, ...] = ()
     """Centre of each load band as ln of load per length (N/m)."""
     band_sigma: tuple[float, ...] = ()
@@ -125,7 +122,7 @@ class NoiseFloor:
                 return None
             f = s_model / df
             return LackOfFit(f, df, self.dof, float(fdtrc(df, self.dof, f)))
-        m = len(self.groups) + self.within.shape[1]
+        m = len(self.groups)
         s_pure = float(np.sum(self.pure_residuals(data, residuals, sigma) ** 2))
         df_lack, df_pure = m - n_params, n - m
         if df_lack <= 0 or df_pure <= 0 or s_pure <= 0:
@@ -135,18 +132,14 @@ class NoiseFloor:
         return LackOfFit(f, df_lack, df_pure, p, s_pure / df_pure)
 
     def cells(self, data: Dataset, sigma: np.ndarray) -> np.ndarray:
-        """The saturated model's columns, whitened (n × m): one per replicate set (a load step of a case), then
-        the within-step slope columns."""
+        """The saturated model's columns (one per replicate set: a load step of a case), whitened (n × m)."""
         cells = np.zeros((data.n_points, len(self.groups)))
         for j, g in enumerate(self.groups):
             cells[g, j] = 1.0
-        if self.within.shape[1]:
-            cells = np.hstack([cells, self.within])
         return self.whiten(data, cells, sigma)
 
     def pure_residuals(self, data: Dataset, residuals: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        """The saturated model's whitened residuals (one mean per load step and case, and the load slope within
-        the steps): pure point noise."""
+        """The saturated model's whitened residuals (one mean per load step and case): pure point noise."""
         lx = self.cells(data, sigma)
         ly = self.whiten(data, -residuals, sigma)  # model - measured: the saturated model fits the same offsets
         coef, *_ = np.linalg.lstsq(lx, ly, rcond=None)
@@ -194,12 +187,10 @@ class _TwoWay:
     """The two-way (load step + seating) least squares of one case with some points left out: its design alone."""
 
     design: np.ndarray
-    """The kept points' columns (step means, within-step load slope, seating offsets)."""
+    """The kept points' columns (step means, seating offsets)."""
     pinv: np.ndarray
     keep: np.ndarray
     leverage: np.ndarray
-    within: np.ndarray
-    """The within-step slope columns at every point of the case (zero at the points left out)."""
 
     def residual(self, y: np.ndarray) -> np.ndarray:
         """y less its fit (NaN at the points left out)."""
@@ -208,24 +199,20 @@ class _TwoWay:
         return residual
 
 
-def _two_way(groups: list[np.ndarray], ln_f: np.ndarray, runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
-    """Least squares on step means, the within-step load slope (of the points kept) and seating offsets (points
-    not in ``keep`` left out)."""
+def _two_way(groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
+    """Least squares on step means plus seating offsets (points not in ``keep`` left out)."""
     n = runs.size
-    within = within_columns(ln_f, [g[keep[g]] for g in groups])
     run_values = np.unique(runs)
-    m, q = len(groups), within.shape[1]
-    x = np.zeros((n, m + q + run_values.size))
+    x = np.zeros((n, len(groups) + run_values.size))
     for j, g in enumerate(groups):
         x[g, j] = 1.0
-    x[:, m:m + q] = within
     for j, r in enumerate(run_values):
-        x[runs == r, m + q + j] = 1.0
+        x[runs == r, len(groups) + j] = 1.0
     xk = x[keep]
     pinv = np.linalg.pinv(xk)
     leverage = np.ones(n)
     leverage[keep] = np.einsum("ij,ji->i", xk, pinv)
-    return _TwoWay(xk, pinv, keep.copy(), np.clip(leverage, 0.0, 1.0), within)
+    return _TwoWay(xk, pinv, keep.copy(), np.clip(leverage, 0.0, 1.0))
 
 
 def _bands(x: np.ndarray, ss: np.ndarray, dof: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -268,16 +255,17 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
     y = data.ln_stiffness
     runs = data.run_ids()
     x = np.log(data.load_per_length_n_per_m)
+    ln_f = np.log(data.load_n)
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
         resid = np.full(y.size, np.nan)
         lev = np.ones(y.size)
-        within = []
+        level = y.copy()
         for i, (cg, sl) in enumerate(zip(sets.case_groups, slices, strict=True)):
-            tw = data.design_memo(("two-way", i, keep[sl].tobytes()),
-                                  partial(_two_way, cg, np.log(data.load_n[sl]), runs[sl], keep[sl]))
-            resid[sl], lev[sl] = tw.residual(y[sl]), tw.leverage
-            within.append(tw.within)
+            k = keep[sl]
+            level[sl] = level_to_steps(ln_f[sl], y[sl], [g[k[g]] for g in cg])
+            tw = data.design_memo(("two-way", i, k.tobytes()), partial(_two_way, cg, runs[sl], k))
+            resid[sl], lev[sl] = tw.residual(level[sl]), tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
         across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
@@ -290,13 +278,13 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         ss = np.where(informative, np.nan_to_num(resid) ** 2, 0.0)
         centre, sigma = _bands(x, ss, dof_pt)
         pooled = math.sqrt(float(ss.sum()) / dof_total)
-        floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), block_diagonal(within), centre,
-                           sigma, outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
+        floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
+                           outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
         point_sigma = floor.sigma_at(data)
         tau, tau_dof = seating_sigma([
-            SeatingCase(y[sl][k], point_sigma[sl][k], c.repetition[k], _kept_steps(cg, k), w[k])
-            for c, cg, w, sl, k in ((c, cg, w, sl, keep[sl]) for c, cg, w, sl in
-                                    zip(data.cases, sets.case_groups, within, slices, strict=True))])
+            SeatingCase(level[sl][k], point_sigma[sl][k], c.repetition[k], _kept_steps(cg, k))
+            for c, cg, sl, k in ((c, cg, sl, keep[sl]) for c, cg, sl in
+                                 zip(data.cases, sets.case_groups, slices, strict=True))])
         return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:

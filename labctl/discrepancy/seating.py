@@ -1,11 +1,10 @@
 """σ_seat, the offset of ln k shared by every point of one seating, by moments (Henderson's method III).
 
-Per roller case, in residuals whitened by the point noise: what adding one offset per seating to the saturated
-model (step means and the within-step load slope, ``labctl.discrepancy.steps``) takes out of the residual sum of
-squares is, with no seating effect, χ² with as many degrees of freedom as the offsets add; each unit of σ_seat²
-adds the offsets' squared length beyond what the saturated model already explains. So a seating that reached
-every nut turn a little above the others is its load's doing, not an offset, as far as the slope within the steps
-carries it; and steps of unequal size, a blow not taken, need no special case.
+Per roller case, on ln k brought to its steps' mean loads (``labctl.discrepancy.steps``) and whitened by the
+point noise: what adding one offset per seating to the saturated model (the step means) takes out of the residual
+sum of squares is, with no seating effect, χ² with as many degrees of freedom as the offsets add; each unit of
+σ_seat² adds the offsets' squared length beyond what the step means already explain. Steps of unequal size (a blow
+not taken, a point set aside) need no special case.
 """
 
 from __future__ import annotations
@@ -21,14 +20,13 @@ RANK_TOL = 1e-9
 
 @dataclass(frozen=True)
 class SeatingCase:
-    """One roller case's kept points as σ_seat sees them: ln k, its point σ, its steps and slope columns."""
+    """One roller case's kept points as σ_seat sees them: ln k at its step's load, its point σ, its steps."""
 
     y: np.ndarray
     sigma: np.ndarray
     repetition: np.ndarray
     """Repetition number per point, -1 where none is given (then the point has no offset of its own here)."""
     steps: list[np.ndarray]
-    within: np.ndarray
 
 
 def seating_sigma(cases: list[SeatingCase]) -> tuple[float, int]:
@@ -42,7 +40,7 @@ def seating_sigma(cases: list[SeatingCase]) -> tuple[float, int]:
         cells = np.zeros((c.y.size, len(c.steps)))
         for j, g in enumerate(c.steps):
             cells[g, j] = 1.0
-        basis = _basis(np.hstack([cells, c.within]) * w[:, None])
+        basis = _basis(cells * w[:, None])
         offsets = (c.repetition[:, None] == seats[None, :]).astype(float) * w[:, None]
         y = c.y * w
         r = y - basis @ (basis.T @ y)

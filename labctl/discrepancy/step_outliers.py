@@ -50,7 +50,7 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     if noise.method != "repetitions" or test is None or test.df_lack < 2:
         return none  # without repetitions there are no steps to judge
     e = noise.whiten(data, residuals, sigma)
-    lx = noise.cells(data, sigma)[:, :len(noise.groups)]  # the steps' own columns, not the slope within them
+    lx = noise.cells(data, sigma)
     along = lx.T @ e
     gain = along**2 / np.maximum(np.einsum("ij,ij->j", lx, lx), 1e-300)
     sizes = np.array([g.size for g in noise.groups])

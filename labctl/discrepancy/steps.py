@@ -3,14 +3,15 @@
 Every seating of a roller case takes the same nut turns, so its k-th step is the other seatings' k-th step even
 where their loads differ by a few per cent (the nut's slack, the spring's seat, the load cell's own noise). Steps
 are matched by rank — each seating aligned, in load order, to the one with most steps, so that a blow not taken
-leaves a gap — when every point then sits within ``MAX_SLACK`` of its step's mean load and nearer it than any
-other step's; otherwise points
-within ``SAME_STEP`` of each other's load, of different seatings, are one step. Where a step's loads differ, its
-stiffnesses differ with them (a line contact's k grows slowly with load, about as F^0.1, faster where the surface
-is still closing), so the saturated model ("one mean per step") carries, per case, a slope in ln F within the steps
-that changes smoothly along the load range (``within_columns``): without it that spread would pass for point noise
-(a few per cent of load apart is as much as the point noise of a well-located bounce frequency), and a seating that
-reached every turn a little high for a seating offset.
+leaves a gap — when every point then sits within ``MAX_SLACK`` of its step's mean load and nearer it than any other
+step's; otherwise points within ``SAME_STEP`` of each other's load, of different seatings, are one step. Where a
+step's loads differ, its stiffnesses differ with them (a line contact's k grows slowly with load, about as F^0.1,
+faster where the surface is still closing). So before the steps are compared each ln k is brought to its step's mean
+load along the case's own curve of step means (``level_to_steps``): the curve's slope comes from the steps' spread
+in load, which is wide, not from the spread within a step, which holds the load cell's own reading noise as well.
+That reading noise (the stiffness follows the load reached, not the load read) then stays in the pure error, as it
+stays in every model's residual at the loads read; and a seating that reached every turn a little high is its
+load's, not an offset.
 """
 
 from __future__ import annotations
@@ -27,18 +28,8 @@ rank."""
 MAX_SLACK = 0.1
 """Farthest (in ln F) a seating's point may sit from its step's mean load when steps are matched by rank: a nut
 turn reached ±10 % apart; beyond it the seatings took other loads, not the same turns."""
-SLOPE_TERMS = 2
-"""Terms of the within-step slope along a case's load range: a constant and a linear change in ln F (a line
-contact's slope falls slowly with load; each term costs the pure error one degree of freedom per case)."""
-STEPS_PER_TERM = 3
-"""Steps with a load spread each further slope term needs."""
-MIN_SPREAD = 0.01
-"""Least rms distance (in ln F) of a case's points from their steps' mean loads for the slope within the steps to
-enter its saturated model. Below it the spread is as likely the load cell's own reading noise (0.2–1 % of reading),
-which the stiffness does not follow, and at a line contact's slope (≲ 0.3) it moves k by less than 0.3 %, while
-each slope term costs the pure error a degree of freedom."""
-NO_SPREAD = 1e-9
-"""A step whose ln F varies less than this has one load."""
+CURVE_DEGREE = 2
+"""Degree of the polynomial in ln F through a case's step means whose slope brings a point to its step's load."""
 
 
 @dataclass(frozen=True)
@@ -56,17 +47,6 @@ def replicate_sets(data: Dataset) -> ReplicateSets:
     case_groups = [case_groups_of(c) for c in data.cases]
     groups = [g + sl.start for cg, sl in zip(case_groups, data.case_slices(), strict=True) for g in cg]
     return ReplicateSets(case_groups, groups)
-
-
-def block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
-    """Each case's columns (its points × its terms) in one matrix over the dataset, the cases' blocks on the
-    diagonal."""
-    out = np.zeros((sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)))
-    row = col = 0
-    for b in blocks:
-        out[row:row + b.shape[0], col:col + b.shape[1]] = b
-        row, col = row + b.shape[0], col + b.shape[1]
-    return out
 
 
 def case_groups_of(c: CaseData) -> list[np.ndarray]:
@@ -130,23 +110,21 @@ def _by_load(c: CaseData) -> list[np.ndarray]:
     return [np.array(g) for g in groups]
 
 
-def within_columns(x: np.ndarray, groups: list[np.ndarray]) -> np.ndarray:
-    """A case's within-step slope columns: each point's ln F less its step's mean, times 1 and t (the step's mean
-    ln F across the case's range, in [−1, 1]), as many terms as the steps with a load spread allow, none where the
-    points sit closer to their steps' loads than ``MIN_SPREAD``; zero at points in no step (``groups``: the steps'
-    points kept)."""
-    d = np.zeros(x.size)
-    centre = np.full(x.size, np.nan)
-    spread = 0
-    for g in (g for g in groups if g.size):
-        centre[g] = x[g].mean()
-        d[g] = x[g] - centre[g]
-        spread += int(np.ptp(x[g]) > NO_SPREAD)
-    terms = min(SLOPE_TERMS, -(-spread // STEPS_PER_TERM))
-    shared = np.isfinite(centre) & (d != 0)
-    if terms == 0 or float(np.sqrt(np.mean(d[shared] ** 2))) < MIN_SPREAD:
-        return np.zeros((x.size, 0))
-    lo, hi = float(np.nanmin(centre)), float(np.nanmax(centre))
-    t = np.nan_to_num((centre - 0.5 * (hi + lo)) / max(0.5 * (hi - lo), NO_SPREAD))
-    columns = np.stack([d, d * t][:terms], axis=1)
-    return columns / np.maximum(np.abs(columns).max(axis=0), NO_SPREAD)  # of order one, as the step columns
+def level_to_steps(x: np.ndarray, y: np.ndarray, groups: list[np.ndarray]) -> np.ndarray:
+    """One case's ln k (``y`` at ln F ``x``) brought to its steps' mean loads: less the slope, at each step, of a
+    polynomial (``CURVE_DEGREE``, fewer with fewer steps) through the step means, times the point's distance in
+    ln F from its step's mean (``groups``: the steps' points, the others left as they are)."""
+    steps = [g for g in groups if g.size]
+    if len(steps) < 2:
+        return y.copy()
+    centre = np.array([x[g].mean() for g in steps])
+    level = np.array([y[g].mean() for g in steps])
+    size = np.array([g.size for g in steps], dtype=float)
+    scale = max(float(np.ptp(centre)), 1e-12)
+    t = (centre - centre.mean()) / scale
+    curve = np.polynomial.Polynomial.fit(t, level, min(CURVE_DEGREE, len(steps) - 1), w=np.sqrt(size))
+    slope = curve.deriv()(t) / scale
+    out = y.copy()
+    for g, b, c in zip(steps, slope, centre, strict=True):
+        out[g] = y[g] - b * (x[g] - c)
+    return out
