@@ -1,20 +1,19 @@
 """The statistical model of the measurement: how ln k scatters about the truth, as the data are taken.
 
-Every roller case is measured in repetitions; each repetition seats the roller anew, so its points share a **seating
-offset** (a random effect of σ_seat, the same for every load of that seating) on top of the **point noise** σ(F),
-which falls with load. Both are estimated from the repetitions with a two-way layout per case (load step × seating;
-steps matched across seatings, and each ln k brought to its step's mean load, as in ``labctl.discrepancy.steps``):
-the residuals of "step means + seating offsets" are pure point noise, pooled in up to four bands of load per length
-(gross outliers screened out first with a robust MAD scale); what the seating offsets explain beyond the point noise
-gives σ_seat² (``labctl.discrepancy.seating``). Without repetitions each point's distance from the line through its
-two neighbours (in ln F) stands in for the point noise (no seating term).
+Every roller case is measured in repetitions; each repetition seats the roller anew, so its points share a
+**seating offset** (a random effect of σ_seat, the same for every load of that seating) on top of the
+**point noise** σ(F), which falls with load. Both are estimated from the repetitions with a two-way layout per
+case (load step × seating): the residuals of "step means + seating offsets" are pure point noise, pooled in up
+to four bands of load per length (gross outliers screened out first with a robust MAD scale); the scatter of
+the seating means beyond what the point noise explains is σ_seat². Without repetitions each point's distance
+from the line through its two neighbours (in ln F) stands in for the point noise (no seating term).
 
-Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened with this model: within one seating,
-r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by σ_i.
-"Consistent with the noise" is the lack-of-fit F test of generalised least squares at level ``CONSISTENT_P``: the
-model's whitened misfit beyond the saturated model (one mean per load step and case) against the pure error, read
-against its null distribution simulated under the estimated noise model (``labctl.discrepancy.lof_reference``: the
-estimate itself makes the plain F reference reject too often).
+Fits, BIC, the lack-of-fit test and held-out scores all use residuals whitened with this model: within one
+seating, r_i − c·m (m the seating's σ-weighted mean residual, c = 1 − 1/sqrt(1 + σ_seat²·Σ1/σ_i²)), divided by
+σ_i. "Consistent with the noise" is the lack-of-fit F test of generalised least squares at level
+``CONSISTENT_P``: the model's whitened misfit beyond the saturated model (one mean per load step and case)
+against the pure error, read against its null distribution simulated under the estimated noise model
+(``labctl.discrepancy.lof_reference``: the estimate itself makes the plain F reference reject too often).
 """
 
 from __future__ import annotations
@@ -26,13 +25,13 @@ from functools import partial
 import numpy as np
 from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats.f.sf)
 
-from labctl.discrepancy.data import Dataset
+from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
-from labctl.discrepancy.seating import SeatingCase, seating_sigma
-from labctl.discrepancy.steps import ReplicateSets, level_to_steps, replicate_sets
 from labctl.errors import InputError
 
+SAME_STEP = 0.05
+"""Loads of two repetitions' points within this relative distance count as the same step."""
 CONSISTENT_P = 0.01
 """Level of the lack-of-fit test: residuals count as noise when its p-value is at least this."""
 BAND_DOF = 12
@@ -182,6 +181,35 @@ def whiten(run_ids: np.ndarray, residuals: np.ndarray, sigma: np.ndarray, seatin
     return (r - (c[:, None] * mean)[run_ids]) / sigma[:, None]
 
 
+def _replicate_sets(data: Dataset) -> tuple[list[list[np.ndarray]], list[np.ndarray]]:
+    """Each case's replicate sets (indices into the case) and all of them as indices into the dataset."""
+    case_groups = [_case_groups(c) for c in data.cases]
+    groups = [g + sl.start for cg, sl in zip(case_groups, data.case_slices(), strict=True) for g in cg]
+    return case_groups, groups
+
+
+def _case_groups(c: CaseData) -> list[np.ndarray]:
+    """Replicate sets of one case: by step rank when every repetition has the same steps, else by load."""
+    reps = np.unique(c.repetition)
+    order = np.argsort(c.load_n, kind="stable")
+    if reps.size > 1 and np.all(reps >= 0):
+        per_rep = [order[c.repetition[order] == r] for r in reps]
+        if len({p.size for p in per_rep}) == 1:
+            ranks = np.stack(per_rep)
+            loads = c.load_n[ranks]
+            if np.all(loads.max(axis=0) <= loads.min(axis=0) * (1 + SAME_STEP)):
+                return [ranks[:, j] for j in range(ranks.shape[1])]
+    groups: list[list[int]] = []
+    for i in order:
+        last = groups[-1] if groups else None
+        if (last is not None and c.load_n[i] <= c.load_n[last[0]] * (1 + SAME_STEP)
+                and (c.repetition[i] < 0 or c.repetition[i] not in c.repetition[last])):
+            last.append(int(i))
+        else:
+            groups.append([int(i)])
+    return [np.array(g) for g in groups]
+
+
 @dataclass(frozen=True)
 class _TwoWay:
     """The two-way (load step + seating) least squares of one case with some points left out: its design alone."""
@@ -249,23 +277,18 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
 
 def estimate_noise(data: Dataset) -> NoiseFloor:
     """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
-    sets: ReplicateSets = data.design_memo("replicate sets", lambda: replicate_sets(data))
-    groups = sets.groups
+    case_groups, groups = data.design_memo("replicate sets", lambda: _replicate_sets(data))
     slices = data.case_slices()
     y = data.ln_stiffness
     runs = data.run_ids()
     x = np.log(data.load_per_length_n_per_m)
-    ln_f = np.log(data.load_n)
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
         resid = np.full(y.size, np.nan)
         lev = np.ones(y.size)
-        level = y.copy()
-        for i, (cg, sl) in enumerate(zip(sets.case_groups, slices, strict=True)):
-            k = keep[sl]
-            level[sl] = level_to_steps(ln_f[sl], y[sl], [g[k[g]] for g in cg])
-            tw = data.design_memo(("two-way", i, k.tobytes()), partial(_two_way, cg, runs[sl], k))
-            resid[sl], lev[sl] = tw.residual(level[sl]), tw.leverage
+        for i, (cg, sl) in enumerate(zip(case_groups, slices, strict=True)):
+            tw = data.design_memo(("two-way", i, keep[sl].tobytes()), partial(_two_way, cg, runs[sl], keep[sl]))
+            resid[sl], lev[sl] = tw.residual(y[sl]), tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
         across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
@@ -280,11 +303,8 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
         pooled = math.sqrt(float(ss.sum()) / dof_total)
         floor = NoiseFloor(pooled, int(round(dof_total)), "repetitions", tuple(groups), centre, sigma,
                            outliers=tuple(int(i) for i in np.flatnonzero(~keep)))
-        point_sigma = floor.sigma_at(data)
-        tau, tau_dof = seating_sigma([
-            SeatingCase(level[sl][k], point_sigma[sl][k], c.repetition[k], _kept_steps(cg, k))
-            for c, cg, sl, k in ((c, cg, sl, keep[sl]) for c, cg, sl in
-                                 zip(data.cases, sets.case_groups, slices, strict=True))])
+        seatings = data.design_memo(("seatings", keep.tobytes()), partial(_seatings, data, case_groups, keep))
+        tau, tau_dof = _seating_sigma(data, floor, seatings)
         return replace(floor, seating_sigma=tau, seating_dof=tau_dof)
     ss_p, dof = _pseudo_residual_scatter(data)
     if dof <= 0 or ss_p <= 0:
@@ -293,7 +313,63 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
     return NoiseFloor(math.sqrt(ss_p / dof), dof, "neighbour-differences", tuple(groups))
 
 
-def _kept_steps(groups: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
-    """The steps (indices into a case) renumbered over the case's kept points, empty steps left out."""
-    position = np.cumsum(keep) - 1
-    return [position[g[keep[g]]] for g in groups if np.any(keep[g])]
+@dataclass(frozen=True)
+class _Seatings:
+    """The points σ_seat is estimated from — kept, in a load step with another kept point, of a case with two
+    seatings or more among them — by step, and of those with a repetition number (``seated``, positions in
+    ``points``) their seating and each seating's case, numbered from 0: the design alone."""
+
+    points: np.ndarray
+    step: np.ndarray
+    seated: np.ndarray
+    seat: np.ndarray
+    case_of_seat: np.ndarray
+
+
+def _seatings(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarray) -> _Seatings:
+    """Which points σ_seat is estimated from when only ``keep`` are kept (``_Seatings``)."""
+    runs = data.run_ids()
+    repetition = np.concatenate([c.repetition for c in data.cases])
+    steps: list[np.ndarray] = []
+    case_of_run: dict[int, int] = {}
+    n_cases = 0
+    for c, cg, sl in zip(data.cases, case_groups, data.case_slices(), strict=True):
+        reps = np.unique(c.repetition[keep[sl]])
+        case_steps = [g for g in (g[keep[sl][g]] + sl.start for g in cg) if g.size > 1]
+        if reps[reps >= 0].size < 2 or not case_steps:
+            continue
+        pts = np.concatenate(case_steps)
+        seats = np.unique(runs[pts[repetition[pts] >= 0]])
+        if seats.size < 2:
+            continue
+        case_of_run.update((int(r), n_cases) for r in seats)
+        n_cases += 1
+        steps.extend(case_steps)
+    if not steps:
+        empty = np.zeros(0, dtype=int)
+        return _Seatings(empty, empty, empty, empty, empty)
+    points = np.concatenate(steps)
+    seated = np.flatnonzero(repetition[points] >= 0)
+    run_list = np.array(sorted(case_of_run))
+    return _Seatings(points, np.repeat(np.arange(len(steps)), [g.size for g in steps]), seated,
+                     np.searchsorted(run_list, runs[points[seated]]),
+                     np.array([case_of_run[int(r)] for r in run_list]))
+
+
+def _seating_sigma(data: Dataset, floor: NoiseFloor, seatings: _Seatings) -> tuple[float, int]:
+    """σ_seat by moments: the spread of each seating's weighted mean residual about its load steps' means,
+    less what the point noise alone gives it."""
+    if seatings.points.size == 0:
+        return 0.0, 0
+    y = data.ln_stiffness[seatings.points]
+    step = seatings.step
+    e1 = y - (np.bincount(step, y) / np.bincount(step))[step]
+    w = 1.0 / floor.sigma_at(data)[seatings.points[seatings.seated]] ** 2
+    w_sum = np.bincount(seatings.seat, w)
+    mu = np.bincount(seatings.seat, w * e1[seatings.seated]) / w_sum
+    case = seatings.case_of_seat
+    count = np.bincount(case)
+    centre = np.bincount(case, mu) / count
+    num = float(np.sum((mu - centre[case]) ** 2) - np.sum((count - 1) * np.bincount(case, 1.0 / w_sum) / count))
+    den = int(np.sum(count - 1))
+    return math.sqrt(max(0.0, num / den)), den
