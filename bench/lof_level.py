@@ -15,11 +15,13 @@ noise (its truth file's σ_rel(F) = a + b·(F_pre/F)^c and σ_seat: what no work
 noise estimate could gain.
 
     python bench/lof_level.py --seeds 200 --workers 2 [--oracle] [--sources own,blind,blind2,blind3]
+    python bench/lof_level.py --seeds 300 --workers 2 --sources blind3 --quiet drift,load,tails
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -39,6 +41,34 @@ LEVELS = (0.01, 0.05, 0.10)
 SOURCES = ("own", "blind", "blind2")
 """The sources run by default; ``--sources`` may add the third judge (``blind3``: 2–4 seatings, uneven steps, a load
 cell's reading noise, drift, Student-t tails), whose nulls were never part of the level's record above."""
+
+
+QUIET_PARTS = ("drift", "load", "tails")
+"""Parts of the third judge's own noise ``--quiet`` may switch off: its thermal drift, its load cell's reading noise,
+its Student-t tails (Gaussian draws instead)."""
+
+
+def quiet_third_judge(parts: tuple[str, ...]) -> None:
+    """Switch ``parts`` of the third judge's noise off in its draws: a diagnostic of which of them the workflow's
+    noise model misses (it patches the judge's private noise draw; no method may use it)."""
+    if not parts:
+        return
+    judge = blind_worlds("blind3")
+    draw = judge._noise
+
+    def quieter(rng: Any, camp: Any) -> Any:
+        noise = draw(rng, camp)
+        change: dict[str, Any] = {}
+        if "drift" in parts:
+            change["drift_rel"] = 0.0
+        if "load" in parts:
+            change["load_rel"] = 0.0
+        if "tails" in parts and noise.nu:
+            seed = np.frombuffer(noise.z_f.tobytes()[:16], dtype=np.uint32)
+            change.update(nu=0.0, z_f=np.random.default_rng(seed).standard_normal(noise.z_f.size))
+        return dataclasses.replace(noise, **change)
+
+    judge._noise = quieter
 
 
 def null_world(source: str, seed: int) -> Any:
@@ -137,6 +167,8 @@ def main() -> None:
     parser.add_argument("--oracle", action="store_true", help="the first judge's nulls against its own noise too")
     parser.add_argument("--sources", default=",".join(SOURCES),
                         help="comma-separated sources: own, blind, blind2, blind3 (default the first three)")
+    parser.add_argument("--quiet", default="", help="comma-separated parts of the third judge's noise to switch off: "
+                        "drift, load, tails (a diagnostic)")
     args = parser.parse_args()
     if args.oracle:
         print_oracle(args.seeds, args.workers)
@@ -145,8 +177,13 @@ def main() -> None:
     unknown = [s for s in sources if s not in (*SOURCES, "blind3")]
     if unknown:
         parser.error(f"--sources: unknown source {unknown[0]!r}; expected own, blind, blind2 or blind3")
+    quiet = tuple(q.strip() for q in args.quiet.split(",") if q.strip())
+    if any(q not in QUIET_PARTS for q in quiet):
+        parser.error(f"--quiet: expected parts among {', '.join(QUIET_PARTS)}, got {args.quiet!r}")
+    if quiet:
+        print(f"the third judge's noise without its {', '.join(quiet)}\n")
     jobs = [(source, seed) for source in sources for seed in range(args.seeds)]
-    with ProcessPoolExecutor(args.workers) as pool:
+    with ProcessPoolExecutor(args.workers, initializer=quiet_third_judge, initargs=(quiet,)) as pool:
         results = [r for r in pool.map(p_values, jobs, chunksize=4) if r is not None]
     head = " | ".join(f"rejected at {a:g} (count; ± at {a:g})" for a in LEVELS)
     print(f"| source | reference | n | {head} |")
