@@ -41,6 +41,7 @@ LEVELS = (0.01, 0.05, 0.10)
 SOURCES = ("own", "blind", "blind2")
 """The sources run by default; ``--sources`` may add the third judge (``blind3``: 2–4 seatings, uneven steps, a load
 cell's reading noise, drift, Student-t tails), whose nulls were never part of the level's record above."""
+ALL_SOURCES = (*SOURCES, "blind3")
 
 
 QUIET_PARTS = ("drift", "load", "tails")
@@ -166,7 +167,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--oracle", action="store_true", help="the first judge's nulls against its own noise too")
     parser.add_argument("--sources", default=",".join(SOURCES),
-                        help="comma-separated sources: own, blind, blind2, blind3 (default the first three)")
+                        help=f"comma-separated sources among {', '.join(ALL_SOURCES)} (default the first three)")
     parser.add_argument("--quiet", default="", help="comma-separated parts of the third judge's noise to switch off: "
                         "drift, load, tails (a diagnostic)")
     args = parser.parse_args()
@@ -174,9 +175,9 @@ def main() -> None:
         print_oracle(args.seeds, args.workers)
         return
     sources = [s.strip() for s in args.sources.split(",") if s.strip()]
-    unknown = [s for s in sources if s not in (*SOURCES, "blind3")]
+    unknown = [s for s in sources if s not in ALL_SOURCES]
     if unknown:
-        parser.error(f"--sources: unknown source {unknown[0]!r}; expected own, blind, blind2 or blind3")
+        parser.error(f"--sources: unknown source {unknown[0]!r}; expected among {', '.join(ALL_SOURCES)}")
     quiet = tuple(q.strip() for q in args.quiet.split(",") if q.strip())
     if any(q not in QUIET_PARTS for q in quiet):
         parser.error(f"--quiet: expected parts among {', '.join(QUIET_PARTS)}, got {args.quiet!r}")

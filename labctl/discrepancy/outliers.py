@@ -112,9 +112,9 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     another repetition passes smoothly and which is off those repetitions by more than ``SMOOTH_Z`` (``across``,
     below: where its lines miss the curve, across a gap in the loads, its fellow repetitions agree with it). A
     deviation every repetition shares is the contact's (a kink), not an outlier; two bad points of one step never
-    outvote the clean repetition; a bad point's neighbours, off the
-    lines through it but not off the others, are not taken for it (at the end of a seating above all, where the
-    end point extrapolated from two neighbours moves with its neighbour's error as much as the neighbour does).
+    outvote the clean repetition; a bad point's neighbours, off the lines through it but not off the others, are
+    not taken for it (at the end of a seating above all, where the end point extrapolated from two neighbours moves
+    with its neighbour's error as much as the neighbour does).
     So a seating's end point, which its lines only extrapolate to (with √6 times the noise), is also set aside
     when it is off its lines by more than ``SMOOTH_Z`` and far off its step's other repetitions (``across``: its
     residual from step means plus seating offsets, standardised for its leverage; ``outlier_z`` with the level
@@ -141,10 +141,10 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
         for i in g[suspect[g]]:
             if g.size > 1 and smooth.size == 0:
                 continue  # every repetition shares it: the contact's own shape
-            same = np.flatnonzero((runs == runs[i]) & keep)
-            near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
             if g.size > 1 and off[i] <= SMOOTH_Z:
                 continue  # its step's other repetitions agree with it: its lines miss the curve, not the point
+            same = np.flatnonzero((runs == runs[i]) & keep)
+            near = same[np.argsort(np.abs(ln_f[same] - ln_f[i]))[:3]]
             if (firm[i] >= firm[near].max()) if firm[i] > z else (off[i] >= off[g].max()):
                 out.append(int(i))
     return out

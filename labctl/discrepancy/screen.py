@@ -42,13 +42,13 @@ class Screening:
         return {"duplicates": self.duplicates, "conflicting_rows": self.conflicting_rows, "outliers": self.outliers,
                 "drifted": self.drifted, "end_steps": self.end_steps}
 
-    def note_end_step(self, data: Dataset, indices: Sequence[int], residuals: np.ndarray, against: str) -> None:
-        """Record the end step at ``indices`` (``residuals`` = ln(k_model/k_measured) of the fit it departs from,
-        ``against`` that fit's name), once per case and step."""
+    def note_end_step(self, data: Dataset, indices: Sequence[int], end: str, residuals: np.ndarray,
+                      against: str) -> None:
+        """Record the end step at ``indices`` (``end``: "first" or "last" of its case's loads; ``residuals`` =
+        ln(k_model/k_measured) of the fit it departs from, ``against`` that fit's name), once per case and step."""
         case = data.case_of(int(indices[0]))
         loads = sorted(float(data.load_n[k]) for k in indices)
-        position = "first" if loads[0] <= float(data.cases[case].load_n.min()) else "last"
-        note = {"case": data.cases[case].label, "step": position, "load_n": loads, "against": against,
+        note = {"case": data.cases[case].label, "step": end, "load_n": loads, "against": against,
                 "off_rel": float(np.median(np.expm1(-residuals[list(indices)])))}
         if not any(n["case"] == note["case"] and n["load_n"] == loads for n in self.end_steps):
             self.end_steps.append(note)

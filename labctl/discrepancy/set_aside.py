@@ -43,9 +43,9 @@ def set_aside_step(data: Dataset, noise: NoiseFloor, spec: ModelSpec, screening:
     as they were. ``warm``: a fit of ``spec`` already at hand, to start from; ``against``: what ``spec`` is, in
     the words of a seating's end step that alone departs from it (noted, not set aside)."""
     fit = Search(data, noise).fit(spec, warm=warm)
-    bad, end = step_out_of_line(data, noise, fit.residuals, fit.sigma, spec.n_params())
-    if end:
-        screening.note_end_step(data, end, fit.residuals, against)
+    bad, end_step, end = step_out_of_line(data, noise, fit.residuals, fit.sigma, spec.n_params())
+    if end_step:
+        screening.note_end_step(data, end_step, end, fit.residuals, against)
     spread = [] if bad else step_too_spread(data, noise, fit.residuals, fit.sigma)
     if not bad and not spread:
         return data, noise

@@ -34,10 +34,12 @@ from labctl.discrepancy.outliers import OUTLIER_ALPHA, SMOOTH_Z
 
 class StepFinding(NamedTuple):
     """What the mean-shift test found: the repetitions to set aside, and a seating's first or last step that every
-    repetition leaves the same way while the rest follows the fit (kept as the contact's, but said)."""
+    repetition leaves the same way while the rest follows the fit (kept as the contact's, but said), with which end
+    of its case's load range it is ("first" or "last"; "" without one)."""
 
     set_aside: list[int]
     end_step: list[int]
+    end: str = ""
 
 
 def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray,
@@ -66,8 +68,8 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     z = e[step] * np.sign(along[j])
     bad, kept = z > SMOOTH_Z, np.abs(z) <= SMOOTH_Z
     if np.all(bad):  # every repetition off the same way: inside the load range the step's fault, at an end unclear
-        every = [int(i) for i in step]
-        return StepFinding(every, []) if _inner_step(data, step) else StepFinding([], every)
+        every, end = [int(i) for i in step], _end_of_range(data, step)
+        return StepFinding([], every, end) if end else StepFinding(every, [])
     if not np.any(kept) or not np.any(bad):
         return none
     contrast = (z[bad].mean() - z[kept].mean()) / np.sqrt(pure * (1 / bad.sum() + 1 / kept.sum()))
@@ -77,12 +79,14 @@ def step_out_of_line(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, si
     return StepFinding([int(i) for i in step[bad]], [])
 
 
-def _inner_step(data: Dataset, step: np.ndarray) -> bool:
-    """The step has loads of its own roller case below and above it: neither a seating's first step (where a
-    tilt beds in) nor its last (where a yield sets in)."""
+def _end_of_range(data: Dataset, step: np.ndarray) -> str:
+    """Which end of its roller case's load range the step is: "first" with no load of the case below it (where a
+    tilt beds in), "last" with none above it (where a yield sets in), "" inside the range."""
     sl = data.case_slices()[data.case_of(int(step[0]))]
     others = data.load_n[np.setdiff1d(np.arange(sl.start, sl.stop), step)]
-    return bool(np.any(others < data.load_n[step].min()) and np.any(others > data.load_n[step].max()))
+    if not np.any(others < data.load_n[step].min()):
+        return "first"
+    return "" if np.any(others > data.load_n[step].max()) else "last"
 
 
 def step_too_spread(data: Dataset, noise: NoiseFloor, residuals: np.ndarray, sigma: np.ndarray) -> list[int]:
