@@ -12,7 +12,6 @@ import numpy as np
 from scipy.special import ndtri  # the normal quantile
 
 from labctl.discrepancy.data import Dataset
-from labctl.physics.law import ContactLaw
 
 OUTLIER_ALPHA = 0.01
 """Chance, on clean Gaussian data, that the screen sets any point of a dataset aside (Bonferroni over its points)."""
@@ -88,18 +87,12 @@ class _Neighbourhoods(_Lines):
         self.slots = np.where(slot < count[:, None], start[:, None] + slot, -1)  # a point's nearest pair first
 
 
-def contact_curve(data: Dataset) -> np.ndarray:
-    """ln k of the line contact alone (Tripp at its nominal depth) at every point: the bend of ln k with ln F that
-    lines through a point's neighbours would otherwise take for the point's departure where steps are coarse."""
-    return np.log(ContactLaw().stiffness_n_per_m(data.stacked_case, data.load_n))
-
-
 def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each kept point against the lines (in ln F) through two of its own seating's neighbouring steps
     (``off_line``): against its two nearest neighbours, and the smallest (in size) over the ``_reference_pairs`` —
     which a single bad neighbour cannot inflate, as it moves its lines, not all of them. NaN where a seating has
     fewer than three kept points."""
-    y = data.ln_stiffness - data.design_memo("contact curve", lambda: contact_curve(data))
+    y = data.ln_stiffness
     hoods = data.design_memo(("neighbourhoods", keep.tobytes()), lambda: _Neighbourhoods(data, keep))
     nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
     if hoods.points.size == 0:
