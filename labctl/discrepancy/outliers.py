@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ndtri  # the normal quantile
 
-from labctl.discrepancy.case_curve import MAD_TO_SIGMA, case_bend
 from labctl.discrepancy.data import Dataset
 
 OUTLIER_ALPHA = 0.01
 """Chance, on clean Gaussian data, that the screen sets any point of a dataset aside (Bonferroni over its points)."""
 SMOOTH_Z = 2.5
 """A repetition within this many robust σ of its neighbours passes a load step smoothly."""
+MAD_TO_SIGMA = 1.4826
 
 
 def outlier_z(n_points: int) -> float:
@@ -87,13 +87,12 @@ class _Neighbourhoods(_Lines):
         self.slots = np.where(slot < count[:, None], start[:, None] + slot, -1)  # a point's nearest pair first
 
 
-def _neighbour_residuals(data: Dataset, keep: np.ndarray, bent: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each kept point against the lines (in ln F) through two of its own seating's neighbouring steps
     (``off_line``): against its two nearest neighbours, and the smallest (in size) over the ``_reference_pairs`` —
     which a single bad neighbour cannot inflate, as it moves its lines, not all of them. NaN where a seating has
-    fewer than three kept points. The lines are drawn about each case's own bend (``case_bend``), which coarse
-    steps would otherwise lay on the point judged."""
-    y = data.ln_stiffness - case_bend(data, keep) if bent else data.ln_stiffness
+    fewer than three kept points."""
+    y = data.ln_stiffness
     hoods = data.design_memo(("neighbourhoods", keep.tobytes()), lambda: _Neighbourhoods(data, keep))
     nearest, least = np.full(y.size, np.nan), np.full(y.size, np.nan)
     if hoods.points.size == 0:
@@ -127,7 +126,7 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
         return []
     bands, end = data.design_memo(("screen", keep.tobytes(), band_dof, max_bands),
                                   lambda: _bands_and_ends(data, keep, ok, band_dof, max_bands))
-    scale = _band_scale(_neighbour_residuals(data, keep, bent=False)[0], bands)
+    scale = _band_scale(eps, bands)
     ratio, firm = _ratio(eps, scale), _ratio(least, scale)
     off = _ratio(across, _band_scale(across, bands))
     runs, ln_f = data.run_ids(), np.log(data.load_n)
