@@ -28,6 +28,7 @@ from scipy.special import fdtrc  # the F distribution's survival function (scipy
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
+from labctl.discrepancy.turns import level_to_turns, turns_by_rank
 from labctl.errors import InputError
 
 SAME_STEP = 0.05
@@ -227,6 +228,27 @@ class _TwoWay:
         return residual
 
 
+def _across_turns(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarray
+                  ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Each kept point's residual from its nut turn's mean plus its seating's offset, standardised for its leverage
+    (NaN where it has none to spare), and the turns as indices into the dataset: the outlier screen's view across
+    repetitions. Turns are matched by rank (``turns_by_rank``; else the case's replicate sets, ``case_groups``) and
+    each ln k brought to its turn's mean load, so a turn whose seatings' loads differ by several per cent is still
+    compared within itself."""
+    turns = data.design_memo("turns", lambda: [turns_by_rank(c) or cg for c, cg in zip(data.cases, case_groups,
+                                                                                         strict=True)])
+    runs, y, x = data.run_ids(), data.ln_stiffness, np.log(data.load_n)
+    across = np.full(y.size, np.nan)
+    for i, (tc, sl) in enumerate(zip(turns, data.case_slices(), strict=True)):
+        k = keep[sl]
+        level = level_to_turns(x[sl], y[sl], [g[k[g]] for g in tc])
+        tw = data.design_memo(("two-way turns", i, k.tobytes()), partial(_two_way, tc, runs[sl], k))
+        dof = np.where(k, 1.0 - tw.leverage, 0.0)
+        ok = k & (dof > 1e-6)
+        across[sl] = np.where(ok, tw.residual(level) / np.sqrt(np.where(ok, dof, 1.0)), np.nan)
+    return across, [g + sl.start for tc, sl in zip(turns, data.case_slices(), strict=True) for g in tc]
+
+
 def _two_way(groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
     """Least squares on step means plus seating offsets (points not in ``keep`` left out)."""
     n = runs.size
@@ -291,8 +313,8 @@ def estimate_noise(data: Dataset) -> NoiseFloor:
             resid[sl], lev[sl] = tw.residual(y[sl]), tw.leverage
         dof_pt = np.where(keep, 1.0 - lev, 0.0)
         informative = keep & (dof_pt > 1e-6)
-        across = np.where(informative, resid / np.sqrt(np.where(informative, dof_pt, 1.0)), np.nan)
-        new = gross_outliers(data, keep, groups, BAND_DOF, MAX_BANDS, across)
+        across, turns = _across_turns(data, case_groups, keep)
+        new = gross_outliers(data, keep, turns, BAND_DOF, MAX_BANDS, across)
         if not new:
             break
         keep[new] = False

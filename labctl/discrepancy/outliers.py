@@ -119,7 +119,9 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
     when it is off its lines by more than ``SMOOTH_Z`` and far off its step's other repetitions (``across``: its
     residual from step means plus seating offsets, standardised for its leverage; ``outlier_z`` with the level
     shared by the two tests), the worst of its step so judged. A clean repetition that two bad ones outvote at its
-    step is smooth on its own lines, and is kept."""
+    step is smooth on its own lines, and is kept. Its steps (``groups``) are the nut turns its seatings share, each
+    point brought to its turn's load (``labctl.discrepancy.turns``), where the seatings reach one turn at loads
+    too far apart to be one replicate set of the noise floor."""
     eps, least = _neighbour_residuals(data, keep)
     ok = np.flatnonzero(np.isfinite(eps))
     if ok.size < 2 * band_dof:
