@@ -28,7 +28,7 @@ from scipy.special import fdtrc  # the F distribution's survival function (scipy
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
-from labctl.discrepancy.turns import level_to_turns, turns_by_rank
+from labctl.discrepancy.turns import dataset_turns, level_to_turns
 from labctl.errors import InputError
 
 SAME_STEP = 0.05
@@ -228,25 +228,33 @@ class _TwoWay:
         return residual
 
 
+def _step_residuals(data: Dataset, case_groups: list[list[np.ndarray]], y: np.ndarray, keep: np.ndarray,
+                    key: str) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's residual from its step's mean plus its seating's offset (``case_groups``: each case's steps;
+    NaN at the points left out) and the degrees of freedom it spares the fit (1 − leverage; 0 where left out)."""
+    runs = data.run_ids()
+    resid, dof = np.full(y.size, np.nan), np.zeros(y.size)
+    for i, (cg, sl) in enumerate(zip(case_groups, data.case_slices(), strict=True)):
+        tw = data.design_memo((key, i, keep[sl].tobytes()), partial(_two_way, cg, runs[sl], keep[sl]))
+        resid[sl], dof[sl] = tw.residual(y[sl]), np.where(keep[sl], 1.0 - tw.leverage, 0.0)
+    return resid, dof
+
+
 def _across_turns(data: Dataset, case_groups: list[list[np.ndarray]], keep: np.ndarray
                   ) -> tuple[np.ndarray, list[np.ndarray]]:
     """Each kept point's residual from its nut turn's mean plus its seating's offset, standardised for its leverage
     (NaN where it has none to spare), and the turns as indices into the dataset: the outlier screen's view across
-    repetitions. Turns are matched by rank (``turns_by_rank``; else the case's replicate sets, ``case_groups``) and
-    each ln k brought to its turn's mean load, so a turn whose seatings' loads differ by several per cent is still
-    compared within itself."""
-    turns = data.design_memo("turns", lambda: [turns_by_rank(c) or cg for c, cg in zip(data.cases, case_groups,
-                                                                                         strict=True)])
-    runs, y, x = data.run_ids(), data.ln_stiffness, np.log(data.load_n)
-    across = np.full(y.size, np.nan)
-    for i, (tc, sl) in enumerate(zip(turns, data.case_slices(), strict=True)):
+    repetitions. Each ln k is first brought to its turn's mean load, so a turn whose seatings' loads differ by
+    several per cent is still compared within itself."""
+    per_case, turns = data.design_memo("turns", lambda: dataset_turns(data, case_groups))
+    y, x = data.ln_stiffness, np.log(data.load_n)
+    level = y.copy()
+    for tc, sl in zip(per_case, data.case_slices(), strict=True):
         k = keep[sl]
-        level = level_to_turns(x[sl], y[sl], [g[k[g]] for g in tc])
-        tw = data.design_memo(("two-way turns", i, k.tobytes()), partial(_two_way, tc, runs[sl], k))
-        dof = np.where(k, 1.0 - tw.leverage, 0.0)
-        ok = k & (dof > 1e-6)
-        across[sl] = np.where(ok, tw.residual(level) / np.sqrt(np.where(ok, dof, 1.0)), np.nan)
-    return across, [g + sl.start for tc, sl in zip(turns, data.case_slices(), strict=True) for g in tc]
+        level[sl] = level_to_turns(x[sl], y[sl], [g[k[g]] for g in tc])
+    resid, dof = _step_residuals(data, per_case, level, keep, "two-way turns")
+    ok = dof > 1e-6
+    return np.where(ok, resid / np.sqrt(np.where(ok, dof, 1.0)), np.nan), turns
 
 
 def _two_way(groups: list[np.ndarray], runs: np.ndarray, keep: np.ndarray) -> _TwoWay:
@@ -300,24 +308,16 @@ def _pseudo_residual_scatter(data: Dataset) -> tuple[float, int]:
 def estimate_noise(data: Dataset) -> NoiseFloor:
     """Point noise per load band, seating σ and gross outliers from the repetitions (else neighbour scatter)."""
     case_groups, groups = data.design_memo("replicate sets", lambda: _replicate_sets(data))
-    slices = data.case_slices()
-    y = data.ln_stiffness
-    runs = data.run_ids()
-    x = np.log(data.load_per_length_n_per_m)
+    y, x = data.ln_stiffness, np.log(data.load_per_length_n_per_m)
     keep = np.ones(y.size, dtype=bool)
     for _ in range(4):
-        resid = np.full(y.size, np.nan)
-        lev = np.ones(y.size)
-        for i, (cg, sl) in enumerate(zip(case_groups, slices, strict=True)):
-            tw = data.design_memo(("two-way", i, keep[sl].tobytes()), partial(_two_way, cg, runs[sl], keep[sl]))
-            resid[sl], lev[sl] = tw.residual(y[sl]), tw.leverage
-        dof_pt = np.where(keep, 1.0 - lev, 0.0)
-        informative = keep & (dof_pt > 1e-6)
         across, turns = _across_turns(data, case_groups, keep)
         new = gross_outliers(data, keep, turns, BAND_DOF, MAX_BANDS, across)
         if not new:
             break
         keep[new] = False
+    resid, dof_pt = _step_residuals(data, case_groups, y, keep, "two-way")  # the floor, once the screen is done
+    informative = dof_pt > 1e-6
     dof_total = float(dof_pt.sum())
     if dof_total >= 1.0 and float(np.nansum(resid[informative] ** 2)) > 0:
         ss = np.where(informative, np.nan_to_num(resid) ** 2, 0.0)

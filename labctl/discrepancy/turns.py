@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from labctl.discrepancy.data import CaseData
+from labctl.discrepancy.data import CaseData, Dataset
 
 MAX_SLACK = 0.1
 """Farthest (in ln F) a seating's point may sit from its turn's mean load: a nut turn reached ±10 % apart; beyond
@@ -43,6 +43,14 @@ def turns_by_rank(c: CaseData) -> list[np.ndarray] | None:
         if np.any(off[:, j] > MAX_SLACK) or np.any(np.argmin(off, axis=1) != j):
             return None
     return turns
+
+
+def dataset_turns(data: Dataset, case_groups: list[list[np.ndarray]]
+                  ) -> tuple[list[list[np.ndarray]], list[np.ndarray]]:
+    """Each case's nut turns (``turns_by_rank``; else its replicate sets, ``case_groups``), and all of them as indices
+    into the dataset: the design alone."""
+    per_case = [turns_by_rank(c) or cg for c, cg in zip(data.cases, case_groups, strict=True)]
+    return per_case, [g + sl.start for tc, sl in zip(per_case, data.case_slices(), strict=True) for g in tc]
 
 
 def _align(a: np.ndarray, b: np.ndarray) -> list[int]:
