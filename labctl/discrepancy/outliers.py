@@ -2,11 +2,19 @@
 
 A point is compared with lines (in ln F) through two of its own seating's neighbouring steps — the nearest two,
 and each with one of them replaced by the next point beyond — and is set aside when it is far off all of them
-(in robust σ of its load band), the worst of its neighbourhood, in a load step where another repetition passes
-smoothly. The threshold is family-wise: ``OUTLIER_ALPHA`` spread over the dataset's points.
+(in robust σ at its load per length), the worst of its neighbourhood, in a load step where another repetition
+passes smoothly. The threshold is family-wise: ``OUTLIER_ALPHA`` spread over the dataset's points.
+
+The robust σ is a median (MAD) per band of load per length, interpolated between the bands' centres in ln σ
+against ln(F/L_we): the point noise falls with load all along, and a σ held constant over a band overstated it at
+the band's top and understated it at its foot, where clean points then passed a threshold 4 σ out. Each band's
+median stays local: a law fitted to every band at once (ln σ linear in ln(F/L_we)) was tilted by an effect's bend
+at the lowest loads and judged the highest in a σ a third of theirs.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from scipy.special import ndtri  # the normal quantile
@@ -18,6 +26,7 @@ OUTLIER_ALPHA = 0.01
 SMOOTH_Z = 2.5
 """A repetition within this many robust σ of its neighbours passes a load step smoothly."""
 MAD_TO_SIGMA = 1.4826
+"""σ over the median of |e| for Gaussian e."""
 
 
 def outlier_z(n_points: int) -> float:
@@ -106,9 +115,9 @@ def _neighbour_residuals(data: Dataset, keep: np.ndarray) -> tuple[np.ndarray, n
 
 def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], band_dof: int, max_bands: int,
                    across: np.ndarray) -> list[int]:
-    """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (its load
-    band's, from the residuals against the nearest neighbours) off every line through its own seating's
-    neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
+    """Gross outliers judged against the local repetition spread: a point more than ``outlier_z`` robust σ (at its
+    load per length, ``_band_scale`` of the residuals against the nearest neighbours) off every line through its own
+    seating's neighbours that ``_reference_pairs`` names, the worst of its neighbourhood so judged, in a load step where
     another repetition passes smoothly and which is off those repetitions by more than ``SMOOTH_Z`` (``across``,
     below: where its lines miss the curve, across a gap in the loads, its fellow repetitions agree with it). A
     deviation every repetition shares is the contact's (a kink), not an outlier; two bad points of one step never
@@ -128,9 +137,10 @@ def gross_outliers(data: Dataset, keep: np.ndarray, groups: list[np.ndarray], ba
         return []
     bands, end = data.design_memo(("screen", keep.tobytes(), band_dof, max_bands),
                                   lambda: _bands_and_ends(data, keep, ok, band_dof, max_bands))
-    scale = _band_scale(eps, bands)
+    x = np.log(data.load_per_length_n_per_m)
+    scale = _band_scale(x, eps, bands)
     ratio, firm = _ratio(eps, scale), _ratio(least, scale)
-    off = _ratio(across, _band_scale(across, bands))
+    off = _ratio(across, _band_scale(x, across, bands))
     runs, ln_f = data.run_ids(), np.log(data.load_n)
     z, z_end = outlier_z(int(ok.size)), outlier_z(2 * int(ok.size))
     suspect = keep & ((firm > z) | (end & (off > z_end) & (firm > SMOOTH_Z)))
@@ -165,14 +175,20 @@ def _bands_and_ends(data: Dataset, keep: np.ndarray, ok: np.ndarray, band_dof: i
     return bands, end
 
 
-def _band_scale(e: np.ndarray, bands: list[np.ndarray]) -> np.ndarray:
-    """Each point's robust σ of e (MAD) over its load band; inf where the band has none."""
-    scale = np.full(e.size, np.inf)
+def _band_scale(x: np.ndarray, e: np.ndarray, bands: list[np.ndarray]) -> np.ndarray:
+    """Each point's robust σ of e at its x = ln(F/L_we): 1.4826 × MAD of each load band's e, at the band's median
+    x, interpolated between the bands in ln σ (held flat beyond the outer ones); inf where no band has any."""
+    centre, log_scale = [], []
     for part in bands:
         finite = part[np.isfinite(e[part])]
         s = MAD_TO_SIGMA * float(np.median(np.abs(e[finite]))) if finite.size else 0.0
-        scale[part] = s if s > 0 else np.inf
-    return scale
+        if s > 0:
+            centre.append(float(np.median(x[finite])))
+            log_scale.append(math.log(s))
+    if not centre:
+        return np.full(e.size, np.inf)
+    order = np.argsort(centre)
+    return np.exp(np.interp(x, np.array(centre)[order], np.array(log_scale)[order]))
 
 
 def _ratio(e: np.ndarray, scale: np.ndarray) -> np.ndarray:
