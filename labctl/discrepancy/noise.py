@@ -28,7 +28,7 @@ from scipy.special import fdtrc  # the F distribution's survival function (scipy
 from labctl.discrepancy.data import CaseData, Dataset
 from labctl.discrepancy.lof_reference import Reference, simulate
 from labctl.discrepancy.outliers import gross_outliers, off_line
-from labctl.discrepancy.turns import dataset_turns, level_to_turns
+from labctl.discrepancy.turns import dataset_turns, level_to_turns, seatings_in_load_order
 from labctl.errors import InputError
 
 SAME_STEP = 0.05
@@ -191,15 +191,13 @@ def _replicate_sets(data: Dataset) -> tuple[list[list[np.ndarray]], list[np.ndar
 
 def _case_groups(c: CaseData) -> list[np.ndarray]:
     """Replicate sets of one case: by step rank when every repetition has the same steps, else by load."""
-    reps = np.unique(c.repetition)
+    seatings = seatings_in_load_order(c)
+    if seatings is not None and len({s.size for s in seatings}) == 1:
+        ranks = np.stack(seatings)
+        loads = c.load_n[ranks]
+        if np.all(loads.max(axis=0) <= loads.min(axis=0) * (1 + SAME_STEP)):
+            return [ranks[:, j] for j in range(ranks.shape[1])]
     order = np.argsort(c.load_n, kind="stable")
-    if reps.size > 1 and np.all(reps >= 0):
-        per_rep = [order[c.repetition[order] == r] for r in reps]
-        if len({p.size for p in per_rep}) == 1:
-            ranks = np.stack(per_rep)
-            loads = c.load_n[ranks]
-            if np.all(loads.max(axis=0) <= loads.min(axis=0) * (1 + SAME_STEP)):
-                return [ranks[:, j] for j in range(ranks.shape[1])]
     groups: list[list[int]] = []
     for i in order:
         last = groups[-1] if groups else None

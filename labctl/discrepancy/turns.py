@@ -23,14 +23,22 @@ CURVE_DEGREE = 2
 """Degree of the polynomial in ln F through a case's turn means whose slope brings a point to its turn's load."""
 
 
-def turns_by_rank(c: CaseData) -> list[np.ndarray] | None:
-    """One case's nut turns as indices into its points (module doc); None where its seatings' steps do not align
-    so (one seating only, a point without a repetition number, a point nearer another turn's load)."""
+def seatings_in_load_order(c: CaseData) -> list[np.ndarray] | None:
+    """Each seating's points of one case (indices into it), in load order; None with one seating only or a point
+    without a repetition number: where steps can be matched by rank at all."""
     reps = np.unique(c.repetition)
     if reps.size < 2 or np.any(reps < 0):
         return None
+    return [idx[np.argsort(c.load_n[idx], kind="stable")] for idx in (np.flatnonzero(c.repetition == r) for r in reps)]
+
+
+def turns_by_rank(c: CaseData) -> list[np.ndarray] | None:
+    """One case's nut turns as indices into its points (module doc); None where its seatings' steps do not align
+    so (one seating only, a point without a repetition number, a point nearer another turn's load)."""
+    seatings = seatings_in_load_order(c)
+    if seatings is None:
+        return None
     x = np.log(c.load_n)
-    seatings = [idx[np.argsort(x[idx], kind="stable")] for idx in (np.flatnonzero(c.repetition == r) for r in reps)]
     reference = max(seatings, key=lambda s: s.size)
     slots: list[list[int]] = [[] for _ in range(reference.size)]
     for s in seatings:
