@@ -241,8 +241,8 @@ def _catalogue(folder: Path) -> None:
 
 
 RUN = "run quick_check --out n.h5 --quiet"
-BIG_LOAD_TABLE = ("diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m\n10,10,0.2,100,5e8\n"
-                  "10,10,0.2,1e6,6e8\n")
+TABLE_HEAD = "diameter_mm,contact_length_mm,rail_ra_um,load_n,stiffness_n_per_m\n"
+BIG_LOAD_TABLE = f"{TABLE_HEAD}10,10,0.2,100,5e8\n10,10,0.2,1e6,6e8\n"
 CASES = [
     # an output naming an input (or linking to it) is refused before anything is written
     Case("process csv over campaign", "process c.h5 --csv c.h5", ("--csv c.h5", "is the input c.h5")),
@@ -357,6 +357,17 @@ CASES = [
          ("t.csv", "row 3", "load_n = 1e+06", "(0, 21923] N"), _text("t.csv", BIG_LOAD_TABLE)),
     Case("discrepancy: a table load past the contact models' validity", "discrepancy t.csv",
          ("t.csv", "row 3", "load_n = 1e+06", "(0, 21923] N"), _text("t.csv", BIG_LOAD_TABLE)),
+    # a careless export: a thousands separator splits a load into two fields (read before as 1 N and 500 N/m)
+    Case("discrepancy: a row with more fields than the header", "discrepancy t.csv",
+         ("t.csv", "row 3", "6 fields", "header has 5", "thousands separator"),
+         _text("t.csv", f"{TABLE_HEAD}10,10,0.2,100,5e8\n10,10,0.2,1,500,5e8\n10,10,0.2,300,6e8\n")),
+    Case("discrepancy: a table separated by semicolons", "discrepancy t.csv", ("t.csv", "';'", "commas"),
+         _text("t.csv", TABLE_HEAD.replace(",", ";") + "10;10;0,2;100;5e8\n")),
+    Case("discrepancy: a diameter of 1e308 mm", "discrepancy t.csv",
+         ("t.csv", "row 2", "diameter_mm", "'1e308'", "(0, 1000] mm"),
+         _text("t.csv", f"{TABLE_HEAD}1e308,10,0.2,100,5e8\n10,10,0.2,200,6e8\n")),
+    Case("discrepancy: a rail Ra of 1e300 µm", "discrepancy t.csv",
+         ("t.csv", "row 2", "rail_ra_um", "[0, 50] µm"), _text("t.csv", f"{TABLE_HEAD}10,10,1e300,100,5e8\n")),
 ]
 
 

@@ -23,14 +23,25 @@ def read_csv_records(path: str | Path, *, what: str, required: Sequence[str], al
             reader = csv.DictReader(fh)
             header = [h.strip() for h in (reader.fieldnames or [])]
             missing = [c for c in required if c not in header]
+            if missing and len(header) == 1 and ";" in header[0]:
+                raise InputError(f"{p}: the header is separated by ';', expected commas (save it as comma-separated "
+                                 "CSV, with '.' as the decimal point)")
             if missing:
                 raise InputError(f"{p}: missing column(s) {', '.join(missing)}{note}")
             unknown = [h for h in header if h and allowed is not None and h not in allowed]
             if unknown:
                 raise InputError(f"{p}: unknown column(s) {', '.join(unknown)}; expected among {', '.join(allowed)}")
             reader.fieldnames = header
-            return [(reader.line_num, rec) for rec in reader
-                    if any((v or "").strip() for v in rec.values() if isinstance(v, str))]
+            records = []
+            for rec in reader:
+                extra = rec.pop(None, None)  # fields past the header's last column
+                if extra and any(v.strip() for v in extra):
+                    raise InputError(f"{p}: row {reader.line_num}: {len(header) + len(extra)} fields, the header has "
+                                     f"{len(header)} (a comma inside a value, such as a thousands separator? quote "
+                                     "the value or drop the separator)")
+                if any((v or "").strip() for v in rec.values() if isinstance(v, str)):
+                    records.append((reader.line_num, rec))
+            return records
     except FileNotFoundError:
         raise InputError(f"{p}: file not found (expected a {what})") from None
     except IsADirectoryError:
