@@ -366,6 +366,12 @@ CASES = [
     Case("discrepancy: a diameter of 1e308 mm", "discrepancy t.csv",
          ("t.csv", "row 2", "diameter_mm", "'1e308'", "(0, 1000] mm"),
          _text("t.csv", f"{TABLE_HEAD}1e308,10,0.2,100,5e8\n10,10,0.2,200,6e8\n")),
+    Case("discrepancy: a report folder that cannot be made", "discrepancy t.csv --report /proc/labctl/r",
+         ("--report /proc/labctl/r", "cannot make the folder"),
+         _text("t.csv", TABLE_HEAD + "".join(f"10,10,0.2,{f},{k}\n" for f, k in
+                                             ((100, 5.0e8), (200, 5.6e8), (300, 6.0e8), (400, 6.2e8), (500, 6.5e8))))),
+    Case("report: an output folder that cannot be made", "report c.h5 --out /proc/labctl/r",
+         ("--out /proc/labctl/r", "cannot make the folder")),
     Case("discrepancy: a rail Ra of 1e300 µm", "discrepancy t.csv",
          ("t.csv", "row 2", "rail_ra_um", "[0, 50] µm"), _text("t.csv", f"{TABLE_HEAD}10,10,1e300,100,5e8\n")),
 ]

@@ -17,8 +17,8 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FixedLocator, MaxNLocator, NullFormatter, NullLocator
 
 from labctl.discrepancy.workflow import DiscrepancyResult
-from labctl.errors import InputError
 from labctl.physics.law import ContactLaw
+from labctl.storage.outputs import output_folder
 
 CURVE_POINTS = 60
 N_PER_UM = 1e-6  # N/m → N/µm
@@ -377,11 +377,7 @@ def write_report(result: DiscrepancyResult, folder: str | Path, doc: dict[str, A
     """Write plots (stiffness, residuals per case, gap per step, one panel per search step), the HTML page,
     the JSON document and the summary; return the files. ``sources`` are the input files (their origin is
     marked: SIMULATED for a twin campaign, "source: CSV" for a table)."""
-    out = Path(folder)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise InputError(f"--report {out}: exists and is not a folder") from None
+    out = output_folder("--report", folder)
     doc = doc if doc is not None else result.to_dict()
     origin = sources_of(sources)
     if origin:

@@ -6,8 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from labctl.errors import InputError
-
 
 @dataclass
 class ReportResult:
@@ -38,17 +36,14 @@ def build_report(path: str | Path, out: str | Path, frf_step: tuple[int, int, in
     from labctl.report.verdict import series_verdicts
     from labctl.stiffness_table import write_stiffness_table
     from labctl.storage import CampaignReader
+    from labctl.storage.outputs import output_folder
     from labctl.storage.table import stiffness_points
 
     with CampaignReader(path) as reader:  # opened and its repetitions read once, for every part of the report
         data = report_data(reader, frf_step)
         methods = compare_methods(reader, data.runs)  # a combined campaign: static against the hammer (§2.5)
         points = stiffness_points(reader, data.runs)
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise InputError(f"--out {folder}: exists and is not a folder") from None
+    folder = output_folder("--out", out)
     written = []
     for plot in make_figures(data):
         png, svg = save(plot, folder)

@@ -95,3 +95,16 @@ def atomic_output(path: PathLike) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
         raise
 
+
+
+def output_folder(option: str, path: PathLike) -> Path:
+    """The folder an option names, made if missing; one line naming the option when it cannot be (a file is in
+    the way, no permission, a read-only or full file system)."""
+    folder = Path(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise InputError(f"{option} {folder}: exists and is not a folder") from None
+    except OSError as exc:
+        raise InputError(f"{option} {folder}: cannot make the folder ({exc.strerror or exc})") from None
+    return folder
