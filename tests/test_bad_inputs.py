@@ -372,6 +372,10 @@ CASES = [
                                              ((100, 5.0e8), (200, 5.6e8), (300, 6.0e8), (400, 6.2e8), (500, 6.5e8))))),
     Case("report: an output folder that cannot be made", "report c.h5 --out /proc/labctl/r",
          ("--out /proc/labctl/r", "cannot make the folder")),
+    Case("export: a UFF in a folder that cannot be written", "export c.h5 --uff /proc/labctl/a.uff",
+         ("/proc/labctl/a.uff", "cannot write here")),
+    Case("programme: an output folder that cannot be made", "programme --out /proc/labctl/p quick_check",
+         ("--out /proc/labctl/p", "cannot make the folder")),
     Case("discrepancy: a rail Ra of 1e300 µm", "discrepancy t.csv",
          ("t.csv", "row 2", "rail_ra_um", "[0, 50] µm"), _text("t.csv", f"{TABLE_HEAD}10,10,1e300,100,5e8\n")),
 ]

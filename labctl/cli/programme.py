@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from labctl.programme import paper_programme, run_programme, specimen_jobs
+    from labctl.storage.outputs import output_folder
 
     if args.workers is not None and args.workers < 0:
         raise InputError(f"--workers {args.workers}: expected 0 (this process) or more worker processes")
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     clash = sorted({n for n in names if names.count(n) > 1})
     if clash:
         raise InputError(f"two campaigns named {clash[0]!r} would write the same file: give protocols distinct names")
-    out.mkdir(parents=True, exist_ok=True)
+    output_folder("--out", out)
     t0 = time.perf_counter()
     done = run_programme(jobs, workers=args.workers, scheduler=args.scheduler,
                          progress=None if args.quiet or args.json else sys.stderr)

@@ -96,7 +96,6 @@ def atomic_output(path: PathLike) -> Iterator[Path]:
         raise
 
 
-
 def output_folder(option: str, path: PathLike) -> Path:
     """The folder an option names, made if missing; one line naming the option when it cannot be (a file is in
     the way, no permission, a read-only or full file system)."""

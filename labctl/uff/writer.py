@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -152,8 +151,7 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
     if out.is_dir():
         raise InputError(f"{out}: is a directory, expected a .uff file name")
     check_outputs([("--uff", out), ("--manifest", manifest)], [path])
-    tmp = out.with_name(f".{out.name}.part")
-    with CampaignReader(path) as reader:
+    with CampaignReader(path) as reader, atomic_output(out) as tmp:
         protocol = str(reader.attrs.get("protocol_name", ""))
         steps = list(_steps(reader, selection))
         if not steps:
@@ -186,12 +184,8 @@ def export_campaign(path: str | Path, out: str | Path, *, selection: Selection =
                                                                list(range(first, summary.impacts + 1))))
             if summary.sets == 0:
                 raise InputError(f"{path}: nothing to export for the selected steps (no stored impacts or FRFs)")
-        except BaseException:
+        finally:
             writer.close()
-            tmp.unlink(missing_ok=True)
-            raise
-        writer.close()
-    os.replace(tmp, out)
     if manifest is not None:
         summary.manifest = str(manifest)
         write_manifest(manifest, summary.manifest_rows)
