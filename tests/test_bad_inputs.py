@@ -19,6 +19,21 @@ import h5py
 import numpy as np
 import pytest
 
+from tests.bad_input_files import (
+    FORCE,
+    attr,
+    crafted,
+    external_link,
+    external_storage,
+    flip,
+    log_entries_wrong,
+    npz,
+    npz_huge_header,
+    soft_link,
+    uff_huge,
+    unknown_filter,
+    virtual,
+)
 from tests.cli_util import assert_one_line_error, labctl_here
 
 
@@ -59,142 +74,6 @@ def _hard_link(name: str, target: str) -> Callable[[Path], None]:
 
 def _text(name: str, text: str) -> Callable[[Path], None]:
     return lambda folder: (folder / name).write_text(text, encoding="utf-8")
-
-
-IMPACT = "series_01/run_01/step_001/impact_001"
-FORCE = f"{IMPACT}/force_n"
-
-
-def _crafted(edit: Callable[[h5py.File, Path], None]) -> Callable[[Path], None]:
-    """Edit the case's c.h5 in place (a file an attacker or a careless tool made); beside it a 'secret' file."""
-
-    def make(folder: Path) -> None:
-        (folder / "secret.bin").write_bytes(b"private data of someone else" * 4096)
-        with h5py.File(folder / "c.h5", "r+") as f:
-            edit(f, folder)
-
-    return make
-
-
-def _replace_force(f: h5py.File, make: Callable[[h5py.Group, str, dict], None]) -> None:
-    ds = f[FORCE]
-    attrs = dict(ds.attrs)
-    del f[FORCE]
-    make(f[IMPACT], "force_n", attrs)
-
-
-def _external_storage(f: h5py.File, folder: Path) -> None:
-    def make(g: h5py.Group, name: str, attrs: dict) -> None:
-        ds = g.create_dataset(name, shape=(8192,), dtype="<f4", external=[(str(folder / "secret.bin"), 0, 32768)])
-        ds.attrs.update({k: v for k, v in attrs.items() if k not in ("scale", "offset")})
-
-    _replace_force(f, make)
-
-
-def _virtual(f: h5py.File, folder: Path) -> None:
-    with h5py.File(folder / "other.h5", "w") as o:
-        o["x"] = np.arange(8192, dtype="<f4")
-
-    def make(g: h5py.Group, name: str, attrs: dict) -> None:
-        layout = h5py.VirtualLayout(shape=(8192,), dtype="<f4")
-        layout[:] = h5py.VirtualSource(str(folder / "other.h5"), "x", shape=(8192,))
-        g.create_virtual_dataset(name, layout)
-
-    _replace_force(f, make)
-
-
-def _external_link(f: h5py.File, folder: Path) -> None:
-    with h5py.File(folder / "other.h5", "w") as o:
-        o["x"] = np.arange(8192, dtype="<f4")
-    _replace_force(f, lambda g, name, attrs: g.__setitem__(name, h5py.ExternalLink(str(folder / "other.h5"), "/x")))
-
-
-def _soft_link(f: h5py.File, folder: Path) -> None:
-    f["series_01/run_01/step_001/impact_002/force_n"]  # noqa: B018 — exists
-    _replace_force(f, lambda g, name, attrs: g.__setitem__(name, h5py.SoftLink(
-        "/series_01/run_01/step_001/impact_002/force_n")))
-
-
-def _unknown_filter(f: h5py.File, folder: Path) -> None:
-    def make(g: h5py.Group, name: str, attrs: dict) -> None:
-        ds = g.create_dataset(name, data=np.zeros(8192, "<f4"), chunks=(8192,), compression=32004,
-                              allow_unknown_filter=True)
-        ds.attrs.update({k: v for k, v in attrs.items() if k not in ("scale", "offset")})
-
-    _replace_force(f, make)
-
-
-def _attr(name: str, value: object) -> Callable[[h5py.File, Path], None]:
-    def edit(f: h5py.File, folder: Path) -> None:
-        if value is None:
-            del f[FORCE].attrs[name]
-        else:
-            f[FORCE].attrs[name] = value
-
-    return edit
-
-
-def _log_entries_wrong(f: h5py.File, folder: Path) -> None:
-    del f["log/entries"]
-    f["log/entries"] = np.arange(3.0)
-
-
-CHANNELS = np.array(["A1X", "A2X", "A3X", "A4X"])
-
-
-def _npz(name: str, edit: Callable[[bytearray], None] | None = None, *, compressed: bool = False,
-         force: np.ndarray | None = None) -> Callable[[Path], None]:
-    """An impacts NPZ (random samples, or ``force`` with silent accelerations), its bytes then edited (damaged)."""
-
-    def make(folder: Path) -> None:
-        rng = np.random.default_rng(1)
-        f = rng.normal(size=(2, 4096)) if force is None else force
-        save = np.savez_compressed if compressed else np.savez
-        accel = rng.normal(size=(f.shape[0], 4, f.shape[1])) if force is None else np.zeros((f.shape[0], 4, f.shape[1]))
-        save(folder / name, fs=np.float64(20480.0), force=f, accel=accel, channels=CHANNELS)
-        if edit is not None:
-            raw = bytearray((folder / name).read_bytes())
-            edit(raw)
-            (folder / name).write_bytes(bytes(raw))
-
-    return make
-
-
-def _npz_huge_header(folder: Path) -> None:
-    """'force' announces 10^13 float64 samples (73 TiB) in a 200-byte member."""
-    import io
-    import zipfile
-
-    head = io.BytesIO()
-    np.lib.format.write_array_header_1_0(head, {"descr": "<f8", "fortran_order": False, "shape": (10**13,)})
-    with zipfile.ZipFile(folder / "huge.npz", "w") as z:
-        z.writestr("force.npy", head.getvalue() + bytes(64))
-        for key, value in (("fs", np.float64(20480.0)), ("accel", np.zeros((1, 4, 8))), ("channels", CHANNELS)):
-            b = io.BytesIO()
-            np.save(b, value)
-            z.writestr(f"{key}.npy", b.getvalue())
-
-
-def _flip(at: float) -> Callable[[bytearray], None]:
-    def edit(raw: bytearray) -> None:
-        i = int(len(raw) * at)
-        raw[i] ^= 0xFF
-        raw[i + 1] ^= 0x55
-
-    return edit
-
-
-def _uff_huge(folder: Path) -> None:
-    """An exported UFF whose first data set's header announces 10^10 points."""
-    from labctl.uff.writer import Selection, export_campaign
-
-    export_campaign(folder / "c.h5", folder / "x.uff", selection=Selection(step=1), binary=False)
-    lines = (folder / "x.uff").read_text().split("\n")
-    i = next(k for k, line in enumerate(lines) if line.strip() == "58")
-    count = lines[i + 7].split()[1]
-    lines[i + 7] = lines[i + 7].replace(count.rjust(10), "9999999999", 1)
-    (folder / "huge.uff").write_text("\n".join(lines))
-    (folder / "x.uff").unlink()
 
 
 def _world(expression: str) -> Callable[[Path], None]:
@@ -280,35 +159,35 @@ CASES = [
          _text("notes.db", "shopping list\n")),
     # a crafted campaign never makes labctl read another file, load a plug-in, or use unreadable values
     Case("process external storage", "process c.h5", (FORCE, "external file", "secret.bin"),
-         _crafted(_external_storage)),
-    Case("export external storage", "export c.h5 --uff e.uff", (FORCE, "external file"), _crafted(_external_storage)),
-    Case("report external storage", "report c.h5 --out r", (FORCE, "external file"), _crafted(_external_storage)),
-    Case("process virtual dataset", "process c.h5", (FORCE, "virtual dataset"), _crafted(_virtual)),
-    Case("process external link", "process c.h5", (FORCE, "external link", "other.h5"), _crafted(_external_link)),
+         crafted(external_storage)),
+    Case("export external storage", "export c.h5 --uff e.uff", (FORCE, "external file"), crafted(external_storage)),
+    Case("report external storage", "report c.h5 --out r", (FORCE, "external file"), crafted(external_storage)),
+    Case("process virtual dataset", "process c.h5", (FORCE, "virtual dataset"), crafted(virtual)),
+    Case("process external link", "process c.h5", (FORCE, "external link", "other.h5"), crafted(external_link)),
     Case("resume external link", "run quick_check --out c.h5 --resume", (FORCE, "external link"),
-         _crafted(_external_link)),
-    Case("process soft link", "process c.h5", (FORCE, "soft link"), _crafted(_soft_link)),
-    Case("process unknown filter", "process c.h5", (FORCE, "filter 32004"), _crafted(_unknown_filter)),
+         crafted(external_link)),
+    Case("process soft link", "process c.h5", (FORCE, "soft link"), crafted(soft_link)),
+    Case("process unknown filter", "process c.h5", (FORCE, "filter 32004"), crafted(unknown_filter)),
     Case("export scale as text", "export c.h5 --uff e.uff", (FORCE, "'scale'", "expected a number"),
-         _crafted(_attr("scale", "0.001"))),
+         crafted(attr("scale", "0.001"))),
     Case("export scale missing", "export c.h5 --uff e.uff", (FORCE, "without their 'scale'"),
-         _crafted(_attr("scale", None))),
+         crafted(attr("scale", None))),
     Case("export scale NaN", "export c.h5 --uff e.uff", (FORCE, "'scale'", "not a finite number"),
-         _crafted(_attr("scale", float("nan")))),
+         crafted(attr("scale", float("nan")))),
     Case("process scale per channel wrong", "process c.h5", (FORCE, "'scale' has 2 values"),
-         _crafted(_attr("scale", [1e-3, 2e-3]))),
+         crafted(attr("scale", [1e-3, 2e-3]))),
     Case("process log entries wrong type", "process c.h5", ("/log/entries", "not a run log table"),
-         _crafted(_log_entries_wrong)),
+         crafted(log_entries_wrong)),
     # NPZ inputs: limits are checked before anything is decompressed or allocated
     Case("identify given a campaign file", "identify any.h5", ("any.h5", "HDF5 campaign file", "labctl process any.h5"),
          lambda folder: h5py.File(folder / "any.h5", "w").close()),
     Case("npz header announcing 73 TiB", "identify huge.npz", ("huge.npz", "'force'", "announces shape"),
-         _npz_huge_header),
-    Case("npz CRC error", "identify crc.npz", ("crc.npz", "damaged"), _npz("crc.npz", _flip(0.5))),
+         npz_huge_header),
+    Case("npz CRC error", "identify crc.npz", ("crc.npz", "damaged"), npz("crc.npz", flip(0.5))),
     Case("npz bad deflate stream", "identify d.npz", ("d.npz", "damaged"),
-         _npz("d.npz", _flip(0.3), compressed=True)),
+         npz("d.npz", flip(0.3), compressed=True)),
     Case("npz zip bomb", "identify bomb.npz", ("bomb.npz", "'force'", "zip bomb"),
-         _npz("bomb.npz", compressed=True, force=np.zeros((1, 2_600_000)))),
+         npz("bomb.npz", compressed=True, force=np.zeros((1, 2_600_000)))),
     # scripted verdicts that could never apply are refused before the run (they were silently ignored)
     Case("operator review of a missing series", f"{RUN} --operator op.toml", ("op.toml", "series 3", "never apply"),
          _review(series=3)),
@@ -331,7 +210,7 @@ CASES = [
     Case("model hertz at 1e12 N", "model hertz --ball-diameter-mm 6 --load-n 1e12", ("hertz", "validity")),
     Case("model palmgren at 0 N", "model palmgren --roller-type 1 --load-n 0", ("palmgren", "load 0 N")),
     Case("uff announcing 10^10 points", "identify huge.uff", ("huge.uff", "announces 9999999999 points")
-         , _uff_huge),
+         , uff_huge),
     # world expressions: bounded parse and evaluation, clean errors
     Case("world 400-digit integer", f"{RUN} --world w.toml", ("w.toml", "too large"),
          _world("1" * 400 + " * F")),
