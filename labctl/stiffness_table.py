@@ -15,12 +15,16 @@ from pathlib import Path
 from typing import Any
 
 from labctl.data.csvfile import read_csv_records
+from labctl.data.schema import MAX_RA_UM
 from labctl.errors import InputError
 from labctl.physics.catalogue import Roller, rollers
 from labctl.physics.effects import ContactCase
 from labctl.physics.materials import BEARING_STEEL, Material, material, materials
 
 DEFAULT_ROLLER_RA_M = 0.03e-6
+MAX_SIZE_MM = 1000.0
+"""The largest diameter or length a table may give, mm: no roller of this rig is near it, and far past it the
+contact formulas overflow."""
 GEOMETRY_MATCH = 0.01
 
 REQUIRED = ("diameter_mm", "contact_length_mm", "rail_ra_um", "load_n", "stiffness_n_per_m")
@@ -157,9 +161,8 @@ def _poisson(v: Decimal) -> bool:
     return Decimal(-1) < v < Decimal("0.5")
 
 
-def _up_to(top: str, *, zero: bool = False) -> Callable[[Decimal], bool]:
-    """A check for values in (0, top], or [0, top] with ``zero``: past the top the value is no roller's, and the
-    contact formulas overflow on it."""
+def _up_to(top: float, *, zero: bool = False) -> Callable[[Decimal], bool]:
+    """A check for values in (0, top], or [0, top] with ``zero``."""
     return lambda v: (v >= 0 if zero else v > 0) and v <= Decimal(top)
 
 
@@ -183,19 +186,21 @@ def _number(text: str) -> Decimal:
 # column -> (field, decimal exponent from the column's unit to SI, parser, check, what is expected)
 _Spec = tuple[str, int, Callable[[str], Any], Callable[[Any], bool] | None, str]
 _SPECS: dict[str, _Spec] = {
-    "diameter_mm": ("diameter_m", -3, _number, _up_to("1000"), "a diameter in (0, 1000] mm"),
-    "contact_length_mm": ("contact_length_m", -3, _number, _up_to("1000"), "a contact length L_we in (0, 1000] mm"),
-    "rail_ra_um": ("rail_ra_m", -6, _number, _up_to("50", zero=True),
-                   "a rail roughness Ra in [0, 50] µm (50 µm: ISO 1302's coarsest grade, N12)"),
+    "diameter_mm": ("diameter_m", -3, _number, _up_to(MAX_SIZE_MM), f"a diameter in (0, {MAX_SIZE_MM:g}] mm"),
+    "contact_length_mm": ("contact_length_m", -3, _number, _up_to(MAX_SIZE_MM),
+                          f"a contact length L_we in (0, {MAX_SIZE_MM:g}] mm"),
+    "rail_ra_um": ("rail_ra_m", -6, _number, _up_to(MAX_RA_UM, zero=True),
+                   f"a rail roughness Ra in [0, {MAX_RA_UM:g}] µm (ISO 1302's coarsest grade, N12)"),
     "load_n": ("load_n", 0, _number, _positive, "a positive load per roller in N"),
     "stiffness_n_per_m": ("stiffness_n_per_m", 0, _number, _positive, "a positive stiffness in N/m"),
     "roller_type": ("roller_type", 0, _integer, None, "an integer roller type"),
-    "roller_length_mm": ("roller_length_m", -3, _number, _up_to("1000"), "a total roller length L_r in (0, 1000] mm"),
+    "roller_length_mm": ("roller_length_m", -3, _number, _up_to(MAX_SIZE_MM),
+                         f"a total roller length L_r in (0, {MAX_SIZE_MM:g}] mm"),
     "material": ("material", 0, str, None, "a material name"),
-    "youngs_modulus_gpa": ("youngs_modulus_pa", 9, _number, _up_to("1500"),
+    "youngs_modulus_gpa": ("youngs_modulus_pa", 9, _number, _up_to(1500.0),
                            "a Young's modulus in (0, 1500] GPa (diamond's is about 1100)"),
     "poisson_ratio": ("poisson_ratio", 0, _number, _poisson, "a Poisson ratio in (-1, 0.5)"),
-    "hardness_hrc": ("hardness_hrc", 0, _number, _up_to("100"), "a Rockwell C hardness in (0, 100]"),
+    "hardness_hrc": ("hardness_hrc", 0, _number, _up_to(100.0), "a Rockwell C hardness in (0, 100]"),
     "repetition": ("repetition", 0, _integer, None, "an integer repetition number"),
     "rail_material": ("rail_material", 0, str, None, "a rail material name"),
     **{c: (c, 0, _number, _non_negative, "a stiffness uncertainty ≥ 0 in N/m")

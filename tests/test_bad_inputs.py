@@ -253,6 +253,12 @@ CASES = [
          ("--out /proc/labctl/r", "cannot make the folder")),
     Case("export: a UFF in a folder that cannot be written", "export c.h5 --uff /proc/labctl/a.uff",
          ("/proc/labctl/a.uff", "cannot write here")),
+    Case("simulate impacts: a rail Ra of 1e9 µm", "simulate impacts --roller-type 1 --load-n 440 --rail-ra-um 1e9 "
+         "--out i.npz", ("--rail-ra-um", "(0, 50] µm")),
+    Case("import: a rail Ra of 1e9 µm", "import x.uff --manifest m.csv --out i.h5 --rail-ra-um 1e9",
+         ("--rail-ra-um", "[0, 50] µm"), _text("m.csv", "load_n,repetition\n440,1\n")),
+    Case("demo: an output folder that cannot be made", "demo --out /proc/labctl/d",
+         ("--out /proc/labctl/d", "cannot make the folder")),
     Case("programme: an output folder that cannot be made", "programme --out /proc/labctl/p quick_check",
          ("--out /proc/labctl/p", "cannot make the folder")),
     Case("discrepancy: a rail Ra of 1e300 µm", "discrepancy t.csv",

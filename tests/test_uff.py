@@ -230,6 +230,8 @@ def test_manifest_and_option_errors_name_the_row_and_column(foreign, tmp_path):
         ("file,load_n,repetition\nother.uff,440,1\n", "'other.uff' is none of the files"),
         ("load_n,repetition,colour\n440,1,red\n", "unknown column(s) colour"),
         ("load_n,repetition,roller_type\n440,1,99\n", "99"),
+        ("load_n,repetition,rail_ra_um\n440,1,1e300\n", "column rail_ra_um: '1e300' is not a rail Ra in [0, 50]"),
+        ("load_n,repetition\n1,440,1\n", "row 2: 3 fields, the header has 2"),
     ]
     for text, fragment in cases:
         manifest.write_text(text, encoding="utf-8")

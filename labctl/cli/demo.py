@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from labctl.errors import InputError
     from labctl.protocol import load_protocol
     from labctl.stiffness_table import write_stiffness_table
+    from labctl.storage.outputs import output_folder
     from labctl.storage.table import campaign_stiffness_points
 
     out = Path(args.out)
@@ -56,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     if path.exists() and not args.force:
         raise InputError(f"{path}: a campaign is already there; use --force to overwrite it or choose another --out")
     protocol = load_protocol(PROTOCOL)
-    out.mkdir(parents=True, exist_ok=True)
+    output_folder("--out", out)
     path.unlink(missing_ok=True)
     subs = [] if args.quiet or args.json else [ProgressPrinter(sys.stderr)]
     outcome = run_campaign(protocol, out=path, backend="sim", seed=args.seed, world=args.world, subscribers=subs)

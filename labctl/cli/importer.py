@@ -31,11 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from labctl.data.schema import MAX_RA_UM
     from labctl.uff.importer import ImportOptions, import_uff
     from labctl.uff.mapping import parse_node_map
 
-    if args.rail_ra_um is not None and not args.rail_ra_um >= 0:
-        raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a roughness ≥ 0 in µm")
+    if args.rail_ra_um is not None and not 0 <= args.rail_ra_um <= MAX_RA_UM:
+        raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a roughness in [0, {MAX_RA_UM:g}] µm")
     if args.sample_rate_hz is not None and not args.sample_rate_hz > 0:
         raise InputError(f"--sample-rate-hz {args.sample_rate_hz!r}: expected a positive rate in Hz")
     opts = ImportOptions(roller_type=args.roller_type,

@@ -52,10 +52,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_impacts(args: argparse.Namespace) -> int:
+    from labctl.data.schema import MAX_RA_UM
+
     if args.impacts < 1:
         raise InputError(f"--impacts {args.impacts}: expected at least 1")
-    if not args.rail_ra_um > 0:
-        raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a positive roughness in µm")
+    if not 0 < args.rail_ra_um <= MAX_RA_UM:
+        raise InputError(f"--rail-ra-um {args.rail_ra_um!r}: expected a roughness in (0, {MAX_RA_UM:g}] µm")
     out = None if args.out is None else Path(args.out)
     if out is not None and out.suffix.lower() != ".npz":
         raise InputError(f"--out {out}: an impacts file is an NPZ; expected a name ending in .npz "

@@ -34,6 +34,8 @@ class _Required:
 
 
 REQUIRED: Any = _Required()  # a spec's default meaning "the key must be given"
+MAX_RA_UM = 50.0
+"""The largest roughness Ra any file may give, µm: ISO 1302's coarsest grade (N12); no rolling surface is near it."""
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ from typing import Any
 
 from labctl.data.conditions import LUBRICATIONS, SpecimenConditions
 from labctl.data.schema import (
+    MAX_RA_UM,
     Anything,
     Integer,
     Number,
@@ -92,7 +93,7 @@ def _specimen(doc: dict[str, Any], where: Where, loading: LoadingSpec) -> Specim
         "ball_diameter_mm": Number(gt=0, le=100, unit="mm", default=None),
         "ball_material": Text(known, default="1.3505"),
         "rail_material": Text(known, default="1.3505"),
-        "rail_ra_um": Number(ge=0, le=50, unit="um", default=0.2),
+        "rail_ra_um": Number(ge=0, le=MAX_RA_UM, unit="um", default=0.2),
         "max_load_n": Number(gt=0, default=None),
         "knob_step_deg": Number(gt=0, le=3600, default=loading.knob_step_deg),
     }, where)
@@ -127,8 +128,8 @@ CONDITIONS: dict[str, Spec] = {
     "lubrication": Text(LUBRICATIONS, default=None),
     "lubricant": Text(default=None),
     "orientation_deg": Number(ge=0, le=90, default=None),
-    "roller_ra_um": Number(ge=0, le=50, unit="um", default=None),
-    "rail_ra_measured_um": Number(ge=0, le=50, unit="um", default=None),
+    "roller_ra_um": Number(ge=0, le=MAX_RA_UM, unit="um", default=None),
+    "rail_ra_measured_um": Number(ge=0, le=MAX_RA_UM, unit="um", default=None),
     "roundness_um": Number(ge=0, le=1000, unit="um", default=None),
     "cylindricity_um": Number(ge=0, le=1000, unit="um", default=None),
 }

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from labctl.data.csvfile import read_csv_records
+from labctl.data.schema import MAX_RA_UM
 from labctl.errors import InputError
 
 MANIFEST_COLUMNS = ("file", "load_cases", "load_n", "repetition", "step", "knob_angle_deg", "roller_type",
@@ -62,13 +63,13 @@ def format_load_cases(ids: list[int]) -> str:
 
 
 def _cell(path: Path, line: int, column: str, text: str, kind: type, expected: str, *, low: float = 0.0,
-          strict: bool = True) -> float | int:
+          strict: bool = True, high: float = math.inf) -> float | int:
     where = f"{path}: row {line}, column {column}"
     try:
         value = kind(float(text)) if kind is float else int(text)
     except ValueError:
         raise InputError(f"{where}: {text!r} is not {expected}") from None
-    if not math.isfinite(value) or (value <= low if strict else value < low):
+    if not math.isfinite(value) or (value <= low if strict else value < low) or value > high:
         raise InputError(f"{where}: {text!r} is not {expected}")
     return value
 
@@ -98,8 +99,9 @@ def _row(path: Path, line: int, rec: dict[str, str]) -> ManifestRow:
                         if get("knob_angle_deg") and get("knob_angle_deg").lower() != "nan" else math.nan),
         roller_type=(int(_cell(path, line, "roller_type", get("roller_type"), int, "a roller type number"))
                      if get("roller_type") else None),
-        rail_ra_m=(float(_cell(path, line, "rail_ra_um", get("rail_ra_um"), float, "a rail Ra ≥ 0 in µm",
-                               strict=False)) * 1e-6 if get("rail_ra_um") else None),
+        rail_ra_m=(float(_cell(path, line, "rail_ra_um", get("rail_ra_um"), float,
+                               f"a rail Ra in [0, {MAX_RA_UM:g}] µm", strict=False, high=MAX_RA_UM)) * 1e-6
+                   if get("rail_ra_um") else None),
     )
 
 
